@@ -1,0 +1,54 @@
+# skynav: `make test` and `make demo` are the two commands a newcomer needs;
+# both run `make setup` first, which does nothing when nothing changed.
+SHELL := /bin/bash
+PYTHON ?= python3.11
+VENV := $(CURDIR)/.venv
+BIN := $(VENV)/bin
+STAMPS := $(VENV)/.skynav
+PIP := $(BIN)/python -m pip --disable-pip-version-check
+PY_PACKAGES := skynav_bringup skynav_skyline skynav_sh skynav_localize \
+               skynav_compass skynav_warping skynav_sim
+PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/package.xml) \
+                    $(shell find $(addsuffix /config,$(PY_PACKAGES)) \
+                            $(addsuffix /launch,$(PY_PACKAGES)) -type f 2>/dev/null)
+PY_PACKAGE_FILES += tools/link_data_files.py
+MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) skynav_msgs/CMakeLists.txt \
+             skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
+
+.PHONY: setup test lock clean
+
+## setup: virtualenv at .venv with ROS 2 Jazzy, skynav_msgs and the skynav packages
+setup: $(STAMPS)/packages
+
+$(BIN)/python:
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
+	  echo "make setup: needs CPython 3.11 as '$(PYTHON)' (the ROS 2 Jazzy wheels on PyPI are" \
+	       "built for it); run e.g. 'make setup PYTHON=/path/to/python3.11'" >&2; exit 1; }
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMPS)/deps: requirements.txt constraints.txt | $(BIN)/python
+	$(PIP) install --quiet -c constraints.txt -r requirements.txt
+	@mkdir -p $(STAMPS) && touch $@
+
+$(STAMPS)/msgs: $(STAMPS)/deps $(MSG_FILES)
+	tools/build_msgs.sh $(VENV) build/skynav_msgs
+	@touch $@
+
+$(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
+	$(PIP) install --quiet --no-deps --no-build-isolation $(addprefix -e ./,$(PY_PACKAGES))
+	$(BIN)/python tools/link_data_files.py $(VENV) $(PY_PACKAGES)
+	@touch $@
+
+## test: every test, unit and replay, with pytest's summary
+test: setup
+	$(BIN)/python -m pytest
+
+## lock: rewrite constraints.txt from requirements.txt in a scratch virtualenv
+lock:
+	rm -rf build/lock-venv && $(PYTHON) -m venv build/lock-venv
+	build/lock-venv/bin/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	build/lock-venv/bin/python tools/freeze.py > constraints.txt
+	rm -rf build/lock-venv
+
+clean:
+	rm -rf $(VENV) build

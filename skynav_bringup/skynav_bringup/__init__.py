@@ -1,0 +1,1 @@
+"""Launch, parameters and the `skynav` command."""

@@ -1,0 +1,1 @@
+"""Rotation-invariant place recognition on a taught route, with SQLite maps."""

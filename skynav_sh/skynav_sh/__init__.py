@@ -1,0 +1,1 @@
+"""Real spherical harmonics of fish-eye views: transform, rotation, spectra, translation."""

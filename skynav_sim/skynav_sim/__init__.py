@@ -1,0 +1,1 @@
+"""Synthetic UV/green fish-eye recordings with ground truth."""
