@@ -1,0 +1,107 @@
+"""Small rclpy helpers shared by the `skynav` tools and the nodes.
+
+Import this module only after :func:`skynav_bringup.environment.apply_ros_environment`
+has run (the `skynav` command and :func:`run_node` take care of it).
+"""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from types import FrameType
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from .environment import apply_ros_environment
+from .typestore import UnknownMessageType, split_type
+
+
+def message_class(msgtype: str) -> type:
+    """Return the rclpy message class of 'pkg/msg/Name'; raise UnknownMessageType when not installed."""
+    package, kind, name = split_type(msgtype)
+    try:
+        module = importlib.import_module(f'{package}.{kind}')
+        return getattr(module, name)
+    except (ImportError, AttributeError):
+        raise UnknownMessageType(
+            f'message type {package}/{kind}/{name} is not installed (no Python module {package}.{kind})'
+        ) from None
+
+
+class StopRequest:
+    """Turn SIGINT and SIGTERM into a flag while active, so a loop can finish its work and exit cleanly."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.count = 0
+        self._previous: dict[int, object] = {}
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        self.requested = True
+        self.count += 1
+
+    def __enter__(self) -> StopRequest:
+        self._previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+
+@contextmanager
+def tool_node(name: str, args: Sequence[str] | None = None) -> Iterator[tuple[Node, SingleThreadedExecutor]]:
+    """Yield a node and its executor in a context of their own; signals are left to the caller.
+
+    The node has no /rosout logger and no parameter services, so a recorder of
+    every topic does not record its own chatter.
+    """
+    apply_ros_environment()
+    context = Context()
+    rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeout: float) -> bool:
+    """Spin until `done()` is true or `timeout` seconds pass; return done()."""
+    deadline = time.monotonic() + timeout
+    while not done():
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return done()
+        executor.spin_once(timeout_sec=min(0.05, remaining))
+    return True
+
+
+def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
+    """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
+    apply_ros_environment()
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = node_factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,87 @@
+"""Message definitions for (de)serialising CDR without rclpy: rosbags' Jazzy store plus installed interfaces.
+
+The store starts with every standard Jazzy type that rosbags knows. Any other
+type (skynav_msgs, a user's own package) is loaded on first use from the
+``.msg`` file its package installed (``share/<pkg>/msg/<Name>.msg`` under an
+ament prefix) or from the definition a bag carries.
+"""
+
+from __future__ import annotations
+
+import os
+from functools import cache
+from typing import TYPE_CHECKING
+
+from .environment import ament_prefixes
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
+
+
+class UnknownMessageType(LookupError):
+    """A message type whose definition is neither known nor installed."""
+
+
+@cache
+def typestore() -> Typestore:
+    """Return the process-wide type store (ROS 2 Jazzy standard types, more added on demand)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def split_type(msgtype: str) -> tuple[str, str, str]:
+    """Split 'pkg/msg/Name' (or 'pkg/Name') into (package, 'msg', name); raise ValueError when malformed."""
+    parts = msgtype.split('/')
+    if len(parts) == 2:
+        parts = [parts[0], 'msg', parts[1]]
+    if len(parts) != 3 or not all(parts) or parts[1] != 'msg':
+        raise ValueError(f'not a message type name: {msgtype!r} (expected package/msg/Name)')
+    return parts[0], parts[1], parts[2]
+
+
+def normalise_type(msgtype: str) -> str:
+    """Return a message type name in its full form 'pkg/msg/Name'."""
+    return '/'.join(split_type(msgtype))
+
+
+def find_msg_file(msgtype: str) -> str | None:
+    """Return the text of the installed .msg file of `msgtype`, or None when no ament prefix has it."""
+    package, kind, name = split_type(msgtype)
+    for prefix in ament_prefixes(os.environ):
+        path = prefix / 'share' / package / kind / f'{name}.msg'
+        if path.is_file():
+            return path.read_text()
+    return None
+
+
+def ensure_type(msgtype: str, msgdef: str = '', store: Typestore | None = None) -> str:
+    """Make `msgtype` and everything it references known to the store; return its full name.
+
+    `msgdef` is an optional ros2msg definition (as bags carry them, dependencies
+    included); without it the installed .msg files are read.
+    """
+    from rosbags.typesys import get_types_from_msg
+    from rosbags.typesys.base import Nodetype
+
+    store = typestore() if store is None else store
+    msgtype = normalise_type(msgtype)
+    pending = [msgtype]
+    while pending:
+        name = pending.pop()
+        if name in store.fielddefs:
+            continue
+        text = msgdef if (msgdef and name == msgtype) else find_msg_file(name)
+        if text is None:
+            raise UnknownMessageType(
+                f'no definition of {name}: its package is not installed under any ament prefix'
+            )
+        types = get_types_from_msg(text, name)
+        store.register(types)
+        for _, fields in types.values():
+            for _, (kind, detail) in fields:
+                while kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+                    kind, detail = detail[0]
+                if kind == Nodetype.NAME and detail not in store.fielddefs:
+                    pending.append(detail)
+    return msgtype
