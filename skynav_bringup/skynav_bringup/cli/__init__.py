@@ -1,0 +1,116 @@
+"""The `skynav` command.
+
+Every subcommand is a module found through the ``skynav.commands`` entry
+points, so each package adds its own (``skynav sim``, ``skynav eval compass``,
+...). The entry point's name is the command path with dots (``eval.compass``);
+its module defines
+
+- ``HELP``: one line for the command list,
+- ``configure(parser)``: adds the arguments,
+- ``run(args) -> int``: does the work and returns the exit code.
+
+Modules import only argparse-level things at import time; heavy imports live
+inside ``run``. Exit codes: 0 success, 1 the work failed (a missing or corrupt
+file, an unknown topic or type), 2 a malformed command line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from importlib.metadata import entry_points
+
+from ..environment import apply_ros_environment
+
+COMMAND_GROUP = 'skynav.commands'
+
+
+class CliError(Exception):
+    """A failure to report as one line, with the exit code to return."""
+
+    def __init__(self, message: str, exit_code: int = 1) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+def _subparsers(parser: argparse.ArgumentParser, path: str) -> argparse._SubParsersAction:
+    """Return the subcommand table of `parser`, creating it on first use."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action
+    return parser.add_subparsers(title='commands', metavar='COMMAND', dest=f'command_{path or "root"}')
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the parser of `skynav` with every installed subcommand."""
+    parser = argparse.ArgumentParser(
+        prog='skynav',
+        description='Insect-inspired visual navigation from an upward-looking UV/green fish-eye camera.',
+    )
+    parser.set_defaults(parser=parser)
+    groups: dict[str, argparse.ArgumentParser] = {'': parser}
+
+    def group(path: str, help: str | None = None, description: str | None = None) -> argparse.ArgumentParser:
+        """Return the parser of a command group, creating it (and its parents) on first use."""
+        if path not in groups:
+            parent, _, name = path.rpartition('.')
+            sub = _subparsers(group(parent), parent).add_parser(
+                name, help=help or f'{name} commands', description=description
+            )
+            sub.set_defaults(parser=sub)
+            groups[path] = sub
+        return groups[path]
+
+    # Sorted, a group's own module ('eval') comes before its commands ('eval.compass').
+    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name):
+        try:
+            module = ep.load()
+        except Exception as exc:  # a broken plug-in must not take the other commands down
+            print(f'skynav: warning: command {ep.name.replace(".", " ")} unavailable: {exc}', file=sys.stderr)
+            continue
+        if not hasattr(module, 'run'):  # a module that only describes a command group
+            group(ep.name, help=module.HELP, description=module.__doc__)
+            continue
+        parent, _, name = ep.name.rpartition('.')
+        sub = _subparsers(group(parent), parent).add_parser(
+            name,
+            help=module.HELP,
+            description=module.__doc__,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        module.configure(sub)
+        sub.set_defaults(run=module.run, parser=sub, command=ep.name.replace('.', ' '))
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run `skynav` with `argv` (default: the process arguments) and return its exit code."""
+    apply_ros_environment()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, 'run'):
+        args.parser.print_help(sys.stderr)
+        return 2
+    from ..bag import BagError
+    from ..typestore import UnknownMessageType
+
+    try:
+        return args.run(args) or 0
+    except CliError as exc:
+        print(f'skynav {args.command}: error: {exc}', file=sys.stderr)
+        return exc.exit_code
+    except (BagError, UnknownMessageType) as exc:
+        print(f'skynav {args.command}: error: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:  # `skynav echo ... | head`: the reader left, which is fine
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+
+
+def entry() -> None:
+    """Console-script entry point."""
+    sys.exit(main())

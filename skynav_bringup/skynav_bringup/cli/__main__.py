@@ -1,0 +1,5 @@
+"""`python -m skynav_bringup.cli` is `skynav`."""
+
+from . import entry
+
+entry()

@@ -1,0 +1,75 @@
+"""Start the skynav node graph on live topics, one process per node; Ctrl-C stops every node cleanly.
+
+The nodes are those installed in this environment (see `skynav_bringup.nodes`).
+Parameters come from the YAML file given with --params, in the ROS 2 format
+(`node_name: {ros__parameters: {...}}`), by default the one shipped in
+skynav_bringup/config. On a full ROS 2 install,
+`ros2 launch skynav_bringup skynav.launch.py` starts the same graph.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = 'start the whole node graph on live topics'
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav launch`."""
+    parser.add_argument('--params', metavar='FILE', type=Path, help='ROS 2 parameter file (YAML)')
+    parser.add_argument('--nodes', nargs='+', metavar='NAME', help='start only these nodes')
+
+
+def default_params_file() -> Path | None:
+    """Return the parameter file shipped with skynav_bringup, if installed."""
+    from ..environment import share_directory
+
+    share = share_directory('skynav_bringup')
+    path = None if share is None else share / 'config' / 'skynav.yaml'
+    return path if path is not None and path.is_file() else None
+
+
+def check_params_file(path: Path) -> None:
+    """Raise CliError unless `path` is a readable ROS 2 parameter file."""
+    import yaml
+
+    from . import CliError
+
+    try:
+        content = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise CliError(f'cannot read parameter file {path}: {exc.strerror}') from None
+    except yaml.YAMLError as exc:
+        raise CliError(f'parameter file {path} is not valid YAML: {str(exc).splitlines()[0]}') from None
+    if content is not None and not (
+        isinstance(content, dict)
+        and all(isinstance(v, dict) and 'ros__parameters' in v for v in content.values())
+    ):
+        raise CliError(f'parameter file {path} is not in the ROS 2 format (node_name: {{ros__parameters: ...}})')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Launch and wait; return the exit code."""
+    from ..launcher import Launcher
+    from ..nodes import installed_nodes
+    from ..ros import StopRequest
+    from . import CliError
+
+    params = args.params or default_params_file()
+    if params is not None:
+        check_params_file(params)
+    specs = installed_nodes()
+    if args.nodes:
+        if unknown := sorted(set(args.nodes) - {s.name for s in specs}):
+            raise CliError(f'no installed node {", ".join(unknown)} '
+                           f'(installed: {", ".join(s.name for s in specs) or "none"})')
+        specs = [s for s in specs if s.name in args.nodes]
+    if not specs:
+        print('skynav launch: no skynav nodes are installed yet; nothing to start.', file=sys.stderr)
+        return 0
+    launcher = Launcher(specs, params)
+    with StopRequest() as stop:
+        launcher.start()
+        return launcher.wait(lambda: stop.requested)

@@ -1,0 +1,85 @@
+"""Publish a recording's messages on their topics with their recorded timing.
+
+The stored CDR bytes are published unchanged. Publishers offer RELIABLE (and
+TRANSIENT_LOCAL where the recording's publishers were latched), which every
+subscriber can match. BAG is a rosbag2 directory or a bare .mcap file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+HELP = 'publish a bag on its topics with the recorded timing'
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav replay`."""
+    parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file')
+    parser.add_argument(
+        '--rate', type=float, default=1.0, metavar='R',
+        help='speed factor of the recorded timing; 0 publishes as fast as possible (default 1)',
+    )
+    parser.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='replay only these topics')
+    parser.add_argument(
+        '--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS',
+        help='before publishing, wait up to this long until every replayed topic has a subscriber',
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay the bag; return the exit code."""
+    from ..bag import open_bag
+    from ..ros import StopRequest, tool_node
+    from . import CliError
+
+    if args.rate < 0:
+        raise CliError('--rate must be 0 (as fast as possible) or positive', exit_code=2)
+    with open_bag(args.bag) as bag:
+        topics = args.topics or list(bag.topics)
+        if missing := [t for t in topics if t not in bag.topics]:
+            raise CliError(f'{args.bag} has no topic {", ".join(missing)} (it has {", ".join(bag.topics)})')
+        from ..player import Player
+
+        with StopRequest() as stop, tool_node('skynav_replay') as (node, executor):
+            player = Player(node, bag, topics)
+            if args.wait_for_subscribers > 0:
+                lonely = player.wait_for_subscribers(executor, args.wait_for_subscribers)
+                if lonely:
+                    print(f'skynav replay: no subscriber yet on {", ".join(lonely)}; publishing anyway',
+                          file=sys.stderr)
+            stats = _play_with_progress(player, args, stop)
+    print(
+        f'skynav replay: published {stats.total} messages on {len(stats.published)} topics '
+        f'in {stats.wall_time:.2f} s ({stats.total / max(stats.wall_time, 1e-9):.1f} msg/s)'
+        + (f', {stats.loops} passes' if args.loop else '')
+        + (' (interrupted)' if stop.requested else ''),
+        file=sys.stderr,
+    )
+    if stats.unacknowledged:
+        print(f'skynav replay: warning: not every subscriber acknowledged {", ".join(stats.unacknowledged)}',
+              file=sys.stderr)
+    return 0
+
+
+def _play_with_progress(player, args: argparse.Namespace, stop):
+    """Play with a progress bar on an interactive terminal."""
+    from tqdm import tqdm
+
+    bag = player.bag
+    duration = (bag.end_time - bag.start_time) / 1e9
+    with tqdm(
+        total=None if args.loop else player.message_count,
+        unit='msg',
+        desc='replay',
+        file=sys.stderr,
+        disable=not sys.stderr.isatty(),
+        dynamic_ncols=True,
+    ) as bar:
+
+        def advance(message) -> None:
+            bar.update(1)
+            bar.set_postfix_str(f'{(message.log_time - bag.start_time) / 1e9:6.2f}/{duration:.2f} s', refresh=False)
+
+        return player.play(args.rate, args.loop, stop, on_message=advance)

@@ -1,0 +1,102 @@
+"""Publish a recording's messages on their topics with the recorded timing, as the stored CDR bytes."""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+
+from .bag import BagReader, RawMessage
+from .qos import replay_qos
+from .ros import StopRequest, message_class, spin_until
+
+# History kept per replayed topic: the burst a slow subscriber may fall behind before losing messages.
+REPLAY_DEPTH = 100
+# Longest wait at the end for subscribers to acknowledge what was published (s).
+ACK_TIMEOUT = 5.0
+# Longest single sleep between checks for Ctrl-C while waiting for a message's time (s).
+SLEEP_SLICE = 0.05
+
+
+@dataclass
+class ReplayStats:
+    """What a replay published."""
+
+    published: Counter = field(default_factory=Counter)
+    loops: int = 0
+    wall_time: float = 0.0
+    unacknowledged: list[str] = field(default_factory=list)
+
+    @property
+    def total(self) -> int:
+        """Return the number of messages published on all topics."""
+        return sum(self.published.values())
+
+
+class Player:
+    """Publishers for the chosen topics of a bag, and the loop that feeds them."""
+
+    def __init__(self, node: Node, bag: BagReader, topics: Sequence[str] | None = None) -> None:
+        self.node = node
+        self.bag = bag
+        self.topics = list(bag.topics) if topics is None else list(topics)
+        self.publishers: dict[str, Publisher] = {}
+        for name in self.topics:
+            topic = bag.topics[name]
+            self.publishers[name] = node.create_publisher(
+                message_class(topic.msgtype), name, replay_qos(topic.offered_qos, REPLAY_DEPTH)
+            )
+
+    @property
+    def message_count(self) -> int:
+        """Return the number of messages one pass publishes."""
+        return sum(self.bag.topics[name].count for name in self.topics)
+
+    def wait_for_subscribers(self, executor: SingleThreadedExecutor, timeout: float) -> list[str]:
+        """Wait until every topic has a subscriber; return the topics still without one."""
+
+        def unmatched() -> list[str]:
+            return [n for n, p in self.publishers.items() if p.get_subscription_count() == 0]
+
+        spin_until(executor, lambda: not unmatched(), timeout)
+        return unmatched()
+
+    def play(
+        self,
+        rate: float,
+        loop: bool,
+        stop: StopRequest,
+        on_message: Callable[[RawMessage], None] | None = None,
+    ) -> ReplayStats:
+        """Publish every message at its recorded time scaled by 1/`rate` (0: as fast as possible)."""
+        stats = ReplayStats()
+        started = time.monotonic()
+        while not stop.requested:
+            pass_start = time.monotonic()
+            for message in self.bag.messages(self.topics):
+                if rate > 0:
+                    due = pass_start + (message.log_time - self.bag.start_time) / 1e9 / rate
+                    while not stop.requested and (wait := due - time.monotonic()) > 0:
+                        time.sleep(min(wait, SLEEP_SLICE))
+                if stop.requested:
+                    break
+                self.publishers[message.topic].publish(message.data)
+                stats.published[message.topic] += 1
+                if on_message is not None:
+                    on_message(message)
+            stats.loops += 1
+            if not loop:
+                break
+        stats.unacknowledged = [
+            name
+            for name, publisher in self.publishers.items()
+            if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+        ]
+        stats.wall_time = time.monotonic() - started
+        return stats

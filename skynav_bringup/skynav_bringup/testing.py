@@ -1,0 +1,148 @@
+"""Helpers for tests that run ROS: a ROS domain of their own, and the `skynav` command as a subprocess."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import random
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import IO
+
+# Fast DDS maps domain ids up to 232 to UDP ports; tests take theirs from the upper part.
+TEST_DOMAINS = range(100, 232)
+
+
+def claim_domain_id() -> tuple[int, IO]:
+    """Return a ROS domain id no other test run on this machine holds, and the lock that holds it.
+
+    Keep the returned file open for as long as the id is in use.
+    """
+    candidates = list(TEST_DOMAINS)
+    random.shuffle(candidates)
+    for domain in candidates:
+        lock = open(Path(tempfile.gettempdir()) / f'skynav-ros-domain-{domain}.lock', 'w')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            continue
+        return domain, lock
+    raise RuntimeError(f'every ROS domain id in {TEST_DOMAINS} is held by another test run')
+
+
+def skynav_command(*args: str) -> list[str]:
+    """Return the command line that runs `skynav ARGS` with this interpreter."""
+    return [sys.executable, '-m', 'skynav_bringup.cli', *args]
+
+
+def run_skynav(*args: str, timeout: float = 120, cwd: str | os.PathLike | None = None) -> subprocess.CompletedProcess:
+    """Run `skynav ARGS` to the end and return the finished process with its text output."""
+    return subprocess.run(skynav_command(*args), capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def start_skynav(*args: str, cwd: str | os.PathLike | None = None, env: dict | None = None) -> subprocess.Popen:
+    """Start `skynav ARGS` in the background with its output captured as text."""
+    return subprocess.Popen(
+        skynav_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd, env=env
+    )
+
+
+def one_line_error(stderr: str) -> bool:
+    """Return whether `stderr` is exactly one line of error and no traceback."""
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    return len(lines) == 1 and 'Traceback' not in stderr and 'error' in lines[0]
+
+
+def wait_text(process: subprocess.Popen, text: str, stream: str = 'stderr') -> list[str]:
+    """Read lines of a running process's output until one contains `text`; return the lines read."""
+    lines = []
+    for line in getattr(process, stream):
+        lines.append(line)
+        if text in line:
+            return lines
+    raise AssertionError(f'{text!r} never appeared; the process wrote: {"".join(lines)}')
+
+
+
+def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[tuple[str, str, int, object]]:
+    """Return (topic, type, log time ns, rosbags message) of every kind a recording holds, at 10 Hz.
+
+    Images (mono16 UV and green), camera info, a ground-truth pose and one
+    message of each skynav_msgs type per frame, with values that differ per frame.
+    """
+    import numpy as np
+
+    from .typestore import ensure_type, typestore
+
+    store = typestore()
+    for name in ('ShCoefficients', 'PlaceMatch', 'CompassEstimate', 'HomeVector'):
+        ensure_type(f'skynav_msgs/msg/{name}')
+    T = store.types
+    rng = np.random.default_rng(7)
+    start = 1_763_780_400 * 10**9
+    out = []
+    for i in range(frames):
+        t = start + i * 100_000_000
+        stamp = T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9)
+        header = T['std_msgs/msg/Header'](stamp, 'camera_link')
+        quaternion = T['geometry_msgs/msg/Quaternion'](*(lambda q: q / np.linalg.norm(q))(rng.normal(size=4)))
+        for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
+            pixels = rng.integers(0, 65535, (height, width), dtype=np.uint16)
+            out.append((topic, 'sensor_msgs/msg/Image', t, T['sensor_msgs/msg/Image'](
+                header, height, width, 'mono16', 0, 2 * width, pixels.view(np.uint8).ravel())))
+        roi = T['sensor_msgs/msg/RegionOfInterest'](0, 0, 0, 0, False)
+        k = np.array([20.0, 0, width / 2 - 0.5, 0, 20.0, height / 2 - 0.5, 0, 0, 1])
+        out.append(('/camera/uv/camera_info', 'sensor_msgs/msg/CameraInfo', t, T['sensor_msgs/msg/CameraInfo'](
+            header, height, width, 'equidistant', np.array([0.01, -0.002, 0.0003, -0.00004]), k,
+            np.eye(3).ravel(), np.concatenate([k.reshape(3, 3), np.zeros((3, 1))], axis=1).ravel(), 1, 1, roi)))
+        pose = T['geometry_msgs/msg/Pose'](T['geometry_msgs/msg/Point'](*rng.normal(size=3)), quaternion)
+        map_header = T['std_msgs/msg/Header'](stamp, 'map')
+        out.append(('/ground_truth/pose', 'geometry_msgs/msg/PoseStamped', t,
+                    T['geometry_msgs/msg/PoseStamped'](map_header, pose)))
+        out.append(('/skyline/sh', 'skynav_msgs/msg/ShCoefficients', t, T['skynav_msgs/msg/ShCoefficients'](
+            header, 4, rng.normal(size=25), 'zero', np.float32(3.4906585))))
+        out.append(('/localization/match', 'skynav_msgs/msg/PlaceMatch', t, T['skynav_msgs/msg/PlaceMatch'](
+            header, 'garden', i - 1, T['builtin_interfaces/msg/Time'](i, 500), float('inf') if i == 0 else 0.5 * i,
+            i % 2 == 1, np.array([i, i + 1, i + 2], dtype=np.int32), np.array([0.5, 0.75, 2.0]) * i)))
+        out.append(('/compass/orientation', 'skynav_msgs/msg/CompassEstimate', t,
+                    T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i)))
+        direction = T['geometry_msgs/msg/Vector3'](*(lambda v: v / np.linalg.norm(v))(rng.normal(size=3)))
+        out.append(('/homing/home_vector', 'skynav_msgs/msg/HomeVector', t,
+                    T['skynav_msgs/msg/HomeVector'](header, i, direction, quaternion, 0.02 * i)))
+    return out
+
+
+def write_sample_bag(path: str | os.PathLike, frames: int = 5, width: int = 64, height: int = 48) -> list:
+    """Write `sample_messages` into a bag at `path`; return them."""
+    from .bag import BagWriter
+    from .typestore import typestore
+
+    messages = sample_messages(frames, width, height)
+    with BagWriter(path) as writer:
+        for topic, msgtype, t, message in messages:
+            writer.add_topic(topic, msgtype)
+            writer.write(topic, t, typestore().serialize_cdr(message, msgtype))
+    return messages
+
+
+def messages_equal(a: object, b: object) -> bool:
+    """Return whether two rosbags messages hold the same values, field by field (NaN equals NaN)."""
+    import dataclasses
+
+    import numpy as np
+
+    if dataclasses.is_dataclass(a):
+        return type(a).__name__ == type(b).__name__ and all(
+            messages_equal(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a)
+        )
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and bool(np.array_equal(a, b, equal_nan=a.dtype.kind == 'f'))
+    if isinstance(a, list):
+        return isinstance(b, list) and len(a) == len(b) and all(messages_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b):
+        return True
+    return a == b

@@ -1,0 +1,69 @@
+"""The `skynav` command line: help everywhere, exit codes users expect, no tracebacks for bad input."""
+
+import pytest
+
+from skynav_bringup.cli import build_parser
+from skynav_bringup.testing import one_line_error, run_skynav, write_sample_bag
+
+
+def _commands(parser, path=()):
+    """Yield the path of every (sub)command of a parser."""
+    for action in parser._actions:
+        if action.__class__.__name__ == '_SubParsersAction':
+            for name, sub in action.choices.items():
+                yield (*path, name)
+                yield from _commands(sub, (*path, name))
+
+
+def test_every_command_has_help():
+    commands = list(_commands(build_parser()))
+    assert {('replay',), ('record',), ('echo',), ('info',), ('launch',)} <= set(commands)
+    for command in commands:
+        result = run_skynav(*command, '--help')
+        assert result.returncode == 0, command
+        assert 'usage: skynav' in result.stdout
+
+
+def test_usage_errors_exit_2():
+    assert run_skynav().returncode == 2
+    assert run_skynav('no-such-command').returncode == 2
+    assert run_skynav('replay').returncode == 2
+    result = run_skynav('replay', 'x.mcap', '--rate', '-1')
+    assert result.returncode == 2 and one_line_error(result.stderr)
+    result = run_skynav('record', 'out.mcap')
+    assert result.returncode == 2 and one_line_error(result.stderr)
+
+
+def test_info_describes_a_bag(tmp_path):
+    write_sample_bag(tmp_path / 'b.mcap', frames=3)
+    result = run_skynav('info', str(tmp_path / 'b.mcap'))
+    assert result.returncode == 0, result.stderr
+    assert 'Messages:          24' in result.stdout
+    assert 'Duration:          0.200000000s' in result.stdout
+    for line in ('Topic: /skyline/sh', 'Type: skynav_msgs/msg/ShCoefficients', 'Count: 3'):
+        assert line in result.stdout
+
+
+@pytest.mark.parametrize(
+    'args',
+    [
+        ('info', 'missing.mcap'),
+        ('replay', 'missing.mcap'),
+        ('echo', '/x', '--type', 'no_pkg/msg/Nothing'),
+        ('launch', '--params', 'missing.yaml'),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_1(tmp_path, args):
+    result = run_skynav(*args, cwd=tmp_path)
+    assert result.returncode == 1
+    assert one_line_error(result.stderr), result.stderr
+
+
+def test_params_file_must_be_ros_yaml(tmp_path):
+    bad = tmp_path / 'p.yaml'
+    bad.write_text('skyline: {threshold: 1}\n')
+    result = run_skynav('launch', '--params', str(bad))
+    assert result.returncode == 1 and 'not in the ROS 2 format' in result.stderr
+    bad.write_text('a: [1, 2\n')
+    result = run_skynav('launch', '--params', str(bad))
+    assert result.returncode == 1 and one_line_error(result.stderr)
