@@ -1,0 +1,109 @@
+"""The `skynav` tools against a live graph: echo, bad bags for replay, and launching a node."""
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import yaml
+
+from skynav_bringup.testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
+
+
+def test_echo_prints_a_custom_message_as_yaml(ros_context):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from skynav_bringup.ros import message_class
+
+    PlaceMatch = message_class('skynav_msgs/msg/PlaceMatch')
+    node = Node('match_source', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    publisher = node.create_publisher(PlaceMatch, '/localization/match', 10)
+    message = PlaceMatch(map_name='garden', index=42, distance=0.125, accepted=True,
+                         candidate_indices=list(range(40)), candidate_distances=[0.5, 1.5])
+    message.header.frame_id = 'camera_link'
+    message.snapshot_stamp.sec = 1234
+    echo = start_skynav('echo', '/localization/match', '--once')
+    deadline = time.monotonic() + 60
+    while echo.poll() is None and time.monotonic() < deadline:
+        publisher.publish(message)
+        executor.spin_once(timeout_sec=0.1)
+    out, err = echo.communicate(timeout=10)
+    assert echo.returncode == 0, err
+    documents = [d for d in yaml.safe_load_all(out) if d is not None]
+    assert len(documents) == 1
+    printed = documents[0]
+    assert printed['map_name'] == 'garden' and printed['index'] == 42 and printed['accepted'] is True
+    assert printed['distance'] == 0.125 and printed['snapshot_stamp'] == {'sec': 1234, 'nanosec': 0}
+    assert printed['header']['frame_id'] == 'camera_link'
+    # 40 candidates: the first 16 and a note of the rest.
+    assert printed['candidate_indices'][:16] == list(range(16))
+    assert printed['candidate_indices'][16] == '... 24 more, 40 in all'
+    executor.shutdown()
+    node.destroy_node()
+
+
+def test_replay_of_damaged_bags_fails_in_one_line(tmp_path):
+    good = tmp_path / 'good.mcap'
+    write_sample_bag(good, frames=3)
+    data = good.read_bytes()
+    cases = {
+        'truncated.mcap': data[: len(data) * 2 // 3],
+        'foreign.mcap': b'%PDF-1.4 not a bag',
+        'empty.mcap': b'',
+    }
+    for name, content in cases.items():
+        (tmp_path / name).write_bytes(content)
+        result = run_skynav('replay', str(tmp_path / name), '--rate', '0')
+        assert result.returncode == 1, name
+        assert one_line_error(result.stderr), (name, result.stderr)
+        assert name in result.stderr
+
+
+def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
+    # A trivial node, registered the way skynav packages register theirs (a `skynav.nodes` entry point).
+    (tmp_path / 'trivial_node.py').write_text(textwrap.dedent('''
+        from rclpy.node import Node
+        from skynav_bringup.ros import run_node
+
+        class Trivial(Node):
+            def __init__(self):
+                super().__init__('trivial')
+                greeting = self.declare_parameter('greeting', 'none').value
+                self.get_logger().info(f'trivial node up, greeting={greeting}')
+
+        def main(args=None):
+            return run_node(Trivial, args)
+    '''))
+    dist = tmp_path / 'trivial_node-1.0.dist-info'
+    dist.mkdir()
+    (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: trivial-node\nVersion: 1.0\n')
+    (dist / 'entry_points.txt').write_text('[skynav.nodes]\ntrivial = trivial_node:main\n')
+    params = tmp_path / 'params.yaml'
+    params.write_text('trivial:\n  ros__parameters:\n    greeting: hello\n')
+    env = dict(__import__('os').environ, PYTHONPATH=str(tmp_path))
+
+    launch = subprocess.Popen(
+        [sys.executable, '-m', 'skynav_bringup.cli', 'launch', '--params', str(params)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+    )
+    lines = wait_text(launch, 'trivial node up', stream='stdout')
+    assert any('[trivial]' in line and 'greeting=hello' in line for line in lines)
+
+    from rclpy.node import Node
+
+    observer = Node('observer', context=ros_context)
+    deadline = time.monotonic() + 30
+    while 'trivial' not in observer.get_node_names() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert 'trivial' in observer.get_node_names()
+    observer.destroy_node()
+
+    launch.send_signal(signal.SIGINT)
+    out, _ = launch.communicate(timeout=60)
+    assert launch.returncode == 0, out
+    assert 'trivial: process ended with exit code 0' in out
+    assert 'Traceback' not in out
