@@ -1,0 +1,177 @@
+"""Fish-eye camera models: pixels <-> view directions in camera_link.
+
+Conventions (CONTRACT.md): camera_link looks up along +z; polar angle theta from
++z, azimuth phi from +x towards +y; camera_link is also the optical frame, so
++x grows with image column u and +y with row v. Integer pixel coordinates are
+pixel centres. A model maps unit directions (..., 3) to pixel coordinates
+(..., 2) as (u, v) and back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Protocol
+
+import numpy as np
+
+# Newton steps to invert the distortion polynomial; converges to machine precision from theta_d.
+_NEWTON_STEPS = 12
+
+
+def directions_from_angles(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Return unit vectors (..., 3) in camera_link for polar angle theta and azimuth phi (radians)."""
+    theta, phi = np.broadcast_arrays(np.asarray(theta, float), np.asarray(phi, float))
+    sin_theta = np.sin(theta)
+    return np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def angles_from_directions(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return (theta, phi) in radians of directions (..., 3); theta in [0, pi], phi in (-pi, pi]."""
+    d = np.asarray(directions, float)
+    theta = np.arctan2(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
+    phi = np.arctan2(d[..., 1], d[..., 0])
+    return theta, phi
+
+
+class CameraModel(Protocol):
+    """What every camera model provides."""
+
+    width: int
+    height: int
+
+    @property
+    def theta_max(self) -> float:
+        """Polar angle (rad) of the image circle's edge: directions up to it are seen."""
+
+    def project(self, directions: np.ndarray) -> np.ndarray:
+        """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3)."""
+
+    def unproject(self, pixels: np.ndarray) -> np.ndarray:
+        """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v)."""
+
+
+@dataclass(frozen=True)
+class EquidistantCamera:
+    """OpenCV's fisheye (Kannala-Brandt) model as CameraInfo `equidistant` carries it, valid past 90 degrees.
+
+    r(theta) = f * theta_d with theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
+    u = cx + fx theta_d cos(phi), v = cy + fy theta_d sin(phi).
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    k: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    fov_limit: float = 2 * np.pi  # a narrower full field of view (rad) than the image circle allows; never wider
+
+    def distort(self, theta: np.ndarray) -> np.ndarray:
+        """Return theta_d of polar angles theta (rad)."""
+        t2 = np.square(theta)
+        k1, k2, k3, k4 = self.k
+        return theta * (1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+
+    def _distort_derivative(self, theta: np.ndarray) -> np.ndarray:
+        t2 = np.square(theta)
+        k1, k2, k3, k4 = self.k
+        return 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))
+
+    def undistort(self, theta_d: np.ndarray) -> np.ndarray:
+        """Return polar angles theta (rad) whose distorted value is theta_d (Newton's method)."""
+        theta_d = np.asarray(theta_d, float)
+        theta = theta_d.copy()
+        for _ in range(_NEWTON_STEPS):
+            theta = theta - (self.distort(theta) - theta_d) / self._distort_derivative(theta)
+        return theta
+
+    @cached_property
+    def theta_max(self) -> float:
+        """Polar angle (rad) of the image circle: the largest circle about (cx, cy) inside the image."""
+        theta_d_max = min(
+            self.cx / self.fx,
+            (self.width - 1 - self.cx) / self.fx,
+            self.cy / self.fy,
+            (self.height - 1 - self.cy) / self.fy,
+        )
+        return float(min(self.undistort(np.array(theta_d_max)), self.fov_limit / 2))
+
+    @property
+    def field_of_view(self) -> float:
+        """Full opening angle (rad) of the image circle."""
+        return 2 * self.theta_max
+
+    def project(self, directions: np.ndarray) -> np.ndarray:
+        """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3); theta past 90 degrees included."""
+        theta, phi = angles_from_directions(directions)
+        theta_d = self.distort(theta)
+        return np.stack(
+            [self.cx + self.fx * theta_d * np.cos(phi), self.cy + self.fy * theta_d * np.sin(phi)], axis=-1
+        )
+
+    def unproject(self, pixels: np.ndarray) -> np.ndarray:
+        """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v)."""
+        pixels = np.asarray(pixels, float)
+        a = (pixels[..., 0] - self.cx) / self.fx
+        b = (pixels[..., 1] - self.cy) / self.fy
+        return directions_from_angles(self.undistort(np.hypot(a, b)), np.arctan2(b, a))
+
+    def pixel_grid(self) -> np.ndarray:
+        """Return the (u, v) coordinates of every pixel centre, shape (height, width, 2)."""
+        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(float)
+        return np.stack([u, v], axis=-1)
+
+    def pixel_directions(self) -> np.ndarray:
+        """Return the view direction of every pixel centre, shape (height, width, 3)."""
+        return self.unproject(self.pixel_grid())
+
+    def image_circle(self) -> np.ndarray:
+        """Return a (height, width) bool mask of the pixels whose centre lies inside the image circle."""
+        theta, _ = angles_from_directions(self.pixel_directions())
+        return theta <= self.theta_max
+
+    def with_fov_limit(self, fov: float) -> EquidistantCamera:
+        """Return this camera with its field of view narrowed to `fov` (rad, full angle); never widened."""
+        return EquidistantCamera(self.width, self.height, self.fx, self.fy, self.cx, self.cy, self.k,
+                                 min(self.fov_limit, fov))
+
+    def camera_info_fields(self) -> dict:
+        """Return the sensor_msgs/CameraInfo fields that describe this camera."""
+        k = [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
+        return {
+            'width': self.width,
+            'height': self.height,
+            'distortion_model': 'equidistant',
+            'd': list(self.k),
+            'k': k,
+            'r': [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            'p': [self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        }
+
+    @classmethod
+    def from_camera_info(cls, info: object) -> EquidistantCamera:
+        """Return the camera of a CameraInfo message (rclpy or rosbags); raise ValueError if not equidistant."""
+        if info.distortion_model != 'equidistant':
+            raise ValueError(f'camera model {info.distortion_model!r} is not supported (expected equidistant)')
+        k = np.asarray(info.k, float).reshape(3, 3)
+        d = np.asarray(info.d, float)
+        if d.size != 4:
+            raise ValueError(f'equidistant camera info needs 4 distortion coefficients, got {d.size}')
+        if not (np.all(np.isfinite(k)) and np.all(np.isfinite(d)) and k[0, 0] > 0 and k[1, 1] > 0):
+            raise ValueError('camera info has non-finite or non-positive intrinsics')
+        if int(info.width) <= 0 or int(info.height) <= 0:
+            raise ValueError(f'camera info has no image size ({info.width}x{info.height})')
+        return cls(int(info.width), int(info.height), float(k[0, 0]), float(k[1, 1]), float(k[0, 2]),
+                   float(k[1, 2]), tuple(float(x) for x in d))
+
+    @classmethod
+    def for_field_of_view(cls, width: int, height: int, fov: float,
+                          k: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)) -> EquidistantCamera:
+        """Return a centred camera whose image circle touches the shorter image side at `fov` (rad, full angle)."""
+        cx, cy = (width - 1) / 2, (height - 1) / 2
+        radius = min(cx, cy)
+        probe = cls(width, height, 1.0, 1.0, cx, cy, k)
+        f = radius / float(probe.distort(np.array(fov / 2)))
+        return cls(width, height, f, f, cx, cy, k)
