@@ -8,7 +8,7 @@ STAMPS := $(VENV)/.skynav
 PIP := $(BIN)/python -m pip --disable-pip-version-check
 PY_PACKAGES := skynav_bringup skynav_skyline skynav_sh skynav_localize \
                skynav_compass skynav_warping skynav_sim
-PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/package.xml) \
+PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/pyproject.toml $(p)/package.xml) \
                     $(shell find $(addsuffix /config,$(PY_PACKAGES)) \
                             $(addsuffix /launch,$(PY_PACKAGES)) -type f 2>/dev/null)
 PY_PACKAGE_FILES += tools/link_data_files.py
@@ -34,8 +34,11 @@ $(STAMPS)/msgs: $(STAMPS)/deps $(MSG_FILES)
 	tools/build_msgs.sh $(VENV) build/skynav_msgs
 	@touch $@
 
+# Editable installs in compat mode put each package's folder on sys.path, so that the ROS package
+# folders of the same name in the repository root (namespace packages to Python) cannot shadow them.
 $(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
-	$(PIP) install --quiet --no-deps --no-build-isolation $(addprefix -e ./,$(PY_PACKAGES))
+	$(PIP) install --quiet --no-deps --no-build-isolation --config-settings editable_mode=compat \
+	    $(addprefix -e ./,$(PY_PACKAGES))
 	$(BIN)/python tools/link_data_files.py $(VENV) $(PY_PACKAGES)
 	@touch $@
 
