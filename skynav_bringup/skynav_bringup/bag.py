@@ -14,6 +14,7 @@ from __future__ import annotations
 import shutil
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -131,10 +132,37 @@ class BagReader:
         """Return the log time of the last message (ns since the epoch)."""
         return self._reader.end_time - 1 if self.message_count else 0
 
+    @cached_property
+    def metadata(self) -> dict:
+        """Return the rosbag2 metadata (rosbag2_bagfile_information) of the recording, {} when it has none.
+
+        rosbag2 directories keep it in metadata.yaml; a bare MCAP file carries it in its
+        'rosbag2' metadata record.
+        """
+        import yaml
+
+        if self.path.is_dir():
+            text = (self.path / 'metadata.yaml').read_text()
+            return (yaml.safe_load(text) or {}).get('rosbag2_bagfile_information', {})
+        if self.path.suffix != '.mcap':
+            return {}
+        import mcap.reader
+
+        with self.path.open('rb') as stream:
+            for record in mcap.reader.make_reader(stream).iter_metadata():
+                if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
+                    return yaml.safe_load(record.metadata['serialized_metadata']) or {}
+        return {}
+
+    @property
+    def custom_data(self) -> dict[str, str]:
+        """Return the recording's custom_data (key -> text) as its writer set it."""
+        return dict(self.metadata.get('custom_data') or {})
+
     @property
     def ros_distro(self) -> str:
         """Return the ROS distribution that wrote the recording, '' when it does not say."""
-        return self._reader.ros_distro or ''
+        return str(self.metadata.get('ros_distro') or '')
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[RawMessage]:
         """Yield the messages (of the given topics, default all) in log-time order."""
@@ -202,7 +230,11 @@ class BagWriter:
         self._writer = Writer(self._staged, version=9, storage_plugin=StoragePlugin.MCAP)
         if compress:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        self._writer.open()
+        try:
+            self._writer.open()
+        except OSError as exc:
+            shutil.rmtree(self.partial, ignore_errors=True)
+            raise BagError(f'{self.path}: cannot write here: {exc.strerror}') from None
         self._connections: dict[str, Connection] = {}
         self.counts: dict[str, int] = {}
         self._overwrite = overwrite
@@ -211,6 +243,10 @@ class BagWriter:
     def topics(self) -> dict[str, str]:
         """Return the topics added so far with their message types."""
         return {name: c.msgtype for name, c in self._connections.items()}
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Store a text under `key` in the recording's metadata (rosbag2 custom_data)."""
+        self._writer.set_custom_data(key, value)
 
     def add_topic(self, topic: str, msgtype: str, offered_qos: Iterable[Qos] = ()) -> None:
         """Declare a topic before writing to it; its message definition is embedded in the file."""
@@ -243,9 +279,19 @@ class BagWriter:
             shutil.rmtree(self.partial)
         return self.path
 
+    def abort(self) -> None:
+        """Give up the recording: nothing appears at the path and the partial data is removed.
+
+        For generated recordings, where an incomplete file would pass for a complete one; a
+        recorder of live data closes instead, to keep what it received.
+        """
+        if self._writer.storage is not None:
+            self._writer.abort()
+        shutil.rmtree(self.partial, ignore_errors=True)
+
     def __enter__(self) -> BagWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        # Close even after an error: what was written is kept, never thrown away.
+        # Close even after an error: what was written is kept, never thrown away (unless aborted).
         self.close()

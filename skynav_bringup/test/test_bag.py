@@ -64,6 +64,16 @@ def test_type_hashes_match_rosidl(sample_bag, tmp_path):
         assert hashes[f'skynav_msgs/msg/{name}'] == description['type_hashes'][0]['hash_string']
 
 
+@pytest.mark.parametrize('name', ['custom.mcap', 'custom_dir'])
+def test_custom_data_round_trip(tmp_path, name):
+    with BagWriter(tmp_path / name) as writer:
+        writer.set_custom_data('skynav_sim', 'scenario: teach\nseed: 3\n')
+        writer.add_topic('/skyline/sh', 'skynav_msgs/msg/ShCoefficients')
+    with open_bag(tmp_path / name) as bag:
+        assert bag.custom_data == {'skynav_sim': 'scenario: teach\nseed: 3\n'}
+        assert bag.ros_distro == 'rosbags'
+
+
 def test_directory_bag_round_trip(tmp_path):
     written = write_sample_bag(tmp_path / 'run1', frames=2)
     assert (tmp_path / 'run1' / 'metadata.yaml').is_file()
