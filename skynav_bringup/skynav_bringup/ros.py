@@ -100,6 +100,9 @@ def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():  # a real failure, not a callback that raced the shutdown a signal started
+            raise
     finally:
         if node is not None:
             node.destroy_node()
