@@ -16,4 +16,12 @@ setup(
     maintainer_email='skynav@example.org',
     description='Synthetic UV/green fish-eye recordings with ground truth.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['sim_camera = skynav_sim.node:main'],
+        'skynav.commands': [
+            'sim = skynav_sim.cli',
+            'sim.bag = skynav_sim.cli.bag',
+            'sim.preview = skynav_sim.cli.preview',
+        ],
+    },
 )

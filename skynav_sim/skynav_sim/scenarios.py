@@ -1,0 +1,225 @@
+"""Scenarios: the sequence of camera poses and daylight conditions a synthetic recording is made of.
+
+- teach: a drive along a route through the yard;
+- repeat: the same route at another time of day, shifted sideways, optionally shaken (extra tilt);
+- homing: a snapshot place and a grid of places around it;
+- compass: one place seen with many camera rotations (tilt up to a limit), then from places up to
+  a given distance away;
+- skyline: places all over the yard at every named time of day, clear and cloudy.
+
+Every scenario is reproducible from its parameters; the route of teach and repeat depends only on
+the world and `route_seed`, so a teach and a repeat drive of the same world follow the same path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
+
+from .render import CameraPose
+from .robot import camera_pose
+from .sky import TIMES_OF_DAY
+from .world import YARD_RADIUS, World
+
+SCENARIOS = ('teach', 'repeat', 'homing', 'compass', 'skyline')
+FRAME_RATE = 10.0  # Hz, the contract's recordings
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame to render."""
+
+    pose: CameraPose
+    hours: float  # local solar time of the daylight
+    cloud_cover: float
+    label: str  # what the frame is in its scenario: 'route', 'snapshot', 'grid', 'rotation', ...
+
+
+@dataclass
+class ScenarioParameters:
+    """Everything a scenario depends on besides the world; defaults suit a teach drive."""
+
+    hours: float = TIMES_OF_DAY['forenoon']
+    cloud_cover: float = 0.0
+    route_seed: int = 0
+    route_length: float = 20.0  # m (teach, repeat)
+    speed: float = 0.5  # m/s (teach, repeat); at FRAME_RATE it sets the spacing of frames
+    offset: float = 0.0  # m, sideways shift of a repeat drive (left positive)
+    shake: float = 0.0  # degrees rms of extra roll/pitch (repeat), as a mower's bouncing
+    spacing: float = 0.5  # m between grid places (homing)
+    grid_radius: float = 3.0  # m, half side of the homing grid
+    count: int = 40  # rotations and translated views each (compass); places per condition (skyline)
+    max_tilt: float = 30.0  # degrees (compass rotations)
+    max_translation: float = 0.5  # m (compass translated views)
+    extra: dict = field(default_factory=dict)
+
+
+def build(name: str, world: World, params: ScenarioParameters, seed: int) -> list[Frame]:
+    """Return the frames of scenario `name` in `world`; `seed` drives every random choice."""
+    if name not in SCENARIOS:
+        raise ValueError(f'unknown scenario {name!r} (known: {", ".join(SCENARIOS)})')
+    rng = np.random.default_rng([seed, SCENARIOS.index(name), 7])
+    return {'teach': _teach, 'repeat': _repeat, 'homing': _homing, 'compass': _compass,
+            'skyline': _skyline}[name](world, params, rng)
+
+
+def route(world: World, route_seed: int, length: float) -> tuple[CubicSpline, float]:
+    """Return a smooth route through free space, as a spline of arc length (m) -> (x, y), and its length."""
+    rng = np.random.default_rng([world.seed, route_seed, 11])
+    for _ in range(400):
+        points = [_free_point(world, rng, YARD_RADIUS * 0.7)]
+        heading = rng.uniform(0, 2 * np.pi)
+        travelled = 0.0
+        while travelled < length + 2:
+            for _ in range(30):
+                turn = rng.uniform(-0.9, 0.9)
+                step = rng.uniform(2.0, 3.5)
+                candidate = points[-1] + step * np.array([np.cos(heading + turn), np.sin(heading + turn)])
+                if world.is_free(*candidate) and _segment_free(world, points[-1], candidate):
+                    heading += turn
+                    points.append(candidate)
+                    travelled += step
+                    break
+            else:
+                break
+        if travelled < length + 2:
+            continue
+        spline, total = _arc_length_spline(np.array(points))
+        samples = spline(np.linspace(0, total, int(total / 0.1) + 1))
+        if world.is_free(samples[:, 0], samples[:, 1]).all():
+            return spline, total
+    raise RuntimeError(f'found no free route of {length} m in this {world.style} world; try a shorter one')
+
+
+def _free_point(world: World, rng: np.random.Generator, radius: float) -> np.ndarray:
+    for _ in range(10000):
+        p = rng.uniform(-radius, radius, 2)
+        if world.is_free(*p):
+            return p
+    raise RuntimeError('the yard has no free space')
+
+
+def _segment_free(world: World, a: np.ndarray, b: np.ndarray) -> bool:
+    t = np.linspace(0, 1, 30)[:, None]
+    points = a + t * (b - a)
+    return bool(world.is_free(points[:, 0], points[:, 1]).all())
+
+
+def _arc_length_spline(points: np.ndarray) -> tuple[CubicSpline, float]:
+    """Return a spline through `points` parametrised by (approximate) arc length, and that length."""
+    chord = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    rough = CubicSpline(chord, points, bc_type='natural')
+    fine = np.linspace(0, chord[-1], 2000)
+    xy = rough(fine)
+    arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
+    return CubicSpline(arc, xy, bc_type='natural'), float(arc[-1])
+
+
+def _drive(world: World, params: ScenarioParameters, rng: np.random.Generator, offset: float,
+           shake: float, label: str) -> list[Frame]:
+    spline, total = route(world, params.route_seed, params.route_length)
+    length = min(params.route_length, total)
+    start = (total - length) / 2
+    arc = start + np.arange(0.0, length, params.speed / FRAME_RATE)
+    xy = spline(arc)
+    tangent = spline(arc, 1)
+    heading = np.arctan2(tangent[:, 1], tangent[:, 0])
+    normal = np.column_stack([-np.sin(heading), np.cos(heading)])
+    xy = xy + offset * normal
+    if not world.is_free(xy[:, 0], xy[:, 1]).all():
+        raise ValueError(f'a sideways offset of {offset} m leaves the free space of this route')
+    jitter = _smooth_noise(rng, len(arc), 2, np.radians(shake)) if shake > 0 else None
+    frames = []
+    for k in range(len(arc)):
+        extra = Rotation.from_rotvec([jitter[k, 0], jitter[k, 1], 0.0]) if jitter is not None else None
+        pose = camera_pose(world.terrain, xy[k, 0], xy[k, 1], heading[k], extra)
+        frames.append(Frame(pose, params.hours, params.cloud_cover, label))
+    return frames
+
+
+def _smooth_noise(rng: np.random.Generator, count: int, channels: int, rms: float) -> np.ndarray:
+    """Return `count` samples of smooth (about 1 s correlation at FRAME_RATE) noise with the given rms."""
+    white = rng.normal(size=(count + 20, channels))
+    kernel = np.hanning(int(FRAME_RATE)) / np.hanning(int(FRAME_RATE)).sum()
+    smooth = np.stack([np.convolve(white[:, c], kernel, mode='same') for c in range(channels)], axis=1)[10:-10]
+    return smooth / smooth.std(axis=0) * rms
+
+
+def _teach(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
+    return _drive(world, params, rng, 0.0, 0.0, 'route')
+
+
+def _repeat(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
+    return _drive(world, params, rng, params.offset, params.shake, 'route')
+
+
+def _snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
+    """Return the place of the homing/compass snapshot: the free point nearest to the middle of the route."""
+    spline, total = route(world, params.route_seed, params.route_length)
+    return spline(total / 2)
+
+
+def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
+    home = _snapshot_place(world, params)
+    frames = [Frame(camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi)), params.hours,
+                    params.cloud_cover, 'snapshot')]
+    steps = np.arange(-params.grid_radius, params.grid_radius + 1e-9, params.spacing)
+    for dy in steps:
+        for dx in steps:
+            p = home + np.array([dx, dy])
+            if (dx == 0 and dy == 0) or not world.is_free(*p):
+                continue
+            pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+            frames.append(Frame(pose, params.hours, params.cloud_cover, 'grid'))
+    return frames
+
+
+def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
+    place = _snapshot_place(world, params)
+    reference = camera_pose(world.terrain, *place, rng.uniform(0, 2 * np.pi))
+    frames = [Frame(reference, params.hours, params.cloud_cover, 'reference')]
+    for _ in range(params.count):
+        # Any heading, and a tilt up to max_tilt about a random horizontal axis, at the same position.
+        heading = Rotation.from_euler('z', rng.uniform(0, 2 * np.pi))
+        axis_angle = rng.uniform(0, 2 * np.pi)
+        tilt = np.radians(params.max_tilt) * np.sqrt(rng.uniform())
+        tilt_rotation = Rotation.from_rotvec(tilt * np.array([np.cos(axis_angle), np.sin(axis_angle), 0.0]))
+        frames.append(Frame(CameraPose(reference.position, tilt_rotation * heading), params.hours,
+                            params.cloud_cover, 'rotation'))
+    for _ in range(params.count):
+        for _ in range(100):
+            direction = rng.uniform(0, 2 * np.pi)
+            distance = params.max_translation * np.sqrt(rng.uniform(0.04, 1.0))
+            p = place + distance * np.array([np.cos(direction), np.sin(direction)])
+            if world.is_free(*p):
+                break
+        pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+        frames.append(Frame(pose, params.hours, params.cloud_cover, 'translation'))
+    return frames
+
+
+def _skyline(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
+    frames = []
+    for name, hours in TIMES_OF_DAY.items():
+        for clouds in (0.0, 0.6):
+            for _ in range(params.count):
+                p = _free_point(world, rng, YARD_RADIUS)
+                pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+                frames.append(Frame(pose, hours, clouds, name))
+    return frames
+
+
+def describe(name: str, world: World, params: ScenarioParameters, seed: int, frames: list[Frame]) -> dict:
+    """Return what a recording should say about how it was made (stored in its metadata)."""
+    return {
+        'scenario': name,
+        'world': world.style,
+        'seed': seed,
+        'world_seed': world.seed,
+        'parameters': {k: v for k, v in asdict(params).items() if k != 'extra'},
+        'frames': [{'label': f.label, 'hours': round(f.hours, 4), 'cloud_cover': f.cloud_cover} for f in frames],
+        'synthetic': True,
+    }
