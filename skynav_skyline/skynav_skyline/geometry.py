@@ -1,0 +1,96 @@
+"""Per-camera precomputation: the image circle and the azimuth sectors around the principal point.
+
+Sector k of n covers the azimuth phi = atan2(v - cy, u - cx) in
+[-pi + k w, -pi + (k + 1) w) with w = 2 pi / n; its centre is at -pi + (k + 1/2) w.
+A per-pixel threshold is interpolated linearly in azimuth between the two
+nearest sector centres (circularly), so the skyline has no seams at sector borders.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SectorLayout:
+    """Azimuth sectors of one image geometry: membership and interpolation weights of every pixel."""
+
+    count: int  # number of sectors
+    index: np.ndarray  # int (H, W): the sector each pixel belongs to
+    lower: np.ndarray  # int (H, W): the sector centre at or before the pixel's azimuth
+    upper: np.ndarray  # int (H, W): the next sector centre, (lower + 1) mod count
+    weight: np.ndarray  # float32 (H, W): interpolation weight of `upper`, in [0, 1)
+    centres: np.ndarray  # (count,) azimuth of each sector centre (rad)
+
+    def interpolate(self, per_sector: np.ndarray) -> np.ndarray:
+        """Return a per-pixel map (H, W) linearly interpolated in azimuth from one value per sector."""
+        values = np.asarray(per_sector, np.float64)
+        if values.shape != (self.count,):
+            raise ValueError(f'expected {self.count} sector values, got shape {values.shape}')
+        low, high = values[self.lower], values[self.upper]
+        return low + (high - low) * self.weight
+
+
+@dataclass
+class SkylineGeometry:
+    """The image circle and principal point of one camera, with sector layouts built once per sector count."""
+
+    circle: np.ndarray  # bool (H, W): pixels inside the image circle
+    centre: tuple[float, float]  # principal point (cx, cy) in pixels
+    _layouts: dict[int, SectorLayout] = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        """Check the mask (ValueError) and store it as bool."""
+        self.circle = np.asarray(self.circle).astype(bool, copy=False)
+        if self.circle.ndim != 2:
+            raise ValueError(f'image circle mask must be 2-D, got shape {self.circle.shape}')
+        if not self.circle.any():
+            raise ValueError('image circle mask is empty')
+        self.centre = (float(self.centre[0]), float(self.centre[1]))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Return the image shape (rows, columns)."""
+        return self.circle.shape
+
+    @classmethod
+    def from_camera(cls, camera: object) -> SkylineGeometry:
+        """Return the geometry of a camera model with `image_circle()`, `cx` and `cy` (e.g. EquidistantCamera)."""
+        return cls(camera.image_circle(), (camera.cx, camera.cy))
+
+    @classmethod
+    def from_circle(cls, circle: np.ndarray) -> SkylineGeometry:
+        """Return the geometry of a bare image-circle mask; its centroid (pixels) stands in for the principal point."""
+        circle = np.asarray(circle).astype(bool, copy=False)
+        if circle.ndim != 2 or not circle.any():
+            raise ValueError('image circle mask must be a non-empty 2-D array')
+        rows, cols = np.nonzero(circle)
+        return cls(circle, (float(cols.mean()), float(rows.mean())))
+
+    def azimuth(self) -> np.ndarray:
+        """Return the azimuth phi = atan2(v - cy, u - cx) (rad, in (-pi, pi]) of every pixel centre."""
+        v, u = np.mgrid[0:self.shape[0], 0:self.shape[1]]
+        return np.arctan2(v - self.centre[1], u - self.centre[0])
+
+    def sectors(self, count: int) -> SectorLayout:
+        """Return (and cache) the layout of `count` equal azimuth sectors."""
+        count = int(count)
+        if count < 1:
+            raise ValueError(f'number of sectors must be at least 1, got {count}')
+        if count not in self._layouts:
+            self._layouts[count] = _layout(self.azimuth(), count)
+        return self._layouts[count]
+
+
+def _layout(phi: np.ndarray, count: int) -> SectorLayout:
+    """Return the sector layout of pixel azimuths `phi` (rad) for `count` sectors."""
+    width = 2 * np.pi / count
+    position = (phi + np.pi) / width  # in sector widths from phi = -pi
+    index = np.minimum(np.floor(position).astype(np.intp), count - 1)
+    from_centre = np.mod(position - 0.5, count)  # in sector widths from the first sector centre
+    lower = np.minimum(np.floor(from_centre).astype(np.intp), count - 1)
+    weight = (from_centre - lower).astype(np.float32)
+    centres = -np.pi + (np.arange(count) + 0.5) * width
+    return SectorLayout(count, index, lower, (lower + 1) % count, weight, centres)

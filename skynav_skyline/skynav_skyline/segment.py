@@ -1,0 +1,251 @@
+"""Skyline segmentation: one entry point for the global, whole-image and per-sector threshold methods.
+
+Methods: 'global' (learned angle and threshold), 'otsu' and 'min-error' (one
+threshold per image from the histogram of the contrast inside the image
+circle), 'sector-otsu' and 'sector-min-error' (one threshold per azimuth
+sector, interpolated between sector centres).
+
+Bimodality test. A histogram split is *bimodal* when it has at least
+MIN_SECTOR_PIXELS trusted pixels, Otsu's separability (between-class over
+total variance at the chosen cut; about 0.64 for one Gaussian, 0.75 for a
+uniform ramp such as a smooth sky gradient, towards 1 for two well-separated
+modes) reaches `min_separability`, and, for a sector and when the reference
+threshold is trusted, its two class means lie on opposite sides of that
+reference. The last condition rejects sectors with two modes of one class:
+the sun against the sky in HDR input, sunlit against shaded ground.
+
+Reference and fallback. The reference threshold is the whole image's own
+threshold when the whole image is bimodal (trusted), else the configured
+global threshold if any (trusted), else the whole image's threshold all the
+same (not trusted: the class-mean condition is then skipped, since a whole
+image that fails the test usually means the illumination changes so much with
+azimuth that no single threshold fits, which is the case sectors are for). A
+sector that is not bimodal takes its threshold from the nearest bimodal
+sectors on either side, interpolated linearly in azimuth (circularly); with
+no bimodal sector at all every sector uses the reference. For the whole-image
+methods a non-bimodal image uses the configured global threshold when there
+is one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
+from .features import REFERENCE_PERCENTILE, Features, extract_features
+from .geometry import SectorLayout, SkylineGeometry
+from .threshold import (DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index,
+                        histogram_range)
+
+#: Segmentation methods.
+METHODS: tuple[str, ...] = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')
+#: Default number of azimuth sectors of the sector methods.
+DEFAULT_SECTORS = 16
+#: Default least Otsu separability (dimensionless, 0..1) of a bimodal histogram.
+MIN_SEPARABILITY = 0.8
+#: Least trusted pixels of a sector for its own threshold.
+MIN_SECTOR_PIXELS = 100
+#: Least trusted pixels inside the image circle for any segmentation; fewer raise ValueError.
+MIN_TRUSTED_PIXELS = 100
+
+
+@dataclass(frozen=True)
+class SkylineParams:
+    """Settings of the skyline segmentation."""
+
+    method: str = 'sector-otsu'  # one of METHODS
+    channels: str = 'uv'  # 'uv' (angle 0) or 'uv-green'
+    angle: float | None = None  # projection angle (rad); None: 0 for 'uv', UV_GREEN_CONTRAST_ANGLE for 'uv-green'
+    threshold: float | None = None  # global threshold (normalised log units); needed by 'global', else fallback
+    sectors: int = DEFAULT_SECTORS  # azimuth sectors of the sector methods
+    bins: int = DEFAULT_BINS  # histogram bins of the local methods
+    black_level: tuple[float, float] = (0.0, 0.0)  # (UV, green) in raw units (counts, or radiance for 32FC1)
+    reference_percentile: float = REFERENCE_PERCENTILE  # per-channel normalisation percentile (%)
+    min_separability: float = MIN_SEPARABILITY  # bimodality test, Otsu separability in [0, 1]
+
+    def __post_init__(self) -> None:
+        """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
+        if self.method not in METHODS:
+            raise ValueError(f'unknown skyline method {self.method!r}; expected one of {", ".join(METHODS)}')
+        if self.channels not in CHANNEL_MODES:
+            raise ValueError(f'unknown channel mode {self.channels!r}; expected one of {", ".join(CHANNEL_MODES)}')
+        if self.channels == 'uv' and self.angle not in (None, 0, 0.0):
+            raise ValueError(f'UV-only means projection angle 0, got {self.angle}')
+        if self.angle is not None and not np.isfinite(self.angle):
+            raise ValueError(f'projection angle must be finite, got {self.angle}')
+        if self.method == 'global' and self.threshold is None:
+            raise ValueError("method 'global' needs a learned threshold")
+        if self.threshold is not None and not np.isfinite(self.threshold):
+            raise ValueError(f'threshold must be finite, got {self.threshold}')
+        if int(self.sectors) < 1 or int(self.bins) < 2:
+            raise ValueError(f'need at least 1 sector and 2 bins, got {self.sectors} and {self.bins}')
+        if not 0 <= self.min_separability <= 1:
+            raise ValueError(f'min_separability must be in [0, 1], got {self.min_separability}')
+        if not 0 < self.reference_percentile <= 100:
+            raise ValueError(f'reference percentile must be in (0, 100], got {self.reference_percentile}')
+        black = np.broadcast_to(np.asarray(self.black_level, float), (2,))
+        object.__setattr__(self, 'black_level', (float(black[0]), float(black[1])))
+
+    @property
+    def uses_green(self) -> bool:
+        """Return whether the green channel enters the contrast."""
+        return self.channels == 'uv-green'
+
+    @property
+    def projection_angle(self) -> float:
+        """Return the projection angle (rad) actually used."""
+        if self.channels == 'uv':
+            return 0.0
+        return UV_GREEN_CONTRAST_ANGLE if self.angle is None else float(self.angle)
+
+    @classmethod
+    def from_model(cls, model: GlobalModel, method: str = 'global', **changes) -> SkylineParams:
+        """Return settings that use a learned model's channels, angle, threshold and normalisation."""
+        return cls(method=method, channels=model.channels,
+                   angle=None if model.channels == 'uv' else model.angle, threshold=model.threshold,
+                   reference_percentile=model.reference_percentile, **changes)
+
+
+@dataclass(frozen=True)
+class SectorThresholds:
+    """Per-sector thresholds after the bimodality test and fallback."""
+
+    thresholds: np.ndarray  # (n,) thresholds used (contrast unit)
+    own: HistogramSplit  # each sector's own split
+    bimodal: np.ndarray  # bool (n,): the sector passed the bimodality test
+    reference: float  # the reference threshold of the test and the last fallback
+
+
+@dataclass(frozen=True)
+class Segmentation:
+    """A skyline mask and how it was made."""
+
+    mask: np.ndarray  # uint8 (H, W): 255 sky, 0 ground (0 outside the image circle)
+    contrast: np.ndarray  # float32 (H, W): projected contrast s (log units)
+    threshold: np.ndarray | float  # the threshold (contrast unit): a scalar or a per-pixel map
+    image_split: HistogramSplit | None  # the whole image's split (local methods)
+    sectors: SectorThresholds | None  # per-sector thresholds (sector methods)
+
+
+def is_bimodal(split: HistogramSplit, min_separability: float = MIN_SEPARABILITY,
+               reference: float | None = None, min_pixels: int = MIN_SECTOR_PIXELS) -> np.ndarray:
+    """Return whether each split is bimodal: enough pixels, separability, class means either side of `reference`."""
+    ok = (split.count >= min_pixels) & (split.separability >= min_separability)
+    if reference is not None:
+        with np.errstate(invalid='ignore'):
+            ok = ok & (split.mean_low < reference) & (split.mean_high > reference)
+    return np.asarray(ok, bool)
+
+
+def sector_thresholds(contrast: np.ndarray, trusted: np.ndarray, layout: SectorLayout, reference: float,
+                      method: str = 'otsu', bins: int = DEFAULT_BINS,
+                      value_range: tuple[float, float] | None = None,
+                      min_separability: float = MIN_SEPARABILITY, min_pixels: int = MIN_SECTOR_PIXELS,
+                      test_reference: bool = True) -> SectorThresholds:
+    """Return one threshold (contrast unit) per azimuth sector from the histograms of the trusted pixels, with fallback.
+
+    `reference` is the last fallback and, if `test_reference`, the value each
+    bimodal sector's class means must lie on either side of.
+    """
+    if method not in HISTOGRAM_METHODS:
+        raise ValueError(f'unknown histogram method {method!r}; expected one of {", ".join(HISTOGRAM_METHODS)}')
+    values = contrast[trusted]
+    if values.size == 0:
+        raise ValueError('no trusted pixel to threshold')
+    value_range = histogram_range(values) if value_range is None else value_range
+    cells = layout.index[trusted] * bins + bin_index(values, bins, value_range)
+    counts = np.bincount(cells, minlength=layout.count * bins).reshape(layout.count, bins).astype(np.float64)
+    own = HISTOGRAM_METHODS[method](counts, bin_edges(bins, value_range))
+    bimodal = is_bimodal(own, min_separability, reference if test_reference else None, min_pixels)
+    if bimodal.any():
+        good = np.flatnonzero(bimodal)
+        thresholds = np.interp(np.arange(layout.count), good, own.threshold[good], period=layout.count)
+    else:
+        thresholds = np.full(layout.count, float(reference))
+    return SectorThresholds(thresholds, own, bimodal, float(reference))
+
+
+class SkylineSegmenter:
+    """Sky/ground segmentation for one camera geometry; build once, call per frame."""
+
+    def __init__(self, geometry: SkylineGeometry | np.ndarray | object, params: SkylineParams | None = None):
+        """Keep the geometry (a SkylineGeometry, a camera model, or a bool image-circle mask) and the settings."""
+        if isinstance(geometry, SkylineGeometry):
+            self.geometry = geometry
+        elif isinstance(geometry, np.ndarray):
+            self.geometry = SkylineGeometry.from_circle(geometry)
+        else:
+            self.geometry = SkylineGeometry.from_camera(geometry)
+        self.params = SkylineParams() if params is None else params
+        if self.params.method.startswith('sector-'):
+            self.geometry.sectors(self.params.sectors)  # precompute now, not on the first frame
+
+    def features(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
+                 encoding_green: str | None = None) -> Features:
+        """Return the normalised log features of an image pair (green ignored in 'uv' mode, its shape still checked)."""
+        p = self.params
+        if p.uses_green and green is None:
+            raise ValueError("channel mode 'uv-green' needs the green image")
+        if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
+            raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
+        return extract_features(uv, green if p.uses_green else None, encoding_uv, encoding_green,
+                                self.geometry.circle, p.black_level, p.reference_percentile)
+
+    def run(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
+            encoding_green: str | None = None) -> Segmentation:
+        """Return the skyline segmentation of one UV/green image pair (raw arrays and their encodings)."""
+        p = self.params
+        circle = self.geometry.circle
+        features = self.features(uv, green, encoding_uv, encoding_green)
+        contrast = project(features.x, features.y, p.projection_angle)
+        trusted = features.trusted(circle, p.uses_green)
+        if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
+            raise ValueError(f'fewer than {MIN_TRUSTED_PIXELS} trusted pixels inside the image circle '
+                             '(image dark, saturated or invalid)')
+        image_split = sectors = None
+        if p.method == 'global':
+            threshold: np.ndarray | float = float(p.threshold)
+        else:
+            values = contrast[trusted]
+            value_range = histogram_range(values)
+            split_method = p.method.removeprefix('sector-')
+            edges = bin_edges(p.bins, value_range)
+            counts = np.bincount(bin_index(values, p.bins, value_range), minlength=p.bins).astype(np.float64)
+            image_split = HISTOGRAM_METHODS[split_method](counts, edges)
+            whole = float(image_split.threshold)
+            image_bimodal = bool(is_bimodal(image_split, p.min_separability, None, MIN_TRUSTED_PIXELS))
+            reference = whole if image_bimodal or p.threshold is None else float(p.threshold)
+            trusted_reference = image_bimodal or p.threshold is not None
+            if p.method.startswith('sector-'):
+                layout = self.geometry.sectors(p.sectors)
+                sectors = sector_thresholds(contrast, trusted, layout, reference, split_method, p.bins,
+                                            value_range, p.min_separability, MIN_SECTOR_PIXELS,
+                                            trusted_reference)
+                threshold = layout.interpolate(sectors.thresholds)
+            else:
+                threshold = reference
+        decided = features.by_threshold(circle, p.uses_green)
+        sky = features.sky_by_rule(circle) | (decided & (contrast > threshold))
+        mask = np.where(sky, np.uint8(SKY), np.uint8(GROUND))
+        return Segmentation(mask, contrast, threshold, image_split, sectors)
+
+    def segment(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
+                encoding_green: str | None = None) -> np.ndarray:
+        """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
+        return self.run(uv, green, encoding_uv, encoding_green).mask
+
+
+def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
+            circle: SkylineGeometry | np.ndarray | object, params: SkylineParams | None = None,
+            **changes) -> np.ndarray:
+    """Return the skyline mask (uint8: 255 sky, 0 ground) of one image pair; `changes` override fields of `params`.
+
+    For a stream of frames build a SkylineSegmenter once per camera instead:
+    this function recomputes the sector layout on every call.
+    """
+    params = SkylineParams() if params is None else params
+    if changes:
+        params = replace(params, **changes)
+    return SkylineSegmenter(circle, params).segment(uv, green, encoding_uv, encoding_green)

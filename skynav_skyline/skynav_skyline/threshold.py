@@ -1,0 +1,185 @@
+"""Histogram thresholds of the projected contrast: Otsu and Kittler-Illingworth minimum error.
+
+Every function works on one histogram (shape (bins,)) or on a stack of them
+(shape (n, bins), e.g. one per azimuth sector) at once. A *cut* k puts bins
+0..k-1 into the low class (ground) and bins k..bins-1 into the high class
+(sky); its threshold is the bin edge edges[k], and a value is sky when it lies
+above the threshold. Where the best cut is followed by empty bins (a gap
+between two modes), all those cuts make the same partition and the threshold
+is the middle of that gap; among different partitions that tie, the first wins.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Histogram bins of the projected contrast used by the local methods.
+DEFAULT_BINS = 256
+#: Percentiles (%) of the values that span the histogram; values outside go to the end bins.
+HISTOGRAM_RANGE_PERCENTILES = (0.1, 99.9)
+
+
+@dataclass(frozen=True)
+class HistogramSplit:
+    """A two-class split of one histogram or of a stack of histograms (arrays of shape (n,) or scalars)."""
+
+    threshold: np.ndarray  # value of the cut (the histogram's unit: projected log contrast)
+    separability: np.ndarray  # Otsu's between-class / total variance at the cut, in [0, 1]; 0 if undefined
+    mean_low: np.ndarray  # mean of the low (ground) class, histogram unit
+    mean_high: np.ndarray  # mean of the high (sky) class, histogram unit
+    weight_low: np.ndarray  # share of the counts in the low class, in [0, 1]
+    count: np.ndarray  # total counts of the histogram
+
+
+def histogram_range(values: np.ndarray) -> tuple[float, float]:
+    """Return a robust (low, high) span (value unit) of `values` for a histogram; never empty."""
+    values = np.asarray(values)
+    if values.size == 0:
+        raise ValueError('cannot build a histogram of no values')
+    low, high = np.percentile(values, HISTOGRAM_RANGE_PERCENTILES)
+    low, high = float(low), float(high)
+    if not high > low:
+        low, high = float(values.min()), float(values.max())
+    if not high > low:
+        pad = max(abs(low) * 1e-6, 1e-6)
+        low, high = low - pad, high + pad
+    return low, high
+
+
+def bin_index(values: np.ndarray, bins: int, value_range: tuple[float, float]) -> np.ndarray:
+    """Return the int index (0..bins-1) of each value's bin on `bins` equal bins over `value_range`."""
+    low, high = value_range
+    index = np.floor((np.asarray(values, np.float64) - low) * (bins / (high - low)))
+    return np.clip(index, 0, bins - 1).astype(np.intp)
+
+
+def bin_edges(bins: int, value_range: tuple[float, float]) -> np.ndarray:
+    """Return the bins + 1 edges (value unit) of `bins` equal bins over `value_range`."""
+    return np.linspace(value_range[0], value_range[1], bins + 1)
+
+
+def histogram(values: np.ndarray, bins: int = DEFAULT_BINS,
+              value_range: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return (counts, edges) of `values` on equal bins; values outside the range go to the end bins."""
+    value_range = histogram_range(values) if value_range is None else value_range
+    counts = np.bincount(bin_index(values, bins, value_range), minlength=bins).astype(np.float64)
+    return counts, bin_edges(bins, value_range)
+
+
+def _cumulative(counts: np.ndarray, edges: np.ndarray):
+    """Return per-cut class weights, means and second moments of histograms `counts` (..., bins)."""
+    counts = np.asarray(counts, np.float64)
+    centres = (edges[:-1] + edges[1:]) / 2
+    n0 = np.cumsum(counts, axis=-1)[..., :-1]  # counts below cut k = 1..bins-1
+    s0 = np.cumsum(counts * centres, axis=-1)[..., :-1]
+    q0 = np.cumsum(counts * centres**2, axis=-1)[..., :-1]
+    total = counts.sum(axis=-1, keepdims=True)
+    s_total = (counts * centres).sum(axis=-1, keepdims=True)
+    q_total = (counts * centres**2).sum(axis=-1, keepdims=True)
+    n1, s1, q1 = total - n0, s_total - s0, q_total - q0
+    return n0, s0, q0, n1, s1, q1, total, s_total, q_total
+
+
+def between_class_variance(counts: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Return Otsu's between-class variance (unit squared) of every cut k = 1..bins-1; -inf where a class is empty."""
+    n0, s0, _, n1, s1, _, total, _, _ = _cumulative(counts, edges)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        w0, w1 = n0 / total, n1 / total
+        mu0, mu1 = s0 / n0, s1 / n1
+        variance = w0 * w1 * (mu1 - mu0) ** 2
+    return np.where((n0 > 0) & (n1 > 0), variance, -np.inf)
+
+
+def minimum_error_criterion(counts: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Return Kittler-Illingworth's criterion (dimensionless, lower better) of every cut; inf where a class is empty.
+
+    J(k) = P0 ln(var0) + P1 ln(var1) - 2 (P0 ln P0 + P1 ln P1), the class
+    variances floored at the variance of one bin (width^2 / 12).
+    """
+    n0, s0, q0, n1, s1, q1, total, _, _ = _cumulative(counts, edges)
+    floor = (edges[1] - edges[0]) ** 2 / 12
+    with np.errstate(divide='ignore', invalid='ignore'):
+        p0, p1 = n0 / total, n1 / total
+        var0 = np.maximum(q0 / n0 - (s0 / n0) ** 2, floor)
+        var1 = np.maximum(q1 / n1 - (s1 / n1) ** 2, floor)
+        criterion = p0 * np.log(var0) + p1 * np.log(var1) - 2 * (p0 * np.log(p0) + p1 * np.log(p1))
+    return np.where((n0 > 0) & (n1 > 0), criterion, np.inf)
+
+
+def _best_cut(score: np.ndarray, below: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (first, last, valid) best cuts k (1..bins-1) of scores (higher better); `below`: counts under each cut.
+
+    `first` is the first best cut; `last` the last cut with the same partition
+    (only empty bins between them), so the threshold can go to the gap's middle.
+    """
+    best = score.max(axis=-1)
+    valid = np.isfinite(best)
+    first = np.argmax(score == best[..., None], axis=-1)
+    below_first = np.take_along_axis(below, first[..., None], -1)
+    last = np.count_nonzero(below <= below_first, axis=-1) - 1  # `below` never decreases along the cuts
+    return first + 1, np.maximum(last, first) + 1, valid
+
+
+def split_at(counts: np.ndarray, edges: np.ndarray, cut: np.ndarray, threshold: np.ndarray) -> HistogramSplit:
+    """Return the class statistics of histograms `counts` (..., bins) split at cut index `cut` (1..bins-1)."""
+    n0, s0, _, n1, s1, _, total, s_total, q_total = _cumulative(counts, edges)
+    pick = np.asarray(cut)[..., None] - 1
+
+    def at(a: np.ndarray) -> np.ndarray:
+        """Return the per-cut array `a` at the chosen cut."""
+        return np.take_along_axis(a, pick, -1)[..., 0]
+
+    total, s_total, q_total = total[..., 0], s_total[..., 0], q_total[..., 0]
+    a0, b0, a1, b1 = at(n0), at(s0), at(n1), at(s1)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        mu0, mu1 = b0 / a0, b1 / a1
+        w0 = a0 / total
+        variance = q_total / total - (s_total / total) ** 2
+        between = w0 * (1 - w0) * (mu1 - mu0) ** 2
+        separability = np.where((a0 > 0) & (a1 > 0) & (variance > 0), between / variance, 0.0)
+    return HistogramSplit(np.asarray(threshold, float), np.clip(separability, 0.0, 1.0), mu0, mu1,
+                          np.nan_to_num(w0), total)
+
+
+def _split_by_score(counts: np.ndarray, edges: np.ndarray, score: np.ndarray) -> HistogramSplit:
+    """Return the split at the best cut of `score` (higher better), threshold in the middle of a tied gap."""
+    edges = np.asarray(edges, np.float64)
+    first, last, valid = _best_cut(score, np.cumsum(np.asarray(counts, np.float64), axis=-1)[..., :-1])
+    threshold = (edges[first] + edges[last]) / 2
+    centre = (edges[0] + edges[-1]) / 2
+    threshold = np.where(valid, threshold, centre)
+    split = split_at(counts, edges, first, threshold)
+    if not np.all(valid):
+        split = HistogramSplit(split.threshold, np.where(valid, split.separability, 0.0), split.mean_low,
+                               split.mean_high, split.weight_low, split.count)
+    return split
+
+
+def otsu_split(counts: np.ndarray, edges: np.ndarray) -> HistogramSplit:
+    """Return Otsu's split (maximal between-class variance) of histograms `counts` (..., bins) on `edges`."""
+    return _split_by_score(counts, edges, between_class_variance(counts, edges))
+
+
+def minimum_error_split(counts: np.ndarray, edges: np.ndarray) -> HistogramSplit:
+    """Return Kittler-Illingworth's minimum error split of histograms `counts` (..., bins) on `edges`."""
+    return _split_by_score(counts, edges, -minimum_error_criterion(counts, edges))
+
+
+#: Histogram threshold methods by name.
+HISTOGRAM_METHODS = {'otsu': otsu_split, 'min-error': minimum_error_split}
+
+
+def otsu_threshold(values: np.ndarray, bins: int = DEFAULT_BINS,
+                   value_range: tuple[float, float] | None = None) -> float:
+    """Return Otsu's threshold (value unit) of `values`: sky above it."""
+    counts, edges = histogram(values, bins, value_range)
+    return float(otsu_split(counts, edges).threshold)
+
+
+def minimum_error_threshold(values: np.ndarray, bins: int = DEFAULT_BINS,
+                            value_range: tuple[float, float] | None = None) -> float:
+    """Return Kittler-Illingworth's minimum error threshold (value unit) of `values`: sky above it."""
+    counts, edges = histogram(values, bins, value_range)
+    return float(minimum_error_split(counts, edges).threshold)
