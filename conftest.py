@@ -6,6 +6,7 @@ the environment ROS needs here; subprocesses inherit both.
 
 from __future__ import annotations
 
+import importlib
 import os
 
 import pytest
@@ -14,6 +15,16 @@ from skynav_bringup.environment import apply_ros_environment
 from skynav_bringup.testing import claim_domain_id
 
 _domain_lock = None
+
+
+# The Python packages, imported with this file (before pytest loads any package's test/conftest.py):
+# pytest's importlib mode names a test module after its path (skynav_sh/test/test_x.py ->
+# skynav_sh.test.test_x) and would otherwise register the repository folder skynav_sh/ as an empty
+# namespace module that hides the real package.
+PACKAGES = ('skynav_bringup', 'skynav_skyline', 'skynav_sh', 'skynav_localize', 'skynav_compass',
+            'skynav_warping', 'skynav_sim')
+for _package in PACKAGES:
+    importlib.import_module(_package)
 
 
 def pytest_configure(config: pytest.Config) -> None:
