@@ -181,12 +181,17 @@ def trace(world: World, origin: np.ndarray, directions: np.ndarray) -> tuple[np.
     distance = np.full(len(directions), np.inf)
     primitive = np.full(len(directions), -1)
     directions32 = directions.astype(np.float32)
-    near = np.flatnonzero(np.linalg.norm(world.group_centers - origin, axis=1) - world.group_radii < MAX_DISTANCE)
+    # Objects nearest first: a ray that already hit something closer than an object's bounding sphere
+    # need not be tested against it.
+    reach = np.linalg.norm(world.group_centers - origin, axis=1) - world.group_radii
+    near = np.flatnonzero(reach < MAX_DISTANCE)
+    near = near[np.argsort(reach[near])]
     for start in range(0, len(near), PRIMITIVE_BLOCK):
         block = near[start : start + PRIMITIVE_BLOCK]
         candidates = _cone_candidates(origin, world.group_centers[block], world.group_radii[block], directions32)
         for row, group in enumerate(block):
             group_rays = np.flatnonzero(candidates[row])
+            group_rays = group_rays[distance[group_rays] > reach[group]]
             if not group_rays.size:
                 continue
             members = world.groups[group]

@@ -16,7 +16,7 @@ The model, kept simple and physical where it matters for sky/ground separation:
   is more uniform (weaker circumsolar peak) than green.
 - Clouds are a seeded fractal layer at CLOUD_ALTITUDE; they are bright in green
   and barely brighter than the clear sky in ultraviolet, as observed for UV
-  imagery (Carey & Stuerzl 2011; Differt & Moeller 2016).
+  imagery (Carey & Stuerzl 2011; Differt & Moeller 2016), at every time of day.
 Times from dawn to noon span well over two orders of magnitude of brightness.
 """
 
@@ -38,7 +38,11 @@ TWILIGHT_FADE = np.radians(1.6)  # ... by e per this depression
 PEREZ = {'uv': (-0.6, -0.35, 3.0, -2.0, 0.25), 'green': (-1.0, -0.32, 10.0, -3.0, 0.45)}
 SUN_ANGULAR_RADIUS = np.radians(0.8)  # drawn a little larger than the real 0.27 degrees so it covers pixels
 CLOUD_ALTITUDE = 1500.0  # m
-CLOUD_BRIGHTNESS = {'uv': 0.35, 'green': 0.85}  # cloud radiance as a share of global irradiance / pi
+# Ultraviolet light is mostly diffuse already, so a cloud looks about as bright as the clear sky behind
+# it; in green a cloud scatters the direct sunlight too and shines far brighter than blue sky.
+CLOUD_UV_CONTRAST = 1.08  # cloud / clear-sky radiance in the same direction, ultraviolet
+CLOUD_GREEN_BRIGHTNESS = 0.85  # green cloud radiance as a share of (direct normal + diffuse) / pi: a cloud
+                               # high in the air faces even a low sun
 
 
 def air_mass(elevation: float) -> float:
@@ -151,7 +155,11 @@ class Sky:
         clear = self._zenith[band] * self._perez(band, directions)
         if clouds is None:
             clouds = self.cloud_density(directions, origin)
-        cloud_radiance = CLOUD_BRIGHTNESS[band] * self.global_irradiance(band) / np.pi
+        if band == 'uv':
+            cloud_radiance = CLOUD_UV_CONTRAST * clear
+        else:
+            lit = self.direct[band] + self.diffuse[band]
+            cloud_radiance = np.maximum(clear, CLOUD_GREEN_BRIGHTNESS * lit / np.pi)
         sky = clear * (1 - clouds) + cloud_radiance * clouds
         if self.elevation > -SUN_ANGULAR_RADIUS:
             on_sun = directions @ self.sun > np.cos(SUN_ANGULAR_RADIUS)

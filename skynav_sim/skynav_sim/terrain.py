@@ -16,12 +16,15 @@ from scipy.ndimage import maximum_filter
 MARCH_FIRST_STEP = 0.03
 MARCH_GROWTH = 1.02
 MARCH_BISECTIONS = 10
-# Block widths (cells) of the levels of the max-height pyramid.
+# Block widths (cells, powers of two) of the levels of the max-height pyramid.
 PYRAMID_WIDTHS = (1, 4, 16, 64)
 # Downward rays start marching where they may first reach the highest terrain within this radius (m).
 NEAR_RADIUS = 4.0
-# Horizon profile: azimuth bins, and the margin (rad) by which a ray must clear it to skip marching.
+# Horizon profile: azimuth bins, samples along each bin's line (first step m, growth), and the margin
+# (rad) by which a ray must clear the profile to skip marching.
 HORIZON_BINS = 1440
+HORIZON_FIRST_STEP = 0.05
+HORIZON_GROWTH = 1.06
 HORIZON_MARGIN = np.radians(1.0)
 
 
@@ -39,17 +42,18 @@ class Terrain:
         gy, gx = np.gradient(self.heights, self.cell)
         self._flat = {'height': self.heights.ravel(), 'gx': gx.ravel(), 'gy': gy.ravel()}
         self.max_height = float(self.heights.max())
+        self._horizon_cache: tuple = (None, None)
         # Pyramid for marching: each level holds, per block of `width` cells, the highest terrain in
         # that block and its eight neighbours, i.e. everywhere within one block width of any point in it.
-        self._reach, self._ceilings = [], []
+        # Stored as (reach in m, log2 of the width, blocks per side, flat ceilings), coarsest first.
+        self._levels = []
         for width in PYRAMID_WIDTHS:
             size = -(-self.n // width)
             padded = np.full((size * width, size * width), -np.inf)
             padded[: self.n, : self.n] = self.heights
             blocks = padded.reshape(size, width, size, width).max(axis=(1, 3))
             ceiling = maximum_filter(blocks, size=3, mode='nearest')
-            self._reach.insert(0, width * self.cell)
-            self._ceilings.insert(0, ceiling)
+            self._levels.insert(0, (width * self.cell, int(np.log2(width)), size, ceiling.ravel()))
 
     def _grid_coordinates(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
         """Return flat index of the lower-left grid point and the fractions, clamped to the grid."""
@@ -87,14 +91,19 @@ class Terrain:
         Bin k covers azimuths around 2 pi k / HORIZON_BINS (from +x towards +y); each value is
         the largest of the bin and its two neighbours, so it bounds the rays between bin centres.
         """
+        key = (tuple(np.round(origin, 9)), max_distance)
+        if self._horizon_cache[0] == key:
+            return self._horizon_cache[1]
         azimuth = np.linspace(0, 2 * np.pi, HORIZON_BINS, endpoint=False)
-        steps = MARCH_FIRST_STEP * MARCH_GROWTH ** np.arange(
-            int(np.log(1 + max_distance * (MARCH_GROWTH - 1) / MARCH_FIRST_STEP) / np.log(MARCH_GROWTH)) + 1)
+        steps = HORIZON_FIRST_STEP * HORIZON_GROWTH ** np.arange(
+            int(np.log(1 + max_distance * (HORIZON_GROWTH - 1) / HORIZON_FIRST_STEP) / np.log(HORIZON_GROWTH)) + 1)
         reach = np.cumsum(steps)
         x = origin[0] + np.outer(np.cos(azimuth), reach)
         y = origin[1] + np.outer(np.sin(azimuth), reach)
         elevation = np.arctan2(self.height(x, y) - origin[2], reach).max(axis=1)
-        return np.maximum(np.maximum(elevation, np.roll(elevation, 1)), np.roll(elevation, -1))
+        profile = np.maximum(np.maximum(elevation, np.roll(elevation, 1)), np.roll(elevation, -1))
+        self._horizon_cache = (key, profile)  # the boundary pass of a frame asks again from the same place
+        return profile
 
     def may_hit(self, origin: np.ndarray, directions: np.ndarray, max_distance: float) -> np.ndarray:
         """Return, for rays from one `origin`, whether each may meet the terrain (False: it surely does not)."""
@@ -131,43 +140,51 @@ class Terrain:
         they climb above the highest terrain point or pass their own max_distance (scalar or per
         ray). Rays may begin at per-ray `start` distances known to be above ground (first_contact).
         """
-        origins = np.broadcast_to(origins, directions.shape)
         count = directions.shape[0]
         limit = np.broadcast_to(np.asarray(max_distance, float), (count,))
-        along = np.zeros(count) if start is None else np.array(start, float)
-        hit = np.full(count, np.inf)
-        horizontal = np.maximum(np.hypot(directions[:, 0], directions[:, 1]), 1e-9)
-        active = np.flatnonzero(along <= limit)
-        previous = along.copy()
-        while active.size:
-            o, d, s = origins[active], directions[active], along[active]
-            p = o + s[:, None] * d
-            below = p[:, 2] < self.height(p[:, 0], p[:, 1])
+        along = np.zeros(count) if start is None else np.asarray(start, float)
+        shared_origin = np.ndim(origins) == 1
+        rays = np.flatnonzero(along <= limit)
+        # The rays still marching, kept compact: every array below is indexed like `rays`.
+        o = origins if shared_origin else origins[rays]
+        d = directions[rays]
+        horizontal = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)
+        s, lim = along[rays], limit[rays]
+        previous = s.copy()
+        found: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rays, above, below) per step
+        n, flat = self.n, self._flat['height']
+        while rays.size:
+            ox, oy, oz = (o if shared_origin else o.T)
+            px, py, pz = ox + s * d[:, 0], oy + s * d[:, 1], oz + s * d[:, 2]
+            gx = np.clip((px + self.extent) * (1 / self.cell), 0, n - 1.000001)
+            gy = np.clip((py + self.extent) * (1 / self.cell), 0, n - 1.000001)
+            i, j = gx.astype(np.int64), gy.astype(np.int64)
+            fx, fy = gx - i, gy - j
+            index = j * n + i
+            height = ((flat.take(index) * (1 - fx) + flat.take(index + 1) * fx) * (1 - fy)
+                      + (flat.take(index + n) * (1 - fx) + flat.take(index + n + 1) * fx) * fy)
+            below = pz < height
             if below.any():
-                rays = active[below]
-                hit[rays] = self._bisect(origins[rays], directions[rays], previous[rays], s[below])
+                found.append((rays[below], previous[below], s[below]))
             step = np.maximum(MARCH_FIRST_STEP, (MARCH_GROWTH - 1) * s)
-            for reach, ceiling in zip(self._reach, self._ceilings):
-                clearance = p[:, 2] - self._pooled(ceiling, reach, p[:, 0], p[:, 1])
-                with np.errstate(divide='ignore'):
-                    safe = np.minimum(reach / horizontal[active],
-                                      np.where(d[:, 2] < 0, clearance / -np.minimum(d[:, 2], -1e-12), np.inf))
+            descending = d[:, 2] < 0
+            for reach, shift, size, ceiling in self._levels:
+                clearance = pz - ceiling.take((j >> shift) * size + (i >> shift))
+                with np.errstate(divide='ignore', invalid='ignore'):
+                    safe = np.minimum(reach / horizontal, np.where(descending, clearance / -d[:, 2], np.inf))
                 step = np.where(clearance > 0, np.maximum(step, safe), step)
-            escaped = ((d[:, 2] >= 0) & (p[:, 2] > self.max_height)) | (s >= limit[active])
+            escaped = ((~descending) & (pz > self.max_height)) | (s >= lim)
             keep = ~below & ~escaped
-            active = active[keep]
-            previous[active] = s[keep]
-            along[active] = np.minimum(s[keep] + step[keep], limit[active])
+            rays, d, horizontal, lim, previous = rays[keep], d[keep], horizontal[keep], lim[keep], s[keep]
+            if not shared_origin:
+                o = o[keep]
+            s = np.minimum(previous + step[keep], lim)
+        hit = np.full(count, np.inf)
+        if found:
+            crossed, above, beneath = (np.concatenate(parts) for parts in zip(*found))
+            o_crossed = np.broadcast_to(origins, (count, 3))[crossed]
+            hit[crossed] = self._bisect(o_crossed, directions[crossed], above, beneath)
         return hit
-
-    def _pooled(self, ceiling: np.ndarray, reach: float, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Return the highest terrain within `reach` (m) of world points, from one pyramid level."""
-        size = ceiling.shape[0]  # a level's blocks are as wide as its reach
-        i = ((x + self.extent) * (1 / reach)).astype(np.int64)
-        j = ((y + self.extent) * (1 / reach)).astype(np.int64)
-        np.clip(i, 0, size - 1, out=i)
-        np.clip(j, 0, size - 1, out=j)
-        return ceiling.ravel().take(j * size + i)
 
     def _bisect(self, o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Return the crossing distance between `lo` (above ground) and `hi` (below ground), per ray."""

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Regenerate the bundled synthetic recordings: bags/generate.sh [OUTPUT_DIR]
+# Every file is rendered by skynav_sim from the seeds below; the same commands
+# give the same bytes. See bags/README.md for what each one is for.
+set -euo pipefail
+cd "$(dirname "$0")"
+out=${1:-.}
+sim() { ../.venv/bin/skynav sim bag "$@"; }
+common=(--size 320x240 --fov 200 --encoding mono8)
+
+# Teach and repeat drives along one route: other time of day, sideways offset, extra shake.
+sim teach   --world garden  --seed 1 --length 8 --speed 1.0 --time forenoon "${common[@]}" \
+    --out "$out/synthetic_garden_teach.mcap"
+sim repeat  --world garden  --seed 1 --length 8 --speed 0.9 --time morning --clouds 0.3 \
+    --offset 0.25 --shake 3 "${common[@]}" --out "$out/synthetic_garden_repeat.mcap"
+sim teach   --world mineral --seed 2 --length 6 --speed 1.0 --time noon "${common[@]}" \
+    --out "$out/synthetic_mineral_teach.mcap"
+sim repeat  --world mineral --seed 2 --length 6 --speed 0.9 --time sunrise \
+    --offset -0.2 --shake 3 "${common[@]}" --out "$out/synthetic_mineral_repeat.mcap"
+
+# A snapshot place and a 7 x 7 grid of places 0.75 m apart around it.
+sim homing  --world park    --seed 3 --spacing 0.75 --grid-radius 2.25 --time forenoon "${common[@]}" \
+    --out "$out/synthetic_park_homing.mcap"
+
+# One place: a reference view, 15 rotations (tilt up to 30 degrees), 15 views up to 0.5 m away.
+sim compass --world garden  --seed 1 --count 15 --max-tilt 30 --max-translation 0.5 --time forenoon \
+    "${common[@]}" --out "$out/synthetic_garden_compass.mcap"
+sim compass --world mineral --seed 2 --count 15 --max-tilt 30 --max-translation 0.5 --time noon \
+    "${common[@]}" --out "$out/synthetic_mineral_compass.mcap"
+
+# Labelled skyline sets: 2 places at each of 5 times of day, clear and cloudy, in each world style.
+for world in garden park mineral; do
+    sim skyline --world "$world" --seed 4 --count 2 "${common[@]}" --out "$out/synthetic_${world}_skyline.mcap"
+done
