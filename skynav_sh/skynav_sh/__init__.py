@@ -1,1 +1,60 @@
-"""Real spherical harmonics of fish-eye views: transform, rotation, spectra, translation."""
+"""Real spherical harmonics of fish-eye views: transform, rotation, spectra, translation.
+
+The public names below are loaded on first use (PEP 562), so `import skynav_sh` stays light; every table
+(Legendre values, quarter turns, Gaunt coefficients, translation blocks) is built lazily and cached.
+Frames, angles and the coefficient order are those of CONTRACT.md (camera_link, theta from +z, phi from +x to +y,
+index l*l + l + m). Rotation convention: rotate(c, R) gives f(R^T d), so f_snapshot = rotate(f_current, R) for the
+compass's d_snapshot = R d_current. Translation: translate(c, t / rho) gives g with g(normalise(d - t/rho)) = f(d).
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS = {
+    'basis': ('SPHERE_AREA', 'degree_from_size', 'degree_order', 'degree_slices', 'lm_index', 'n_coefficients',
+              'normalised_legendre', 'real_sh', 'real_sh_directions'),
+    'camera': ('Camera', 'CameraModel', 'EquidistantCamera', 'OCamCamera', 'angles_from_directions',
+               'directions_from_angles', 'load_camera'),
+    'transform': ('GaussLegendreGrid', 'analysis', 'grid', 'synthesis', 'synthesis_at'),
+    'fisheye': ('FILLS', 'FisheyeTransform', 'image_values'),
+    'rotation': ('as_matrix', 'matrix_from_zyz', 'quarter_turn', 'rotate', 'rotate_y', 'rotate_z', 'rotate_zyz',
+                 'wigner_d', 'wigner_d_matrix', 'wigner_d_recurrence', 'wigner_small_d', 'y_rotation_block',
+                 'z_rotation_blocks', 'zyz_angles'),
+    'coupling': ('RealGaunt', 'real_gaunt'),
+    'spectra': ('amplitude_distance', 'amplitude_spectrum', 'bispectrum', 'bispectrum_distance', 'bispectrum_size',
+                'bispectrum_triples', 'coefficient_distance', 'illumination_invariant', 'squared_distance'),
+    'product': ('MaskedView', 'inner', 'masked_distance', 'masked_distance_views', 'overlap_area', 'product'),
+    'translation': ('source_directions', 'translate', 'translate_z', 'translated_directions',
+                    'z_translation_blocks'),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    """Import the submodule that defines a public name on first access."""
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(f'{__name__}.{module}'), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """List the public names next to the module's own."""
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static analysers see the real imports
+    from skynav_sh.basis import *  # noqa: F401,F403
+    from skynav_sh.camera import *  # noqa: F401,F403
+    from skynav_sh.coupling import *  # noqa: F401,F403
+    from skynav_sh.fisheye import *  # noqa: F401,F403
+    from skynav_sh.product import *  # noqa: F401,F403
+    from skynav_sh.rotation import *  # noqa: F401,F403
+    from skynav_sh.spectra import *  # noqa: F401,F403
+    from skynav_sh.transform import *  # noqa: F401,F403
+    from skynav_sh.translation import *  # noqa: F401,F403

@@ -1,0 +1,297 @@
+"""Rotations of real SH coefficients (camera_link): real Wigner-D matrices, fast z- and y-rotations.
+
+Convention: rotate(c, R) returns the coefficients of g(d) = f(R^T d), the function f turned by R
+(so if d_snapshot = R d_current, the compass convention, then f_snapshot = rotate(f_current, R)).
+The per-degree matrices D_l(R) of this action satisfy D(R1 R2) = D(R1) D(R2) and are orthogonal.
+A rotation is given as a scipy Rotation, a 3x3 matrix or a quaternion (x, y, z, w) as ROS and scipy order it;
+ZYZ Euler angles (alpha, beta, gamma) mean R = Rz(alpha) Ry(beta) Rz(gamma) (scipy 'ZYZ', intrinsic).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import Union
+
+import numpy as np
+
+from skynav_sh.basis import degree_from_size, degree_order, degree_slices
+
+RotationLike = Union['Rotation', np.ndarray, tuple, list]  # noqa: F821 (scipy Rotation, matrix or quaternion)
+
+
+def as_matrix(rotation: RotationLike) -> np.ndarray:
+    """Return the 3x3 rotation matrix of a scipy Rotation, a 3x3 matrix or a quaternion (x, y, z, w)."""
+    from scipy.spatial.transform import Rotation
+
+    if isinstance(rotation, Rotation):
+        return rotation.as_matrix()
+    array = np.asarray(rotation, dtype=float)
+    if array.shape == (3, 3):
+        return array
+    if array.shape == (4,):
+        return Rotation.from_quat(array).as_matrix()
+    raise ValueError(f'a rotation must be a 3x3 matrix or a quaternion (x, y, z, w), got shape {array.shape}')
+
+
+def zyz_angles(rotation: RotationLike) -> tuple[float, float, float]:
+    """Return ZYZ Euler angles (alpha, beta, gamma) in rad, R = Rz(alpha) Ry(beta) Rz(gamma), exact near gimbal lock."""
+    # scipy's as_euler loses ~1e-8 of the rotation near beta = 0 or pi. Here alpha comes from the third column and
+    # gamma from the well-conditioned sum (beta <= pi/2) or difference (beta > pi/2) of the angles read off the
+    # upper-left 2x2 block, so the matrix rebuilt from the angles matches R to rounding.
+    r = as_matrix(rotation)
+    alpha = float(np.arctan2(r[1, 2], r[0, 2]))
+    beta = float(np.arctan2(np.hypot(r[0, 2], r[1, 2]), r[2, 2]))
+    if r[2, 2] >= 0:  # 1 + cos(beta) >= 1: (R10 - R01, R00 + R11) = (1 + cos beta)(sin, cos)(alpha + gamma)
+        gamma = float(np.arctan2(r[1, 0] - r[0, 1], r[0, 0] + r[1, 1])) - alpha
+    else:  # 1 - cos(beta) > 1: (R10 + R01, R00 - R11) = (cos beta - 1)(sin, cos)(alpha - gamma)
+        gamma = alpha - float(np.arctan2(-(r[1, 0] + r[0, 1]), -(r[0, 0] - r[1, 1])))
+    return alpha, beta, float(np.remainder(gamma + np.pi, 2 * np.pi) - np.pi)
+
+
+def matrix_from_zyz(alpha: float, beta: float, gamma: float) -> np.ndarray:
+    """Return the 3x3 matrix Rz(alpha) Ry(beta) Rz(gamma) (angles in rad)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_euler('ZYZ', [alpha, beta, gamma]).as_matrix()
+
+
+# --- Ivanic-Ruedenberg recurrence (J. Phys. Chem. 100, 6342 (1996), with the 1998 erratum) ---------------
+
+def _degree_one(matrix: np.ndarray) -> np.ndarray:
+    """Return D_1(R): the l = 1 real SH are proportional to (y, z, x) (no Condon-Shortley phase)."""
+    order = [1, 2, 0]
+    return matrix[np.ix_(order, order)]
+
+
+def _next_degree(d1: np.ndarray, previous: np.ndarray, l: int) -> np.ndarray:
+    """Return D_l from D_1 and D_(l-1) by the Ivanic-Ruedenberg recurrence, vectorised over (m, n)."""
+    size = 2 * l + 1
+    # prev_pad[a + l + 1, :] = D_(l-1)[a, :] for |a| <= l - 1, zero rows for |a| = l, l + 1
+    prev_pad = np.zeros((2 * l + 3, 2 * l - 1))
+    prev_pad[2 : 2 * l + 1] = previous
+
+    def p_matrix(i: int) -> np.ndarray:
+        # P(i, a, b) for all a (padded rows) and b = -l..l (columns)
+        out = np.empty((2 * l + 3, size))
+        out[:, 1:-1] = d1[i + 1, 1] * prev_pad
+        out[:, -1] = d1[i + 1, 2] * prev_pad[:, -1] - d1[i + 1, 0] * prev_pad[:, 0]
+        out[:, 0] = d1[i + 1, 2] * prev_pad[:, 0] + d1[i + 1, 0] * prev_pad[:, -1]
+        return out
+
+    p_minus, p_zero, p_plus = p_matrix(-1), p_matrix(0), p_matrix(1)
+    m = np.arange(-l, l + 1)
+    n = np.arange(-l, l + 1)
+    row = lambda a: a + l + 1  # noqa: E731 - padded row of order a
+
+    abs_m = np.abs(m).astype(float)
+    delta_m0 = (m == 0).astype(float)
+    denominator = np.where(np.abs(n) == l, 2.0 * l * (2 * l - 1), (l + n) * (l - n)).astype(float)
+    u = np.sqrt(((l + m) * (l - m))[:, None] / denominator[None, :])
+    v = 0.5 * np.sqrt(((1 + delta_m0) * (l + abs_m - 1) * (l + abs_m))[:, None] / denominator[None, :]) \
+        * (1 - 2 * delta_m0)[:, None]
+    w = -0.5 * np.sqrt((np.clip(l - abs_m - 1, 0, None) * (l - abs_m))[:, None] / denominator[None, :]) \
+        * (1 - delta_m0)[:, None]
+
+    big_u = p_zero[row(m)]
+    big_v = np.empty((size, size))
+    big_w = np.zeros((size, size))
+    positive, negative = m > 0, m < 0
+    mp, mn = m[positive], m[negative]
+    big_v[m == 0] = p_plus[row(1)] + p_minus[row(-1)]
+    big_v[positive] = (p_plus[row(mp - 1)] * np.sqrt(1.0 + (mp == 1))[:, None]
+                       - p_minus[row(-mp + 1)] * (1.0 - (mp == 1))[:, None])
+    big_v[negative] = (p_plus[row(mn + 1)] * (1.0 - (mn == -1))[:, None]
+                       + p_minus[row(-mn - 1)] * np.sqrt(1.0 + (mn == -1))[:, None])
+    inner_p = positive & (m <= l - 2)
+    inner_n = negative & (m >= -(l - 2))
+    mp, mn = m[inner_p], m[inner_n]
+    big_w[inner_p] = p_plus[row(mp + 1)] + p_minus[row(-mp - 1)]
+    big_w[inner_n] = p_plus[row(mn - 1)] - p_minus[row(-mn + 1)]
+    return u * big_u + v * big_v + w * big_w
+
+
+def wigner_d_recurrence(rotation: RotationLike, max_degree: int) -> list[np.ndarray]:
+    """Return [D_0, ..., D_L] by the Ivanic-Ruedenberg recurrence (a cross-check; accurate to ~1e-11 up to L = 64)."""
+    # its rounding errors grow geometrically with l (measured ~1e-11 at l = 64, 1e-7..1e-5 at l = 128), so the
+    # library's own path is the ZYZ factorisation with the Jacobi-based quarter turn
+    matrix = as_matrix(rotation)
+    blocks = [np.ones((1, 1))]
+    if max_degree >= 1:
+        blocks.append(_degree_one(matrix))
+    for l in range(2, int(max_degree) + 1):
+        blocks.append(_next_degree(blocks[1], blocks[-1], l))
+    return blocks
+
+
+# --- y-rotations from Wigner's small d, the fixed quarter turn and the ZYZ factorisation -----------------
+
+def wigner_small_d(degree: int, beta: float) -> np.ndarray:
+    """Return Wigner's small d^l_(m' m)(beta) (complex basis, beta in rad) as an array [m' + l, m + l]."""
+    # d = xi sqrt(s! (s+mu+nu)! / ((s+mu)! (s+nu)!)) sin(beta/2)^mu cos(beta/2)^nu P_s^(mu,nu)(cos beta) with
+    # mu = |m - m'|, nu = |m + m'|, s = l - (mu + nu)/2, xi = (-1)^(m' - m) for m < m'; factorials through
+    # log-gamma and the Jacobi polynomial by its three-term recurrence, so it stays accurate to high degree
+    from scipy.special import eval_jacobi, gammaln
+
+    l = int(degree)
+    order = np.arange(-l, l + 1)
+    row, col = np.meshgrid(order, order, indexing='ij')
+    # symmetries d_(m'm) = (-1)^(m-m') d_(mm') = d_(-m,-m'): evaluate the wedge m' >= |m| only, then gather
+    swap = np.abs(col) > np.abs(row)  # |m| > |m'|: transpose first
+    p, q = np.where(swap, col, row), np.where(swap, row, col)
+    sign = np.where(swap & ((row - col) % 2 == 1), -1.0, 1.0)
+    negative = p < 0  # m' <= -|m|: d_(p q) = (-1)^(q - p) d_(-p, -q) with -p >= |q|
+    sign = np.where(negative & ((q - p) % 2 == 1), -sign, sign)
+    p, q = np.where(negative, -p, p), np.where(negative, -q, q)
+    wedge_row, wedge_col = np.nonzero(np.arange(-l, l + 1)[:, None] >= np.abs(np.arange(-l, l + 1))[None, :])
+    m_row, m_col = wedge_row - l, wedge_col - l
+    mu, nu = np.abs(m_col - m_row), np.abs(m_col + m_row)
+    s = l - (mu + nu) // 2
+    wedge_sign = np.where((m_col >= m_row) | ((m_row - m_col) % 2 == 0), 1.0, -1.0)
+    half_sin, half_cos = np.sin(beta / 2), np.cos(beta / 2)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        log_size = (0.5 * (gammaln(s + 1) + gammaln(s + mu + nu + 1) - gammaln(s + mu + 1) - gammaln(s + nu + 1))
+                    + np.where(mu > 0, mu * np.log(np.abs(half_sin)), 0.0)
+                    + np.where(nu > 0, nu * np.log(np.abs(half_cos)), 0.0))
+    power_sign = np.where((mu % 2 == 1) & (half_sin < 0), -1.0, 1.0) * np.where((nu % 2 == 1) & (half_cos < 0),
+                                                                                 -1.0, 1.0)
+    wedge = np.zeros((2 * l + 1, 2 * l + 1))
+    wedge[wedge_row, wedge_col] = wedge_sign * power_sign * np.exp(log_size) * eval_jacobi(s, mu, nu, np.cos(beta))
+    return sign * wedge[p + l, q + l]
+
+
+def y_rotation_block(degree: int, beta: float) -> np.ndarray:
+    """Return the real D_l(Ry(beta)) from Wigner's small d (it mixes cos-type m >= 0 and sin-type m < 0 apart)."""
+    l = int(degree)
+    d = wigner_small_d(l, beta)
+    c = l
+    k = np.arange(1, l + 1)
+    sign_k = (-1.0) ** k
+    block = np.zeros((2 * l + 1, 2 * l + 1))
+    block[c, c] = d[c, c]
+    block[c + k, c] = (sign_k * d[c + k, c] + d[c - k, c]) / np.sqrt(2)
+    block[c, c + k] = (sign_k * d[c, c + k] + d[c, c - k]) / np.sqrt(2)
+    row, col = np.meshgrid(k, k, indexing='ij')
+    sign_row, sign_col = (-1.0) ** row, (-1.0) ** col
+    a = sign_row * sign_col * d[c + row, c + col]
+    b = sign_row * d[c + row, c - col]
+    e = sign_col * d[c - row, c + col]
+    f = d[c - row, c - col]
+    block[c + row, c + col] = 0.5 * (a + b + e + f)
+    block[c - row, c - col] = 0.5 * (a - b - e + f)
+    return block
+
+
+# Q = Rx(-90 deg) turns +z onto +y, so Ry(beta) = Q Rz(beta) Q^T and D(Ry(beta)) = J Z(beta) J^T with J = D(Q);
+# Q = Rz(-90 deg) Ry(-90 deg) Rz(90 deg), so J_l = Z_l(-pi/2) D_l(Ry(pi/2))^T Z_l(pi/2).
+QUARTER_TURN = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def _quarter_z_step(block: np.ndarray, sign: int) -> np.ndarray:
+    """Return Z_l(sign * pi/2) @ block exactly: cos(m pi/2), sin(m pi/2) are 0 or +-1, so rows only swap and flip."""
+    l = (block.shape[0] - 1) // 2
+    m = np.arange(-l, l + 1)
+    cos = np.array([1.0, 0.0, -1.0, 0.0])[np.abs(m) % 4]
+    sin = sign * np.array([0.0, 1.0, 0.0, -1.0])[np.abs(m) % 4] * np.where(m > 0, -1.0, 1.0)
+    return cos[:, None] * block + sin[:, None] * block[l - m]
+
+
+@lru_cache(maxsize=8)
+def quarter_turn(max_degree: int) -> tuple[np.ndarray, ...]:
+    """Return the cached J_l = D_l(Rx(-90 deg)) (the turn of +z onto +y) for l = 0..L, read-only, stable to high L."""
+    blocks = []
+    for l in range(int(max_degree) + 1):
+        m = np.arange(-l, l + 1)
+        # J commutes with the mirror x -> -x (Y_lm gets (-1)^m, sin-type -(-1)^m) and takes the mirror y -> -y
+        # (cos-type +1, sin-type -1) to z -> -z ((-1)^(l+m)): J[m, m'] = 0 unless both signs match, 3/4 of J
+        mirror_x = np.where(m >= 0, 1, -1) * (-1) ** np.abs(m)
+        mirror_y = np.where(m >= 0, 1, -1)
+        mirror_z = (-1) ** ((l + np.abs(m)) % 2)
+        allowed = (mirror_x[:, None] == mirror_x[None, :]) & (mirror_z[:, None] == mirror_y[None, :])
+        # Z(-pi/2) Y^T Z(pi/2) = Z(-pi/2) (Z(-pi/2) Y)^T, Z(pi/2) being the transpose of Z(-pi/2)
+        turned = _quarter_z_step(_quarter_z_step(y_rotation_block(l, np.pi / 2), -1).T, -1)
+        block = np.where(allowed, turned, 0.0)
+        block.flags.writeable = False
+        blocks.append(block)
+    return tuple(blocks)
+
+
+@lru_cache(maxsize=16)
+def _z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (|m|, sign, partner index) for every flat index: the z-step pairs c_l,m with c_l,-m."""
+    l, m = degree_order(max_degree)
+    # a' = a cos - b sin (a = c_l,m with m > 0), b' = a sin + b cos (b = c_l,-m): sign -1 on the cos-type entries
+    return np.abs(m), np.where(m > 0, -1.0, 1.0), l * l + l - m
+
+
+def _z_rotation_factors(max_degree: int, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (cos(|m| alpha), signed sin(|m| alpha), partner index) for every flat index of degree <= L."""
+    order, sign, partner = _z_rotation_index(max_degree)
+    angle = np.arange(max_degree + 1) * alpha
+    return np.cos(angle)[order], sign * np.sin(angle)[order], partner
+
+
+def rotate_z(coefficients: np.ndarray, alpha: float) -> np.ndarray:
+    """Return the coefficients (..., n) of f turned by alpha (rad) about +z: g(theta, phi) = f(theta, phi - alpha)."""
+    coefficients = np.asarray(coefficients, dtype=float)
+    cos, sin, partner = _z_rotation_factors(degree_from_size(coefficients.shape[-1]), alpha)
+    return cos * coefficients + sin * coefficients[..., partner]
+
+
+@lru_cache(maxsize=8)
+def _quarter_turn_sparse(max_degree: int):  # -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix]
+    """Return the block-diagonal J = diag(J_0..J_L) and J^T as sparse matrices (about a quarter of J_l is non-zero)."""
+    from scipy.sparse import block_diag
+
+    forward = block_diag(quarter_turn(max_degree), format='csr')
+    forward.eliminate_zeros()
+    return forward, forward.T.tocsr()
+
+
+def _apply_sparse(matrix, coefficients: np.ndarray) -> np.ndarray:
+    """Return matrix @ c for coefficient vectors c along the last axis of (..., n)."""
+    flat = coefficients.reshape(-1, coefficients.shape[-1])
+    return np.asarray(matrix @ flat.T).T.reshape(coefficients.shape)
+
+
+def rotate_y(coefficients: np.ndarray, beta: float) -> np.ndarray:
+    """Return the coefficients of f turned by beta (rad) about +y, by J Z(beta) J^T (fixed quarter turns)."""
+    coefficients = np.asarray(coefficients, dtype=float)
+    forward, backward = _quarter_turn_sparse(degree_from_size(coefficients.shape[-1]))
+    return _apply_sparse(forward, rotate_z(_apply_sparse(backward, coefficients), beta))
+
+
+def rotate_zyz(coefficients: np.ndarray, alpha: float, beta: float, gamma: float) -> np.ndarray:
+    """Return the coefficients of f turned by R = Rz(alpha) Ry(beta) Rz(gamma): two z-steps, two quarter turns."""
+    return rotate_z(rotate_y(rotate_z(coefficients, gamma), beta), alpha)
+
+
+def rotate(coefficients: np.ndarray, rotation: RotationLike) -> np.ndarray:
+    """Return the coefficients (..., n) of g(d) = f(R^T d): f turned by R (f_snapshot = rotate(f_current, R))."""
+    return rotate_zyz(coefficients, *zyz_angles(rotation))
+
+
+def z_rotation_blocks(max_degree: int, alpha: float) -> list[np.ndarray]:
+    """Return the per-degree matrices Z_l(alpha) of a turn by alpha (rad) about +z."""
+    cos, sin, partner = _z_rotation_factors(int(max_degree), alpha)
+    blocks = []
+    for part in degree_slices(max_degree):
+        size = part.stop - part.start
+        block = np.diag(cos[part])
+        block[np.arange(size), partner[part] - part.start] += sin[part]
+        blocks.append(block)
+    return blocks
+
+
+def wigner_d(rotation: RotationLike, max_degree: int) -> list[np.ndarray]:
+    """Return the real Wigner-D matrices [D_0, ..., D_L] of R: rotate(c, R)[l] = D_l @ c[l]."""
+    alpha, beta, gamma = zyz_angles(rotation)
+    turns = quarter_turn(max_degree)
+    za, zb, zg = (z_rotation_blocks(max_degree, angle) for angle in (alpha, beta, gamma))
+    return [za[l] @ turns[l] @ zb[l] @ turns[l].T @ zg[l] for l in range(int(max_degree) + 1)]
+
+
+def wigner_d_matrix(rotation: RotationLike, max_degree: int) -> np.ndarray:
+    """Return the block-diagonal ((L+1)^2, (L+1)^2) matrix of all D_l(R)."""
+    from scipy.linalg import block_diag
+
+    return block_diag(*wigner_d(rotation, max_degree))
