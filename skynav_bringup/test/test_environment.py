@@ -10,6 +10,7 @@ def test_defaults_fill_an_empty_environment():
     added = ros_environment({'HOME': '/nonexistent-home'})
     assert added['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     assert added['RMW_IMPLEMENTATION'] == 'rmw_fastrtps_cpp'
+    assert added['OPENBLAS_NUM_THREADS'] == '1' and added['OMP_NUM_THREADS'] == '1'
     assert str(sys.prefix) in added['AMENT_PREFIX_PATH'].split(':')
     # HOME is not writable, so logs go to a temp directory rather than failing rclpy.init.
     assert 'skynav-ros-log' in added['ROS_LOG_DIR']
