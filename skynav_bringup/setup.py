@@ -23,11 +23,13 @@ setup(
     entry_points={
         'console_scripts': ['skynav = skynav_bringup.cli:entry'],
         'skynav.commands': [
+            'demo = skynav_bringup.cli.demo',
             'echo = skynav_bringup.cli.echo',
             'info = skynav_bringup.cli.info',
             'launch = skynav_bringup.cli.launch',
             'record = skynav_bringup.cli.record',
             'replay = skynav_bringup.cli.replay',
+            'run = skynav_bringup.cli.run',
         ],
     },
 )

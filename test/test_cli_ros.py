@@ -81,7 +81,7 @@ def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
     dist = tmp_path / 'trivial_node-1.0.dist-info'
     dist.mkdir()
     (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: trivial-node\nVersion: 1.0\n')
-    (dist / 'entry_points.txt').write_text('[skynav.nodes]\ntrivial = trivial_node:main\n')
+    (dist / 'entry_points.txt').write_text('[skynav.nodes]\ntrivial = trivial_node:Trivial\n')
     params = tmp_path / 'params.yaml'
     params.write_text('trivial:\n  ros__parameters:\n    greeting: hello\n')
     env = dict(__import__('os').environ, PYTHONPATH=str(tmp_path))

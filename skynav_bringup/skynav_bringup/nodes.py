@@ -1,8 +1,10 @@
 """The skynav nodes installed in this environment, found through the `skynav.nodes` entry points.
 
-A package adds its node to the graph by declaring, in its setup.py,
-``entry_points={'skynav.nodes': ['skyline = skynav_skyline.node:main'], ...}``
-and, for `ros2 run`/`ros2 launch`, a console script with the same target.
+A package adds its node to the graph by declaring, in its setup.py, its node class
+``entry_points={'skynav.nodes': ['skyline = skynav_skyline.node:SkylineNode'], ...}``
+and, for `ros2 run`/`ros2 launch`, a console script ``skyline_node = skynav_skyline.node:main``
+in the same module (main runs the class). `skynav launch` starts each class in a process
+of its own; `skynav run` creates them all in one process.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ class NodeSpec:
 
     name: str  # its name in the graph, e.g. 'skyline'
     package: str  # the ROS package (distribution) that provides it
-    entry: str  # 'module:function' of its main(args=None)
+    entry: str  # 'module:Class' of its node class
     executable: str | None = None  # its console script for `ros2 run`, if the package declares one
 
 
@@ -30,8 +32,9 @@ def installed_nodes() -> list[NodeSpec]:
     specs = []
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         dist = ep.dist
+        module = ep.value.partition(':')[0]
         scripts = [] if dist is None else [
-            s.name for s in dist.entry_points if s.group == 'console_scripts' and s.value == ep.value
+            s.name for s in dist.entry_points if s.group == 'console_scripts' and s.value.partition(':')[0] == module
         ]
         package = dist.metadata['Name'] if dist is not None else ep.module.split('.')[0]
         specs.append(NodeSpec(ep.name, package, ep.value, scripts[0] if scripts else None))

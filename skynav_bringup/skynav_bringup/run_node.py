@@ -1,7 +1,6 @@
-"""Run one node process: ``python -m skynav_bringup.run_node MODULE:FUNCTION [--ros-args ...]``.
+"""Run one node in a process of its own: ``python -m skynav_bringup.run_node MODULE:CLASS [--ros-args ...]``.
 
-`skynav launch` starts every node this way; FUNCTION is the node's
-``main(args=None)`` and receives the remaining arguments for rclpy.
+`skynav launch` starts every node this way.
 """
 
 from __future__ import annotations
@@ -9,15 +8,17 @@ from __future__ import annotations
 import importlib
 import sys
 
+from .ros import run_node
+
 
 def main() -> int:
-    """Import MODULE, call FUNCTION(args=[...]) and return its exit code."""
+    """Import MODULE, run CLASS until Ctrl-C and return the exit code."""
     if len(sys.argv) < 2 or ':' not in sys.argv[1]:
-        print('usage: python -m skynav_bringup.run_node MODULE:FUNCTION [--ros-args ...]', file=sys.stderr)
+        print('usage: python -m skynav_bringup.run_node MODULE:CLASS [--ros-args ...]', file=sys.stderr)
         return 2
-    module_name, function_name = sys.argv[1].split(':', 1)
-    function = getattr(importlib.import_module(module_name), function_name)
-    return function(args=sys.argv[1:]) or 0
+    module_name, class_name = sys.argv[1].split(':', 1)
+    node_class = getattr(importlib.import_module(module_name), class_name)
+    return run_node(node_class, args=sys.argv[1:])
 
 
 if __name__ == '__main__':

@@ -1,0 +1,150 @@
+"""The node graph in one process, driven by a recording: what `skynav run` (and the offline tools) use.
+
+The real node classes are created with a router instead of DDS. Each recorded input is delivered to
+the nodes that subscribe its topic; whatever they publish is recorded and delivered to its
+subscribers before the call returns, depth first. So every input frame is processed, in recording
+order, whatever the speed of the machine, and the output is the same on every run.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections import defaultdict
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.signals import SignalHandlerOptions
+
+from .bag import BagReader, RawMessage
+from .node import DIAGNOSTICS_PERIOD, SkynavNode
+from .nodes import NodeSpec
+from .ros import message_class
+
+# (topic, type name, log time in ns, serialized message)
+Sink = Callable[[str, str, int, bytes], None]
+
+
+def node_class(spec: NodeSpec) -> type[SkynavNode]:
+    """Return the node class a `skynav.nodes` entry point names ('module:Class')."""
+    module, _, name = spec.entry.partition(':')
+    return getattr(importlib.import_module(module), name)
+
+
+def type_name(message: Any) -> str:
+    """Return 'pkg/msg/Name' of an rclpy message."""
+    return f'{type(message).__module__.split(".")[0]}/msg/{type(message).__name__}'
+
+
+@dataclass
+class Output:
+    """One message a node published during a run."""
+
+    topic: str
+    message: Any
+    log_time: int
+
+
+class InProcessGraph:
+    """Nodes wired by a synchronous in-process bus (rclpy must be initialised)."""
+
+    def __init__(self, specs: Iterable[NodeSpec], sink: Sink | None = None, context: Context | None = None) -> None:
+        self._subscribers: dict[str, list[Callable[[Any], None]]] = defaultdict(list)
+        self._sink = sink
+        self._now = 0
+        self._next_diagnostics: int | None = None
+        self.outputs: list[Output] = []
+        self.keep_outputs = False
+        self.nodes: list[SkynavNode] = [node_class(spec)(router=self, context=context) for spec in specs]
+
+    # --- the Router protocol ------------------------------------------------------------------
+
+    def subscribe(self, topic: str, callback: Callable[[Any], None]) -> None:
+        """Deliver every message published on `topic` to `callback`."""
+        self._subscribers[topic].append(callback)
+
+    def publish(self, topic: str, message: Any) -> None:
+        """Record an output and deliver it to its subscribers at once."""
+        if self._sink is not None:
+            self._sink(topic, type_name(message), self._now, serialize_message(message))
+        if self.keep_outputs:
+            self.outputs.append(Output(topic, message, self._now))
+        for callback in list(self._subscribers.get(topic, ())):
+            callback(message)
+
+    def now_ns(self) -> int:
+        """Return the log time of the input being processed."""
+        return self._now
+
+    # --- driving --------------------------------------------------------------------------------
+
+    @property
+    def input_topics(self) -> set[str]:
+        """Return the topics some node subscribes to."""
+        return set(self._subscribers)
+
+    def feed(self, raw: RawMessage) -> None:
+        """Deliver one recorded message (and everything it causes) to the graph."""
+        self._now = raw.log_time
+        if self._next_diagnostics is None:
+            self._next_diagnostics = raw.log_time + int(DIAGNOSTICS_PERIOD * 1e9)
+        message = deserialize_message(raw.data, message_class(raw.msgtype))
+        for callback in list(self._subscribers.get(raw.topic, ())):
+            callback(message)
+        if raw.log_time >= self._next_diagnostics:
+            self.publish_diagnostics()
+            self._next_diagnostics = raw.log_time + int(DIAGNOSTICS_PERIOD * 1e9)
+
+    def publish_diagnostics(self) -> None:
+        """Have every node publish its status now (in recording time)."""
+        for node in self.nodes:
+            node.publish_diagnostics()
+
+    def run(self, bag: BagReader, progress: Callable[[int], None] | None = None) -> int:
+        """Feed every message of the topics the graph subscribes to; return how many were fed."""
+        topics = sorted(self.input_topics & set(bag.topics))
+        fed = 0
+        for raw in bag.messages(topics):
+            self.feed(raw)
+            fed += 1
+            if progress is not None:
+                progress(1)
+        if fed:
+            self.publish_diagnostics()
+        return fed
+
+    def destroy(self) -> None:
+        """Destroy every node."""
+        for node in self.nodes:
+            node.destroy_node()
+
+
+@contextmanager
+def in_process(specs: Iterable[NodeSpec], ros_args: list[str] | None = None,
+               sink: Sink | None = None) -> Iterator[InProcessGraph]:
+    """Yield an InProcessGraph of the given nodes in an rclpy context of its own (ros_args: --params-file, -p)."""
+    from .environment import apply_ros_environment
+
+    apply_ros_environment()
+    context = Context()
+    rclpy.init(args=['--ros-args', *(ros_args or [])], context=context, signal_handler_options=SignalHandlerOptions.NO)
+    graph = None
+    try:
+        graph = InProcessGraph(specs, sink, context)
+        yield graph
+    finally:
+        if graph is not None:
+            graph.destroy()
+        rclpy.try_shutdown(context=context)
+
+
+def process(bag: BagReader, specs: Iterable[NodeSpec], ros_args: list[str] | None = None) -> list[Output]:
+    """Run nodes over a recording in this process; return everything they published, in order."""
+    with in_process(specs, ros_args) as graph:
+        graph.keep_outputs = True
+        graph.run(bag)
+        return list(graph.outputs)
