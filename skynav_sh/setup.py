@@ -16,4 +16,8 @@ setup(
     maintainer_email='skynav@example.org',
     description='Real spherical harmonics of fish-eye views: transform, rotation, spectra, translation.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['sh_node = skynav_sh.node:main'],
+        'skynav.nodes': ['sh = skynav_sh.node:ShNode'],
+    },
 )

@@ -1,0 +1,69 @@
+"""Camera geometry for a node from /camera/uv/camera_info: the latest model, and inputs held until the first.
+
+Logic only (no rclpy): the node passes in camera info messages and the inputs that need a camera.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .camera import EquidistantCamera
+
+CAMERA_INFO_TOPIC = '/camera/uv/camera_info'
+HELD_INPUTS = 30  # inputs that wait for the first camera info; older ones are dropped beyond this
+
+
+class CameraInput:
+    """The camera model of the latest valid camera info, narrowed to a field-of-view limit."""
+
+    def __init__(self, reject: Callable[[str, str], None], capacity: int = HELD_INPUTS) -> None:
+        self.reject = reject
+        self.camera: EquidistantCamera | None = None
+        self.fov_limit = 2 * np.pi  # rad, full angle; a node parameter may narrow it
+        self._held: deque = deque()
+        self._capacity = capacity
+
+    def update(self, info: Any) -> bool:
+        """Take a camera info message; return whether the camera model changed."""
+        try:
+            camera = EquidistantCamera.from_camera_info(info).with_fov_limit(self.fov_limit)
+        except ValueError as exc:
+            self.reject('camera_info', f'camera info rejected: {exc}')
+            return False
+        if camera == self.camera:
+            return False
+        self.camera = camera
+        return True
+
+    def set_fov_limit(self, fov: float) -> None:
+        """Narrow the field of view to `fov` (rad, full angle; 0 or less: the whole image circle)."""
+        self.fov_limit = fov if fov > 0 else 2 * np.pi
+        if self.camera is not None:
+            self.camera = EquidistantCamera(*(getattr(self.camera, f) for f in
+                                              ('width', 'height', 'fx', 'fy', 'cx', 'cy', 'k')), self.fov_limit)
+
+    def hold(self, item: Any) -> None:
+        """Keep an input until a camera is known; beyond the capacity the oldest is dropped and counted."""
+        self._held.append(item)
+        if len(self._held) > self._capacity:
+            self._held.popleft()
+            self.reject('no_camera_info', f'no camera info on {CAMERA_INFO_TOPIC} yet; the oldest waiting '
+                                          'input was dropped')
+
+    def release(self) -> list[Any]:
+        """Return (and forget) the inputs held so far, oldest first."""
+        held = list(self._held)
+        self._held.clear()
+        return held
+
+    def matches(self, shape: tuple[int, int]) -> bool:
+        """Return whether an image of `shape` (height, width) fits the camera; reject it otherwise."""
+        if (self.camera.height, self.camera.width) != tuple(shape):
+            self.reject('camera_info_mismatch', f'image of {shape[1]}x{shape[0]} pixels, but the camera info '
+                                                f'says {self.camera.width}x{self.camera.height}')
+            return False
+        return True

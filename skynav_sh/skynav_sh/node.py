@@ -1,0 +1,96 @@
+"""The SH node: the skyline mask in, its real spherical-harmonic coefficients out.
+
+Subscribes /skyline/mask (mono8, 255 sky) and /camera/uv/camera_info; publishes /skyline/sh
+(skynav_msgs/ShCoefficients: degree L, (L+1)^2 coefficients of the mask as a function on the
+sphere with sky = 1, the fill used outside the field of view, the field of view) with the mask's stamp.
+"""
+
+from __future__ import annotations
+
+import math
+
+from sensor_msgs.msg import CameraInfo, Image
+from skynav_msgs.msg import ShCoefficients
+
+from skynav_bringup.images import ImageError, image_to_array, stamp_ns
+from skynav_bringup.node import SENSOR_QOS, SkynavNode
+from skynav_bringup.ros import run_node
+
+from .camera_input import CAMERA_INFO_TOPIC, CameraInput
+from .fisheye import FILLS, FisheyeTransform
+
+MASK_TOPIC = '/skyline/mask'
+SH_TOPIC = '/skyline/sh'
+MAX_DEGREE_LIMIT = 128
+
+
+class ShNode(SkynavNode):
+    """Transforms each skyline mask into SH coefficients."""
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('sh', **kwargs)
+        self.parameter('max_degree', 16, 'SH degree L of the published coefficients')
+        self.parameter('fill', 'zero', f'value outside the field of view: {", ".join(FILLS)}')
+        self.parameter('supersampling', 2, 'sub-samples per grid cell side (area-averaged sampling)')
+        self.parameter('field_of_view_deg', 0.0, 'narrow the field of view to this full angle; 0: whole image circle')
+        self.camera_input = CameraInput(self.reject)
+        self.transform: FisheyeTransform | None = None
+        self.input(MASK_TOPIC, Image, self.on_mask)
+        self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
+        self.output(SH_TOPIC, ShCoefficients)
+        self.start()
+
+    def configure(self, values: dict) -> None:
+        """Check the settings (ValueError for unusable ones); the transform is rebuilt for the next mask."""
+        if not 0 <= values['max_degree'] <= MAX_DEGREE_LIMIT:
+            raise ValueError(f'max_degree must be between 0 and {MAX_DEGREE_LIMIT}')
+        if values['fill'] not in FILLS:
+            raise ValueError(f'fill must be one of {", ".join(FILLS)}')
+        if values['supersampling'] < 1:
+            raise ValueError('supersampling must be at least 1')
+        self.settings = values
+        self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
+        self.transform = None
+
+    def on_camera_info(self, info: CameraInfo) -> None:
+        """Adopt the camera geometry; transform the masks that waited for it."""
+        if self.camera_input.update(info):
+            self.transform = None
+        if self.camera_input.camera is not None:
+            for stamp, mask in self.camera_input.release():
+                self.publish_coefficients(stamp, mask)
+
+    def on_mask(self, image: Image) -> None:
+        """Transform one mask (or hold it until the camera is known)."""
+        stamp = stamp_ns(image.header)
+        try:
+            mask = image_to_array(image, encodings=('mono8',))
+        except ImageError as exc:
+            self.reject(exc.reason, f'mask stamped {stamp}: {exc}')
+            return
+        if self.camera_input.camera is None:
+            self.camera_input.hold((stamp, mask))
+            return
+        self.publish_coefficients(stamp, mask)
+
+    def publish_coefficients(self, stamp: int, mask) -> None:
+        """Publish the coefficients of one mask."""
+        if not self.camera_input.matches(mask.shape):
+            return
+        if self.transform is None:
+            s = self.settings
+            self.transform = FisheyeTransform(self.camera_input.camera, s['max_degree'], s['fill'],
+                                              s['supersampling'])
+        with self.processing(stamp):
+            coefficients = self.transform.coefficients(mask)
+            message = ShCoefficients(max_degree=self.transform.max_degree, coefficients=coefficients.tolist(),
+                                     fill=self.transform.fill,
+                                     field_of_view=float(self.camera_input.camera.field_of_view))
+            message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            message.header.frame_id = 'camera_link'
+            self.emit(SH_TOPIC, message)
+
+
+def main(args=None) -> int:
+    """Run the SH node until Ctrl-C."""
+    return run_node(ShNode, args)
