@@ -16,4 +16,13 @@ setup(
     maintainer_email='skynav@example.org',
     description='Sky/ground segmentation of upward-looking UV/green fish-eye images: the skyline.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['skyline_node = skynav_skyline.node:main'],
+        'skynav.nodes': ['skyline = skynav_skyline.node:SkylineNode'],
+        'skynav.commands': [
+            'skyline = skynav_skyline.cli',
+            'skyline.eval = skynav_skyline.cli.eval',
+            'skyline.train = skynav_skyline.cli.train',
+        ],
+    },
 )

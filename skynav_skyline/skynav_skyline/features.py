@@ -30,6 +30,7 @@ level); local methods are unaffected by the first, since they only shift.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -54,6 +55,8 @@ class Channel:
     dark: np.ndarray  # bool (H, W): raw value at or below black level + dark margin
     invalid: np.ndarray  # bool (H, W): NaN or inf (32FC1 only)
     floor: float  # linear value (same unit as `linear`) that dark pixels are clamped to for the log
+    counts: np.ndarray | None = None  # the raw integer image of mono8/mono16 (for exact percentiles by counting)
+    black_level: float = 0.0
 
     @property
     def trusted(self) -> np.ndarray:
@@ -115,27 +118,52 @@ def decode(image: np.ndarray, encoding: str, black_level: float = 0.0,
             positive = linear[~invalid & ~dark]
             floor = float(positive.min()) if positive.size else float(np.finfo(np.float32).tiny)
         linear = np.where(invalid, np.float32(0), linear)
-    return Channel(linear.astype(np.float32, copy=False), saturated, dark, invalid, float(floor))
+    counts = image if encoding in ENCODING_MAX_COUNTS else None
+    return Channel(linear.astype(np.float32, copy=False), saturated, dark, invalid, float(floor), counts, black_level)
 
 
-def reference_level(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE) -> float:
-    """Return a channel's reference level (its unit): the `percentile` of its finite linear values in the circle."""
+def reference_level(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE,
+                    stride: int = 1) -> float:
+    """Return a channel's reference level (its unit): the `percentile` of its finite linear values in the circle.
+
+    With `stride` > 1 only every stride-th column counts: a sample for large images.
+    """
     if not 0 < percentile <= 100:
         raise ValueError(f'reference percentile must be in (0, 100], got {percentile}')
-    usable = circle & ~channel.invalid
+    every = (slice(None), slice(None, None, stride))
+    usable = circle[every] & ~channel.invalid[every]
     if not usable.any():
         raise ValueError('no finite pixel inside the image circle (all NaN/inf or empty circle)')
-    values = np.maximum(channel.linear[usable], np.float32(channel.floor))
+    if channel.counts is not None:
+        # Integer images: the same inverted-CDF percentile, by counting raw values instead of sorting.
+        counts = channel.counts[every]
+        everything = usable.all()
+        histogram = np.bincount((counts if everything else counts[usable]).ravel())
+        rank = int(np.ceil(percentile / 100 * (usable.size if everything else int(usable.sum()))))
+        raw = int(np.searchsorted(np.cumsum(histogram), max(rank, 1)))
+        return float(max(np.float32(raw - channel.black_level), np.float32(channel.floor)))
+    values = np.maximum(channel.linear[every][usable], np.float32(channel.floor))
     return float(np.percentile(values, percentile, method='inverted_cdf'))
 
 
-def log_feature(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE) -> np.ndarray:
+def log_feature(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE,
+                stride: int = 1) -> np.ndarray:
     """Return float32 log(linear / reference level) (dimensionless, natural log); dark clamped, invalid 0."""
-    reference = reference_level(channel, circle, percentile)
+    reference = reference_level(channel, circle, percentile, stride)
+    if channel.counts is not None:  # integer images: the log of every possible value, looked up
+        table = _log_table(channel.counts.dtype.str, channel.black_level, channel.floor)
+        return table.take(channel.counts) - np.float32(np.log(reference))
     clamped = np.maximum(channel.linear, np.float32(channel.floor))
     feature = np.log(clamped / np.float32(reference), dtype=np.float32)
     feature[channel.invalid] = 0.0
     return feature
+
+
+@lru_cache(maxsize=16)
+def _log_table(dtype: str, black_level: float, floor: float) -> np.ndarray:
+    """Return log(max(raw - black level, floor)) (float32) for every raw value of an integer dtype."""
+    raw = np.arange(np.iinfo(np.dtype(dtype)).max + 1, dtype=np.float32)
+    return np.log(np.maximum(raw - np.float32(black_level), np.float32(floor)), dtype=np.float32)
 
 
 @dataclass(frozen=True)
@@ -181,7 +209,7 @@ class Features:
 def extract_features(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
                      circle: np.ndarray, black_level: tuple[float, float] = (0.0, 0.0),
                      reference_percentile: float = REFERENCE_PERCENTILE,
-                     dark_margin: float | None = None) -> Features:
+                     dark_margin: float | None = None, stride: int = 1) -> Features:
     """Return the normalised log features (dimensionless) of a UV image and an optional green image.
 
     `black_level` is (UV, green) in each channel's raw unit. Raises ValueError
@@ -197,8 +225,8 @@ def extract_features(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
         if green_channel.linear.shape != uv_channel.linear.shape:
             raise ValueError(f'UV image {uv_channel.linear.shape} and green image '
                              f'{green_channel.linear.shape} differ in shape')
-    x = log_feature(uv_channel, circle, reference_percentile)
-    y = None if green_channel is None else log_feature(green_channel, circle, reference_percentile)
+    x = log_feature(uv_channel, circle, reference_percentile, stride)
+    y = None if green_channel is None else log_feature(green_channel, circle, reference_percentile, stride)
     return Features(uv_channel, green_channel, x, y, float(reference_percentile))
 
 

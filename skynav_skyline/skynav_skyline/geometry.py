@@ -24,13 +24,22 @@ class SectorLayout:
     weight: np.ndarray  # float32 (H, W): interpolation weight of `upper`, in [0, 1)
     centres: np.ndarray  # (count,) azimuth of each sector centre (rad)
 
+    def sampled(self, stride: int) -> SectorLayout:
+        """Return the layout of every stride-th pixel of each row (for statistics of a sample)."""
+        if stride == 1:
+            return self
+        every = (slice(None), slice(None, None, stride))
+        return SectorLayout(self.count, self.index[every], self.lower[every], self.upper[every],
+                            self.weight[every], self.centres)
+
     def interpolate(self, per_sector: np.ndarray) -> np.ndarray:
         """Return a per-pixel map (H, W) linearly interpolated in azimuth from one value per sector."""
         values = np.asarray(per_sector, np.float64)
         if values.shape != (self.count,):
             raise ValueError(f'expected {self.count} sector values, got shape {values.shape}')
-        low, high = values[self.lower], values[self.upper]
-        return low + (high - low) * self.weight
+        low = values.astype(np.float32)
+        step = (np.roll(values, -1) - values).astype(np.float32)  # from each centre to the next
+        return low.take(self.lower) + step.take(self.lower) * self.weight
 
 
 @dataclass
@@ -39,6 +48,7 @@ class SkylineGeometry:
 
     circle: np.ndarray  # bool (H, W): pixels inside the image circle
     centre: tuple[float, float]  # principal point (cx, cy) in pixels
+    phi: np.ndarray | None = field(default=None, repr=False, compare=False)  # azimuths, if not from (u, v)
     _layouts: dict[int, SectorLayout] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -71,8 +81,20 @@ class SkylineGeometry:
 
     def azimuth(self) -> np.ndarray:
         """Return the azimuth phi = atan2(v - cy, u - cx) (rad, in (-pi, pi]) of every pixel centre."""
+        if self.phi is not None:
+            return self.phi
         v, u = np.mgrid[0:self.shape[0], 0:self.shape[1]]
         return np.arctan2(v - self.centre[1], u - self.centre[0])
+
+    def packed(self) -> tuple[SkylineGeometry, np.ndarray]:
+        """Return the geometry of the circle's pixels alone, as one row, and their flat indices in the image.
+
+        Segmenting that row and scattering it back gives the same mask as segmenting the image,
+        with the work of the pixels outside the circle saved.
+        """
+        pixels = np.flatnonzero(self.circle)
+        row = SkylineGeometry(np.ones((1, pixels.size), bool), self.centre, self.azimuth().ravel()[pixels][None])
+        return row, pixels
 
     def sectors(self, count: int) -> SectorLayout:
         """Return (and cache) the layout of `count` equal azimuth sectors."""

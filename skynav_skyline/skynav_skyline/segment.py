@@ -49,6 +49,9 @@ MIN_SEPARABILITY = 0.8
 MIN_SECTOR_PIXELS = 100
 #: Least trusted pixels inside the image circle for any segmentation; fewer raise ValueError.
 MIN_TRUSTED_PIXELS = 100
+#: Most pixels the per-image statistics (reference levels, histograms) use: larger images are sampled evenly.
+#: Every pixel is still classified; 320x240 fish-eye images (about 45,000 pixels in the circle) use them all.
+STATISTICS_SAMPLE = 60000
 
 
 @dataclass(frozen=True)
@@ -179,8 +182,10 @@ class SkylineSegmenter:
         else:
             self.geometry = SkylineGeometry.from_camera(geometry)
         self.params = SkylineParams() if params is None else params
+        # Work on the pixels inside the image circle only: one row of them, scattered back at the end.
+        self._row, self._pixels = self.geometry.packed()
         if self.params.method.startswith('sector-'):
-            self.geometry.sectors(self.params.sectors)  # precompute now, not on the first frame
+            self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
 
     def features(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
                  encoding_green: str | None = None) -> Features:
@@ -193,12 +198,51 @@ class SkylineSegmenter:
         return extract_features(uv, green if p.uses_green else None, encoding_uv, encoding_green,
                                 self.geometry.circle, p.black_level, p.reference_percentile)
 
+    def _pack(self, image: np.ndarray | None, encoding: str | None) -> np.ndarray | None:
+        """Return the image-circle pixels of an image as one row, after checking its shape."""
+        if image is None:
+            return None
+        image = np.asarray(image)
+        if image.ndim == 3 and image.shape[2] == 1:
+            image = image[:, :, 0]
+        if image.shape != self.geometry.shape:
+            raise ValueError(f'{encoding} image {image.shape} and image circle {self.geometry.shape} differ in shape')
+        return image.reshape(-1)[self._pixels][None]
+
+    def _scatter(self, row: np.ndarray, outside: float | int) -> np.ndarray:
+        """Return an image with `row` at the image-circle pixels and `outside` elsewhere."""
+        image = np.full(self.geometry.circle.size, outside, row.dtype)
+        image[self._pixels] = row.ravel()
+        return image.reshape(self.geometry.shape)
+
     def run(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
             encoding_green: str | None = None) -> Segmentation:
         """Return the skyline segmentation of one UV/green image pair (raw arrays and their encodings)."""
+        row = self._run_row(uv, green, encoding_uv, encoding_green)
+        threshold = row.threshold if np.isscalar(row.threshold) else self._scatter(
+            np.asarray(row.threshold, np.float64), np.nan)
+        return Segmentation(self._scatter(row.mask, GROUND), self._scatter(row.contrast, np.nan), threshold,
+                            row.image_split, row.sectors)
+
+    def segment(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
+                encoding_green: str | None = None) -> np.ndarray:
+        """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
+        return self._scatter(self._run_row(uv, green, encoding_uv, encoding_green).mask, GROUND)
+
+    def _run_row(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
+                 encoding_green: str | None = None) -> Segmentation:
+        """Return the segmentation of the image-circle pixels of an image pair, as one row."""
         p = self.params
-        circle = self.geometry.circle
-        features = self.features(uv, green, encoding_uv, encoding_green)
+        if p.uses_green and green is None:
+            raise ValueError("channel mode 'uv-green' needs the green image")
+        if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
+            raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
+        circle = self._row.circle
+        stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))
+        features = extract_features(self._pack(uv, encoding_uv),
+                                    self._pack(green, encoding_green) if p.uses_green else None,
+                                    encoding_uv, encoding_green, circle, p.black_level, p.reference_percentile,
+                                    stride=stride)
         contrast = project(features.x, features.y, p.projection_angle)
         trusted = features.trusted(circle, p.uses_green)
         if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
@@ -208,7 +252,8 @@ class SkylineSegmenter:
         if p.method == 'global':
             threshold: np.ndarray | float = float(p.threshold)
         else:
-            values = contrast[trusted]
+            sample = (slice(None), slice(None, None, stride))  # the statistics' pixels of the row
+            values = contrast[sample][trusted[sample]]
             value_range = histogram_range(values)
             split_method = p.method.removeprefix('sector-')
             edges = bin_edges(p.bins, value_range)
@@ -219,10 +264,10 @@ class SkylineSegmenter:
             reference = whole if image_bimodal or p.threshold is None else float(p.threshold)
             trusted_reference = image_bimodal or p.threshold is not None
             if p.method.startswith('sector-'):
-                layout = self.geometry.sectors(p.sectors)
-                sectors = sector_thresholds(contrast, trusted, layout, reference, split_method, p.bins,
-                                            value_range, p.min_separability, MIN_SECTOR_PIXELS,
-                                            trusted_reference)
+                layout = self._row.sectors(p.sectors)
+                sectors = sector_thresholds(contrast[sample], trusted[sample], layout.sampled(stride), reference,
+                                            split_method, p.bins, value_range, p.min_separability,
+                                            MIN_SECTOR_PIXELS // stride, trusted_reference)
                 threshold = layout.interpolate(sectors.thresholds)
             else:
                 threshold = reference
@@ -230,11 +275,6 @@ class SkylineSegmenter:
         sky = features.sky_by_rule(circle) | (decided & (contrast > threshold))
         mask = np.where(sky, np.uint8(SKY), np.uint8(GROUND))
         return Segmentation(mask, contrast, threshold, image_split, sectors)
-
-    def segment(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
-                encoding_green: str | None = None) -> np.ndarray:
-        """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
-        return self.run(uv, green, encoding_uv, encoding_green).mask
 
 
 def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,

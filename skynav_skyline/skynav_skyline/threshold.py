@@ -19,6 +19,8 @@ import numpy as np
 DEFAULT_BINS = 256
 #: Percentiles (%) of the values that span the histogram; values outside go to the end bins.
 HISTOGRAM_RANGE_PERCENTILES = (0.1, 99.9)
+#: Values sampled (evenly spaced) to place the histogram range.
+RANGE_SAMPLE = 20000
 
 
 @dataclass(frozen=True)
@@ -38,7 +40,9 @@ def histogram_range(values: np.ndarray) -> tuple[float, float]:
     values = np.asarray(values)
     if values.size == 0:
         raise ValueError('cannot build a histogram of no values')
-    low, high = np.percentile(values, HISTOGRAM_RANGE_PERCENTILES)
+    # The span only places the bins: percentiles of an evenly spread sample are as good and much cheaper.
+    sample = values.ravel()[:: max(1, values.size // RANGE_SAMPLE)]
+    low, high = np.percentile(sample, HISTOGRAM_RANGE_PERCENTILES)
     low, high = float(low), float(high)
     if not high > low:
         low, high = float(values.min()), float(values.max())
@@ -51,8 +55,9 @@ def histogram_range(values: np.ndarray) -> tuple[float, float]:
 def bin_index(values: np.ndarray, bins: int, value_range: tuple[float, float]) -> np.ndarray:
     """Return the int index (0..bins-1) of each value's bin on `bins` equal bins over `value_range`."""
     low, high = value_range
-    index = np.floor((np.asarray(values, np.float64) - low) * (bins / (high - low)))
-    return np.clip(index, 0, bins - 1).astype(np.intp)
+    index = ((np.asarray(values, np.float64) - low) * (bins / (high - low))).astype(np.intp)  # floor for >= 0
+    index[values < low] = 0
+    return np.clip(index, 0, bins - 1, out=index)
 
 
 def bin_edges(bins: int, value_range: tuple[float, float]) -> np.ndarray:

@@ -1,0 +1,185 @@
+"""Measure sky/ground segmentation against ground truth: classification rate per method, channels, world and time.
+
+The classification rate of an exposure is the share of pixels inside the image circle that a method
+labels as /ground_truth/mask does. Every method runs with the skyline node's parameters (the shipped
+defaults, or --params), so what is measured is what the node does. Prints one table per world
+(rows: method and channels; columns: time of day) and one over all worlds, and saves a plot of the
+log UV / log green histogram of sky and ground pixels with the learned separators.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+HELP = 'classification rate per method, world and time of day'
+ALL_METHODS = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav skyline eval`."""
+    parser.add_argument('bags', nargs='+', metavar='BAG', help='recordings with /ground_truth/mask')
+    parser.add_argument('--params', metavar='FILE', help='skyline node parameters (default: the shipped ones)')
+    parser.add_argument('--methods', nargs='+', default=list(ALL_METHODS), metavar='METHOD',
+                        help=f'methods to compare (default: all of {", ".join(ALL_METHODS)})')
+    parser.add_argument('--channels', nargs='+', default=['uv', 'uv-green'], choices=('uv', 'uv-green'),
+                        help='channel modes to compare (default both)')
+    parser.add_argument('--plot', default='skyline_eval.png', metavar='FILE.png',
+                        help='where to save the histogram plot (default skyline_eval.png)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate; return the exit code."""
+    from pathlib import Path
+
+    from skynav_bringup.cli import CliError
+
+    from ..parameters import load_parameter_file, skyline_params
+    from ..segment import METHODS
+
+    if unknown := [m for m in args.methods if m not in METHODS]:
+        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
+    plot = Path(args.plot)
+    if not plot.parent.is_dir():
+        raise CliError(f'{plot.parent}: no such directory')
+    values = load_parameter_file(args.params) if args.params else shipped_parameters()
+    configurations = {}
+    for method in args.methods:
+        for channels in args.channels:
+            try:
+                configurations[(method, channels)] = skyline_params({**values, 'method': method,
+                                                                     'channels': channels})
+            except ValueError as exc:
+                print(f'skynav skyline eval: skipping {method} {channels}: {exc}', file=sys.stderr)
+    if not configurations:
+        raise CliError('nothing to evaluate (no usable method and channel combination)')
+    rates, samples, synthetic = evaluate(args.bags, configurations)
+    print(report(rates, values))
+    draw_histogram(plot, samples, values, synthetic)
+    print(f'skynav skyline eval: saved the histogram plot to {plot}', file=sys.stderr)
+    return 0
+
+
+def shipped_parameters() -> dict:
+    """Return the skyline parameters of the shipped parameter file (empty if not installed)."""
+    from skynav_bringup.environment import share_directory
+
+    from ..parameters import load_parameter_file
+
+    share = share_directory('skynav_bringup')
+    path = None if share is None else share / 'config' / 'skynav.yaml'
+    return load_parameter_file(str(path)) if path is not None and path.is_file() else {}
+
+
+def evaluate(paths, configurations):
+    """Return per-frame rates {(method, channels): [(world, time, rate)]}, pixel samples, and whether synthetic."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from skynav_bringup.bag import open_bag
+
+    from ..classify import classification_rate
+    from ..dataset import count_frames, labelled_frames
+    from ..features import extract_features
+    from ..geometry import SkylineGeometry
+    from ..segment import SkylineSegmenter
+
+    rates: dict = {key: [] for key in configurations}
+    rng = np.random.default_rng(0)
+    samples = {'x': [], 'y': [], 'sky': []}
+    synthetic = True
+    segmenters: dict = {}
+    total = sum(count_frames(path) for path in paths)
+    with tqdm(total=total, unit='frame', desc='evaluating', file=sys.stderr, disable=None) as bar:
+        for path in paths:
+            with open_bag(path) as bag:
+                synthetic &= 'skynav_sim' in bag.custom_data
+            for frame in labelled_frames(path):
+                circle = frame.camera.image_circle()
+                for key, params in configurations.items():
+                    geometry_key = (frame.camera, key)
+                    if geometry_key not in segmenters:
+                        segmenters[geometry_key] = SkylineSegmenter(SkylineGeometry.from_camera(frame.camera), params)
+                    mask = segmenters[geometry_key].segment(frame.uv, frame.green, *frame.encoding)
+                    rates[key].append((frame.world, frame.time, classification_rate(mask, frame.truth, circle)))
+                features = extract_features(frame.uv, frame.green, *frame.encoding, circle)
+                trusted = features.trusted(circle, True)
+                pick = rng.random(trusted.shape) < 0.05
+                chosen = trusted & pick
+                samples['x'].append(features.x[chosen])
+                samples['y'].append(features.y[chosen])
+                samples['sky'].append(frame.truth[chosen] > 127)
+                bar.update()
+    return rates, {k: np.concatenate(v) if v else np.zeros(0) for k, v in samples.items()}, synthetic
+
+
+def report(rates: dict, values: dict) -> str:
+    """Return the tables of classification rates (%) as text."""
+    import numpy as np
+
+    from ..dataset import TIME_LABELS
+
+    first = next(iter(rates.values()))
+    worlds = list(dict.fromkeys(world for world, _, _ in first))
+    times = [t for t in (*TIME_LABELS, 'all') if any(time == t for _, time, _ in first)]
+    lines = [f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
+             f'{values.get("channels", "?")}']
+    for world in worlds:
+        count = sum(1 for w, _, _ in first if w == world)
+        lines.append('')
+        lines.append(f'{world} ({count} exposures)'.ljust(30) + ''.join(f'{t:>10s}' for t in times)
+                     + f'{"mean":>10s}{"worst":>10s}')
+        for (method, channels), values_ in rates.items():
+            mine = [(t, r) for w, t, r in values_ if w == world]
+            cells = [np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan
+                     for t in times]
+            everything = [r for _, r in mine]
+            lines.append(f'  {method:18s}{channels:10s}' + ''.join(f'{100 * c:10.2f}' for c in cells)
+                         + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
+    lines.append('')
+    lines.append('all worlds'.ljust(30) + ''.join(f'{w:>10s}' for w in worlds) + f'{"mean":>10s}{"worst":>10s}')
+    for (method, channels), values_ in rates.items():
+        per_world = [np.mean([r for w, _, r in values_ if w == world]) for world in worlds]
+        everything = [r for _, _, r in values_]
+        lines.append(f'  {method:18s}{channels:10s}' + ''.join(f'{100 * c:10.2f}' for c in per_world)
+                     + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
+    return '\n'.join(lines)
+
+
+def draw_histogram(path, samples: dict, values: dict, synthetic: bool) -> None:
+    """Save the 2D histograms of normalised log UV / log green of sky and ground pixels, with the separators."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    x, y, sky = samples['x'], samples['y'], samples['sky']
+    figure, axis = plt.subplots(figsize=(8, 6.5), layout='constrained')
+    if x.size:
+        lo = np.percentile(np.concatenate([x, y]), 0.5)
+        hi = max(np.percentile(np.concatenate([x, y]), 99.9), lo + 1)
+        bins = np.linspace(lo, hi, 160)
+        for mask, colour, label in ((sky, 'Blues', 'sky'), (~sky, 'Oranges', 'ground')):
+            counts, xe, ye = np.histogram2d(x[mask], y[mask], bins=(bins, bins))
+            axis.contourf(0.5 * (xe[1:] + xe[:-1]), 0.5 * (ye[1:] + ye[:-1]), np.log1p(counts.T), levels=12,
+                          cmap=colour, alpha=0.6)
+            axis.plot([], [], 's', color=plt.get_cmap(colour)(0.7), label=f'{label} pixels')
+        line_x = np.array([lo, hi])
+        threshold, angle = float(values.get('threshold', math.nan)), math.radians(float(values.get('angle_deg', 0)))
+        if not math.isnan(threshold) and abs(math.sin(angle)) > 1e-6:
+            axis.plot(line_x, (threshold - math.cos(angle) * line_x) / math.sin(angle), 'k-', linewidth=2,
+                      label=f'UV/green separator (a = {math.degrees(angle):.1f} deg)')
+        threshold_uv = float(values.get('threshold_uv', math.nan))
+        if not math.isnan(threshold_uv):
+            axis.axvline(threshold_uv, color='k', linestyle='--', linewidth=2, label='UV-only threshold')
+        axis.set_xlim(lo, hi)
+        axis.set_ylim(lo, hi)
+    axis.set_xlabel('log UV (relative to the image\'s 90th percentile)')
+    axis.set_ylabel('log green (relative to the image\'s 90th percentile)')
+    axis.set_title(('Synthetic recordings: ' if synthetic else '') + 'sky and ground pixels (5 % sample)')
+    axis.legend(loc='lower right')
+    figure.savefig(path, dpi=90)
+    plt.close(figure)

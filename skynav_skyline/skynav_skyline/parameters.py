@@ -1,0 +1,58 @@
+"""The skyline node's parameters: names, defaults, meaning, and their translation into SkylineParams.
+
+One definition for the node, `skynav skyline train` (which writes them) and `skynav skyline eval`
+(which reads them), so that what is measured is what runs.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .segment import METHODS, SkylineParams
+
+# name: (default, description). The angle and thresholds were learned by `skynav skyline train` on
+# synthetic recordings (see skynav_bringup/config/skynav.yaml, which lists the same values for editing).
+PARAMETERS: dict[str, tuple[object, str]] = {
+    'method': ('sector-min-error', f'one of {", ".join(METHODS)}'),
+    'channels': ('uv-green', "'uv' (UV only) or 'uv-green' (UV/green contrast)"),
+    'angle_deg': (-4.45, 'projection angle a of s = cos(a) log UV + sin(a) log G (degrees; 0 for UV only)'),
+    'threshold': (-0.8071, 'global threshold t on s for uv-green (normalised log units); NaN: none'),
+    'threshold_uv': (-0.88444, 'global threshold t on log UV for channels uv (normalised log units); NaN: none'),
+    'sectors': (16, 'azimuth sectors of the sector methods'),
+    'bins': (256, 'histogram bins of the local methods'),
+    'min_separability': (0.8, 'least Otsu separability of a bimodal histogram (0..1)'),
+    'black_level_uv': (0.0, 'UV black level (counts, or radiance for 32FC1)'),
+    'black_level_green': (0.0, 'green black level (counts, or radiance for 32FC1)'),
+}
+
+
+def defaults() -> dict[str, object]:
+    """Return the parameter defaults by name."""
+    return {name: default for name, (default, _) in PARAMETERS.items()}
+
+
+def skyline_params(values: dict[str, object]) -> SkylineParams:
+    """Return the segmentation settings of parameter values (defaults for missing ones); ValueError if unusable."""
+    merged = {**defaults(), **values}
+    channels = str(merged['channels'])
+    threshold = float(merged['threshold_uv' if channels == 'uv' else 'threshold'])
+    return SkylineParams(
+        method=str(merged['method']), channels=channels,
+        angle=0.0 if channels == 'uv' else math.radians(float(merged['angle_deg'])),
+        threshold=None if math.isnan(threshold) else threshold, sectors=int(merged['sectors']),
+        bins=int(merged['bins']), min_separability=float(merged['min_separability']),
+        black_level=(float(merged['black_level_uv']), float(merged['black_level_green'])),
+    )
+
+
+def load_parameter_file(path: str) -> dict[str, object]:
+    """Return the skyline node's parameters from a ROS 2 parameter file (node 'skyline' or '/**')."""
+    import yaml
+
+    with open(path) as stream:
+        content = yaml.safe_load(stream) or {}
+    values: dict[str, object] = {}
+    for node in ('/**', 'skyline', '/skyline'):
+        values.update((content.get(node) or {}).get('ros__parameters') or {})
+    unknown = set(values) - set(PARAMETERS)
+    return {k: v for k, v in values.items() if k not in unknown}

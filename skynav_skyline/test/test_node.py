@@ -1,0 +1,108 @@
+"""The skyline node inside the in-process graph of `skynav run`: pairing, waiting for camera info, ordering."""
+
+import math
+
+import numpy as np
+import pytest
+from rclpy.serialization import serialize_message
+
+from skynav_bringup.bag import RawMessage
+from skynav_bringup.graph import in_process
+from skynav_bringup.images import fill_image, image_to_array, stamp_ns
+from skynav_bringup.nodes import NodeSpec
+from skynav_sh.camera import EquidistantCamera
+
+SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
+CAMERA = EquidistantCamera.for_field_of_view(64, 48, math.radians(200))
+T0 = 1_700_000_000 * 10**9
+
+
+def raw(topic, message, stamp):
+    from skynav_bringup.graph import type_name
+
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+    return RawMessage(topic, type_name(message), stamp, serialize_message(message))
+
+
+def image(pixels, encoding='mono16'):
+    from sensor_msgs.msg import Image
+
+    return fill_image(Image(), pixels, encoding)
+
+
+def camera_info():
+    from sensor_msgs.msg import CameraInfo
+
+    info = CameraInfo()
+    for key, value in CAMERA.camera_info_fields().items():
+        setattr(info, key, value)
+    return info
+
+
+@pytest.fixture
+def scene():
+    """A UV/green exposure: sky everywhere but a ground band on the left."""
+    rng = np.random.default_rng(1)
+    sky = np.full((48, 64), 30000, np.uint16)
+    sky[:, :20] = 2000
+    uv = (sky + rng.integers(0, 300, sky.shape)).astype(np.uint16)
+    green = (sky // 2 + 8000 + rng.integers(0, 300, sky.shape)).astype(np.uint16)
+    return uv, green
+
+
+def masks_of(graph):
+    return [o for o in graph.outputs if o.topic == '/skyline/mask']
+
+
+def test_frames_wait_for_camera_info_and_pair_by_stamp(scene):
+    uv, green = scene
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        # Two exposures before any camera info, the green of the second first; then the camera info.
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8))
+        assert masks_of(graph) == []
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0 + 10**8))
+        stamps = [stamp_ns(o.message.header) for o in masks_of(graph)]
+        assert stamps == [T0, T0 + 10**8]
+        mask = image_to_array(masks_of(graph)[0].message)
+        assert (mask[:, :18] == 0).all()  # the ground band
+        assert (mask[24, 30:40] == 255).all() and not mask[~CAMERA.image_circle()].any()
+        assert sum(node.rejected.values()) == 0 and node.errors == 0
+
+
+def test_out_of_order_and_mismatched_inputs_are_rejected(scene):
+    uv, green = scene
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 - 10**8))  # older than the last mask
+        graph.feed(raw('/camera/uv/image_raw', image(uv[:, :32]), T0 + 10**8))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))  # differs in size from its UV
+        graph.feed(raw('/camera/uv/image_raw', image(uv[:24]), T0 + 2 * 10**8))
+        graph.feed(raw('/camera/green/image_raw', image(green[:24]), T0 + 2 * 10**8))  # not the camera's size
+        assert len(masks_of(graph)) == 1
+        assert node.rejected == {'out_of_order': 1, 'size_mismatch': 1, 'camera_info_mismatch': 1}
+
+
+def test_uv_only_does_not_wait_for_green(scene):
+    uv, _ = scene
+    with in_process([SPEC], ['-p', 'channels:=uv']) as graph:
+        graph.keep_outputs = True
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
+        assert len(masks_of(graph)) == 1
+
+
+def test_unusable_parameters_fall_back_to_the_defaults(scene):
+    with in_process([SPEC], ['-p', 'method:=no-such-method']) as graph:
+        node = graph.nodes[0]
+        assert node.get_parameter('method').value == 'sector-min-error'
+        result = node.set_parameters([__import__('rclpy').parameter.Parameter('sectors', value=0)])[0]
+        assert not result.successful and 'sector' in result.reason
