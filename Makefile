@@ -15,7 +15,7 @@ PY_PACKAGE_FILES += tools/link_data_files.py
 MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) skynav_msgs/CMakeLists.txt \
              skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
 
-.PHONY: setup test lock clean
+.PHONY: setup test demo lock clean
 
 ## setup: virtualenv at .venv with ROS 2 Jazzy, skynav_msgs and the skynav packages
 setup: $(STAMPS)/packages
@@ -45,6 +45,10 @@ $(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
 ## test: every test, unit and replay, with pytest's summary
 test: setup
 	$(BIN)/python -m pytest
+
+## demo: the node graph over bundled synthetic recordings, with a summary and plots in out/demo
+demo: setup
+	$(BIN)/skynav demo --out out/demo
 
 ## lock: rewrite constraints.txt from requirements.txt in a scratch virtualenv
 lock:
