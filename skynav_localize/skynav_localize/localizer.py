@@ -1,0 +1,219 @@
+"""Place recognition against one map with one named method: online (query by query) and offline (whole sequence).
+
+Methods (METHODS): skynav's rotation-invariant SH descriptors, single frame and with SeqSLAM sequences
+('amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'), and the baselines, named for what they are
+('raw-uv' and 'seqslam-raw-uv': SeqSLAM's patch-normalised down-sampled UV image without and with sequences;
+'bow-orb': bag of ORB words with tf-idf). All of them go through the same distances -> matching -> acceptance path.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from skynav_localize import baselines
+from skynav_localize.descriptors import DESCRIPTOR_VERSION, DescriptorIndex, describe
+from skynav_localize.mapping import stored_settings
+from skynav_localize.matching import (DEFAULT_CANDIDATES, Acceptance, Match, SequenceBuffer, SequenceParams,
+                                      best_candidates, sequence_match, sequence_scores, single_frame)
+from skynav_localize.store import MapError, MapStore
+
+
+@dataclass(frozen=True)
+class Method:
+    """A place-recognition method: which descriptor, which distance, single frame or sequence, default acceptance."""
+
+    name: str
+    descriptor: str  # descriptor name in the map ('amplitude', 'bispectrum', 'raw_uv', 'bow-orb')
+    metric: str  # 'euclidean', 'sad' or 'cosine'
+    sequence: bool  # SeqSLAM over the distance rows
+    source: str  # what a query needs: 'sh' (coefficients) or 'uv' (the UV image)
+    acceptance: Acceptance  # default acceptance test (thresholds: see METHODS below)
+    baseline: bool  # a peer method, not skynav's own
+    dtype: type = np.float64  # of the descriptor matrix during queries
+
+    @property
+    def label(self) -> str:
+        """Return the name with '(baseline)' for peers, for tables and legends."""
+        return f'{self.name} (baseline)' if self.baseline else self.name
+
+
+# Default acceptance thresholds (best / runner-up ratio), measured on the bundled synthetic pairs at L = 16 with
+# ground-truth masks: between the largest ratio of a correct repeat-drive match and the smallest ratio of an
+# off-route query (compass and skyline recordings of the same world, the other world's repeat drive, the park).
+# SH single frame: correct <= 0.39, off-route >= 0.77; SH sequences: correct <= 0.21, off-route >= 0.60.
+# Baselines, where the two overlap, keep precision 1: raw UV 0.85, SeqSLAM raw UV 0.8, BoW ORB 0.45.
+# A real camera and route should have them re-learned (evaluation.threshold_at_full_precision on a labelled drive).
+SH_SINGLE_MAX_RATIO = 0.6
+SH_SEQUENCE_MAX_RATIO = 0.4
+METHODS: dict[str, Method] = {m.name: m for m in (
+    Method('amplitude', 'amplitude', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False),
+    Method('amplitude-seq', 'amplitude', 'euclidean', True, 'sh', Acceptance(SH_SEQUENCE_MAX_RATIO), False),
+    Method('bispectrum', 'bispectrum', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False,
+           np.float32),
+    Method('bispectrum-seq', 'bispectrum', 'euclidean', True, 'sh', Acceptance(SH_SEQUENCE_MAX_RATIO), False,
+           np.float32),
+    Method('raw-uv', 'raw_uv', 'sad', False, 'uv', Acceptance(0.85), True, np.float32),
+    Method('seqslam-raw-uv', 'raw_uv', 'sad', True, 'uv', Acceptance(0.8), True, np.float32),
+    Method('bow-orb', 'bow-orb', 'cosine', False, 'uv', Acceptance(0.45), True, np.float32),
+)}
+OUR_METHODS = tuple(name for name, m in METHODS.items() if not m.baseline)
+BASELINE_METHODS = tuple(name for name, m in METHODS.items() if m.baseline)
+
+
+def method(name: str) -> Method:
+    """Return the method of a name; ValueError listing the known ones otherwise."""
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise ValueError(f'unknown localization method {name!r}; expected one of {", ".join(METHODS)}') from None
+
+
+@dataclass(frozen=True)
+class Matches:
+    """Matches of a whole query sequence (offline), one entry per query in order."""
+
+    index: np.ndarray  # (Q,) best snapshot index (-1 for an empty map)
+    distance: np.ndarray  # (Q,) best distance (single frame) or sequence distance (sequence); lower = more alike
+    score: np.ndarray  # (Q,) acceptance score (best / runner-up ratio); lower = more confident
+    accepted: np.ndarray  # (Q,) bool
+    values: np.ndarray  # (Q, N) distances (single frame) or sequence distances (sequence) to every snapshot
+
+    def __len__(self) -> int:
+        """Return the number of queries."""
+        return int(self.index.size)
+
+    def match(self, query: int, candidates: int = DEFAULT_CANDIDATES) -> Match:
+        """Return query `query`'s match as a Match with its candidates."""
+        if self.values.shape[1] == 0:
+            return Match.empty()
+        indices, values = best_candidates(self.values[query], candidates)
+        return Match(int(self.index[query]), float(self.distance[query]), float(self.score[query]),
+                     bool(self.accepted[query]), indices, values)
+
+
+class Localizer:
+    """Localizes views on one map with one method; feed queries to query() in recording order."""
+
+    def __init__(self, store: MapStore, method_name: str = 'amplitude-seq', *, acceptance: Acceptance | None = None,
+                 sequence: SequenceParams | None = None, candidates: int = DEFAULT_CANDIDATES,
+                 circle: np.ndarray | None = None) -> None:
+        """Prepare the map's descriptor matrix for the method; circle (bool image) limits ORB to the image circle."""
+        self.store = store
+        self.method = method(method_name)
+        self.acceptance = acceptance or self.method.acceptance
+        self.sequence = sequence or SequenceParams()
+        self.candidates = int(candidates)
+        self.circle = circle
+        self.settings = stored_settings(store.meta)
+        self.vocabulary: baselines.BowVocabulary | None = None
+        self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)
+        self._buffer = SequenceBuffer(self.sequence) if self.method.sequence else None
+
+    # --- descriptors ---------------------------------------------------------------------------------------------
+
+    def _map_descriptors(self) -> np.ndarray:
+        """Return the map's (N, D) descriptor matrix of the method (stored, or derived when it can be)."""
+        name, store = self.method.descriptor, self.store
+        stored = name in store.descriptor_names() if len(store) else False
+        if name in ('amplitude', 'bispectrum'):
+            current = self.settings.get('descriptor_version') == DESCRIPTOR_VERSION
+            if stored and current:
+                return store.descriptor_matrix(name)
+            if len(store) == 0:
+                return np.zeros((0, describe(name, np.zeros((store.max_degree + 1) ** 2)).size))
+            return describe(name, store.coefficients(), store.max_degree)
+        if len(store) == 0:
+            return np.zeros((0, 1))
+        if name == 'raw_uv':
+            if not stored:
+                raise MapError(f'{store.path}: method {self.method.name!r} needs raw UV descriptors '
+                               "('raw_uv'), which this map does not hold (build it with the UV images)")
+            return store.descriptor_matrix('raw_uv')
+        # bow-orb: the stored vocabulary and vectors, or a vocabulary trained now from the stored ORB features
+        self.vocabulary = baselines.BowVocabulary.load(store)
+        if self.vocabulary is not None and stored:
+            return store.descriptor_matrix('bow-orb')
+        if 'orb' not in store.descriptor_names():
+            raise MapError(f'{store.path}: method bow-orb needs ORB descriptors (\'orb\'), which this map does not '
+                           'hold (build it with the UV images)')
+        orb = store.descriptor_list('orb')
+        self.vocabulary = baselines.BowVocabulary.train(orb)
+        return self.vocabulary.vectors(orb)
+
+    def describe(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> np.ndarray:
+        """Return the method's descriptor (D,) of one query: SH coefficients, or the UV image for the baselines."""
+        if self.method.source == 'sh':
+            if coefficients is None:
+                raise ValueError(f'method {self.method.name!r} needs SH coefficients')
+            return describe(self.method.descriptor, coefficients, self.store.max_degree)
+        if uv is None:
+            raise ValueError(f'method {self.method.name!r} needs the UV image')
+        if self.method.descriptor == 'raw_uv':
+            size = tuple(self.settings.get('raw_uv_size', baselines.RAW_UV_SIZE))
+            return baselines.raw_uv_descriptor(uv, size, int(self.settings.get('raw_uv_patch', baselines.RAW_UV_PATCH)))
+        features = int(self.settings.get('orb_features', baselines.ORB_FEATURES))
+        return self.vocabulary.vector(baselines.orb_descriptors(uv, self.circle, features))
+
+    def describe_all(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None) -> np.ndarray:
+        """Return the descriptors (Q, D) of a query sequence: coefficients (Q, n) or UV images (Q, H, W)."""
+        if self.method.source == 'sh':
+            if coefficients is None:
+                raise ValueError(f'method {self.method.name!r} needs SH coefficients')
+            return describe(self.method.descriptor, np.atleast_2d(coefficients), self.store.max_degree)
+        if uvs is None:
+            raise ValueError(f'method {self.method.name!r} needs the UV images')
+        return np.stack([self.describe(uv=uv) for uv in uvs]) if len(uvs) else np.zeros((0, self.index.dimension))
+
+    # --- matching ------------------------------------------------------------------------------------------------
+
+    @property
+    def _sequence_exclusion(self) -> int:
+        """Return the runner-up exclusion of sequences: the acceptance's plus the span of a trajectory (snapshots)."""
+        return self.acceptance.exclusion + self.sequence.extent()
+
+    def reset(self) -> None:
+        """Forget the query history (sequence methods): after a jump or a new drive."""
+        if self._buffer is not None:
+            self._buffer.clear()
+
+    def query(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> Match:
+        """Return the match of the newest query (coefficients or UV image), using the history for sequences."""
+        if len(self.index) == 0:
+            return Match.empty()
+        distances = self.index.distances(self.describe(coefficients, uv))
+        if self._buffer is None:
+            best, best_distance, score = (value[0] for value in single_frame(distances, self.acceptance.exclusion))
+            values = distances
+        else:
+            values, choice = self._buffer.push(distances)
+            best, best_distance, score = (value[0] for value in
+                                          sequence_match(values, choice, self._sequence_exclusion))
+        indices, candidate_values = best_candidates(values, self.candidates)
+        return Match(int(best), float(best_distance), float(score),
+                     bool(self.acceptance.accepts(score, best_distance)), indices, candidate_values)
+
+    def match_sequence(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None) -> Matches:
+        """Return the matches of a whole query sequence in one go (as query() would give them from a reset)."""
+        if len(self.index) == 0:
+            queries = len(coefficients if self.method.source == 'sh' else uvs)
+            return self.match_descriptors(np.zeros((queries, self.index.dimension)))
+        return self.match_descriptors(self.describe_all(coefficients, uvs))
+
+    def match_descriptors(self, descriptors: np.ndarray) -> Matches:
+        """Return the matches of a sequence of query descriptors (Q, D) (offline form of query())."""
+        queries = len(descriptors)
+        if len(self.index) == 0:
+            empty = np.zeros((queries, 0))
+            return Matches(np.full(queries, -1), np.full(queries, math.inf), np.full(queries, math.inf),
+                           np.zeros(queries, bool), empty)
+        distances = self.index.distance_matrix(descriptors)
+        if self.method.sequence:
+            values, choice = sequence_scores(distances, self.sequence)
+            best, best_distance, score = sequence_match(values, choice, self._sequence_exclusion)
+        else:
+            values = distances
+            best, best_distance, score = single_frame(distances, self.acceptance.exclusion)
+        return Matches(best, best_distance, score, np.asarray(self.acceptance.accepts(score, best_distance)), values)

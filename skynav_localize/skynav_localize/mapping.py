@@ -1,0 +1,118 @@
+"""Building a map: which frames become snapshots, the descriptors stored with each, and the map's creation.
+
+A map build (`skynav map build`) goes:
+
+    store = create_map(path, name, L, created_from=bag)           # or build_map(...) for one atomic write
+    selector = SnapshotSelector()
+    for each frame: coefficients (skyline -> SH), UV image, pose (if the recording has one)
+        descriptors = snapshot_descriptors(coefficients, L, uv, circle)
+        if selector.keep(descriptors['amplitude'], position):
+            store.add_snapshot(coefficients, stamp_ns, pose, descriptors)   # one transaction each
+    train_bow(store)                                               # the ORB vocabulary, when 'orb' was stored
+    store.close()
+
+create_map/build_map record descriptor_settings() in the map, so a Localizer knows the stored SH descriptors are
+current (else it derives them from the coefficients again) and describes baseline queries the same way.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from skynav_localize import baselines
+from skynav_localize.descriptors import DESCRIPTOR_VERSION, describe
+from skynav_localize.store import MapStore, Snapshot
+
+#: Descriptors stored per snapshot by default: the SH ones always, the baselines' when the UV image is given.
+SH_DESCRIPTOR_NAMES = ('amplitude', 'bispectrum')
+IMAGE_DESCRIPTOR_NAMES = ('raw_uv', 'orb')
+SETTINGS_KEY = 'descriptor_settings'  # map meta key: JSON of the settings the stored descriptors were made with
+DEFAULT_MIN_TRAVEL = 0.1  # m of travel between snapshots
+DEFAULT_MIN_CHANGE = 0.05  # amplitude-descriptor distance (dimensionless) that counts as a changed view
+
+
+def descriptor_settings() -> dict:
+    """Return the settings the descriptors of this library are made with (stored in a map's meta)."""
+    return {'descriptor_version': DESCRIPTOR_VERSION, 'raw_uv_size': list(baselines.RAW_UV_SIZE),
+            'raw_uv_patch': baselines.RAW_UV_PATCH, 'orb_features': baselines.ORB_FEATURES}
+
+
+def stored_settings(meta: Mapping[str, str]) -> dict:
+    """Return the descriptor settings recorded in a map's meta ({} when it has none)."""
+    try:
+        return json.loads(meta.get(SETTINGS_KEY, '{}'))
+    except json.JSONDecodeError:
+        return {}
+
+
+def snapshot_descriptors(coefficients: np.ndarray, max_degree: int, uv: np.ndarray | None = None,
+                         circle: np.ndarray | None = None,
+                         names: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+    """Return one snapshot's descriptors by name: SH ones from coefficients, 'raw_uv' and 'orb' from the UV image."""
+    if names is None:
+        names = SH_DESCRIPTOR_NAMES + (IMAGE_DESCRIPTOR_NAMES if uv is not None else ())
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        if name in SH_DESCRIPTOR_NAMES:
+            out[name] = describe(name, coefficients, max_degree)
+        elif name in IMAGE_DESCRIPTOR_NAMES:
+            if uv is None:
+                raise ValueError(f'descriptor {name!r} needs the UV image')
+            out[name] = (baselines.raw_uv_descriptor(uv) if name == 'raw_uv'
+                         else baselines.orb_descriptors(uv, circle))
+        else:
+            raise ValueError(f'unknown descriptor {name!r}; expected one of '
+                             f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}')
+    return out
+
+
+class SnapshotSelector:
+    """Decides which frames of a teach drive become snapshots: every min_travel m, or when the view changed enough."""
+
+    def __init__(self, min_travel: float | None = DEFAULT_MIN_TRAVEL,
+                 min_change: float | None = DEFAULT_MIN_CHANGE) -> None:
+        """Keep a frame after min_travel (m) of travel or an amplitude-descriptor change of min_change (None: off)."""
+        self.min_travel = min_travel
+        self.min_change = min_change
+        self._position: np.ndarray | None = None
+        self._descriptor: np.ndarray | None = None
+
+    def keep(self, descriptor: np.ndarray, position: np.ndarray | None = None) -> bool:
+        """Return whether a frame (amplitude descriptor, position in m or None) becomes a snapshot (then kept)."""
+        descriptor = np.asarray(descriptor, dtype=float)
+        first = self._descriptor is None
+        travelled = (self.min_travel is not None and position is not None and self._position is not None
+                     and float(np.linalg.norm(np.asarray(position, float) - self._position)) >= self.min_travel)
+        changed = (self.min_change is not None and not first
+                   and float(np.linalg.norm(descriptor - self._descriptor)) >= self.min_change)
+        if first or travelled or changed:
+            self._descriptor = descriptor
+            self._position = None if position is None else np.asarray(position, dtype=float)
+            return True
+        return False
+
+
+
+def _with_settings(metadata: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Return caller metadata plus this library's descriptor settings."""
+    return {**(metadata or {}), SETTINGS_KEY: descriptor_settings()}
+
+
+def create_map(path: str | Path, name: str, max_degree: int, *, created_from: str = '',
+               metadata: Mapping[str, Any] | None = None, overwrite: bool = False) -> MapStore:
+    """Create an empty map (MapStore.create) that records this library's descriptor settings; add snapshots to it."""
+    return MapStore.create(path, name, max_degree, created_from=created_from, metadata=_with_settings(metadata),
+                           overwrite=overwrite)
+
+
+def build_map(path: str | Path, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
+              created_from: str = '', metadata: Mapping[str, Any] | None = None,
+              overwrite: bool = False) -> MapStore:
+    """Write a whole map atomically (MapStore.build) with this library's descriptor settings; return it read-only."""
+    return MapStore.build(path, name, max_degree, snapshots, created_from=created_from,
+                          metadata=_with_settings(metadata), overwrite=overwrite)

@@ -1,0 +1,590 @@
+"""The map store: one SQLite file per taught route, one row per snapshot (CONTRACT.md, "Maps").
+
+Schema (version SCHEMA_VERSION; `PRAGMA application_id` = APPLICATION_ID marks the file as a skynav map):
+
+    meta(key TEXT PRIMARY KEY, value TEXT)       format='skynav-map', schema_version, name, max_degree, created_utc,
+                                                 created_from, and any caller metadata (text)
+    snapshots(idx INTEGER PRIMARY KEY,           0-based, in recording order, contiguous
+              stamp_ns INTEGER,                  stamp of the frame the snapshot was made from (ns since the epoch)
+              coefficients BLOB,                 (L+1)^2 little-endian float64, real SH of the skyline mask
+              checksum INTEGER,                  CRC-32 of the coefficient bytes
+              x, y, z, qx, qy, qz, qw REAL)      ground-truth pose of camera_link in map (m, quaternion), or all NULL
+    descriptors(snapshot_idx, name, dtype, shape, data BLOB, checksum)   per-snapshot arrays ('amplitude', 'orb')
+    artifacts(name, dtype, shape, data BLOB, checksum)                   map-level arrays (e.g. the BoW vocabulary)
+
+Writing: the file is in WAL mode and every snapshot is one transaction, so a process killed while building leaves
+a readable map holding every committed snapshot. close() checkpoints and returns the file to rollback-journal mode
+so a finished map is a single self-contained file. MapStore.build() writes a whole map under a temporary name and
+renames it into place at the end. Reading opens the file read-only and checks it; every problem is one MapError.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import threading
+import zlib
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import numpy as np
+
+SCHEMA_VERSION = 1
+MAP_FORMAT = 'skynav-map'
+APPLICATION_ID = 0x736B6E76  # 'sknv'
+SQLITE_MAGIC = b'SQLite format 3\x00'
+POSE_COLUMNS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
+RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from')
+CHECKS = ('none', 'quick', 'full')
+
+_SCHEMA = """
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE snapshots (
+    idx INTEGER PRIMARY KEY CHECK (idx >= 0),
+    stamp_ns INTEGER NOT NULL,
+    coefficients BLOB NOT NULL,
+    checksum INTEGER NOT NULL,
+    x REAL, y REAL, z REAL, qx REAL, qy REAL, qz REAL, qw REAL,
+    CHECK ((x IS NULL) = (qw IS NULL))
+);
+CREATE TABLE descriptors (
+    snapshot_idx INTEGER NOT NULL REFERENCES snapshots(idx),
+    name TEXT NOT NULL,
+    dtype TEXT NOT NULL,
+    shape TEXT NOT NULL,
+    data BLOB NOT NULL,
+    checksum INTEGER NOT NULL,
+    PRIMARY KEY (snapshot_idx, name)
+) WITHOUT ROWID;
+CREATE INDEX descriptors_by_name ON descriptors(name, snapshot_idx);
+CREATE TABLE artifacts (
+    name TEXT PRIMARY KEY,
+    dtype TEXT NOT NULL,
+    shape TEXT NOT NULL,
+    data BLOB NOT NULL,
+    checksum INTEGER NOT NULL
+);
+"""
+_REQUIRED_COLUMNS = {
+    'meta': {'key', 'value'},
+    'snapshots': {'idx', 'stamp_ns', 'coefficients', 'checksum', *POSE_COLUMNS},
+    'descriptors': {'snapshot_idx', 'name', 'dtype', 'shape', 'data', 'checksum'},
+    'artifacts': {'name', 'dtype', 'shape', 'data', 'checksum'},
+}
+
+
+class MapError(Exception):
+    """A map file that cannot be opened, read or written; the message names the file and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """One stored snapshot: index (0-based, recording order), stamp (ns), SH coefficients, optional pose."""
+
+    index: int
+    stamp_ns: int
+    coefficients: np.ndarray  # (L+1)^2 float64
+    pose: np.ndarray | None = None  # (x, y, z, qx, qy, qz, qw) of camera_link in map (m, unit quaternion)
+    descriptors: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+def _crc(data: bytes) -> int:
+    """Return the CRC-32 of a byte string (stored next to every BLOB)."""
+    return zlib.crc32(data) & 0xFFFFFFFF
+
+
+def _pack(array: np.ndarray) -> tuple[str, str, bytes, int]:
+    """Return (dtype, shape, little-endian bytes, CRC-32) of an array for a BLOB column."""
+    array = np.asarray(array)
+    if array.dtype.kind not in 'biuf':
+        raise ValueError(f'cannot store an array of dtype {array.dtype} (numbers only)')
+    little = np.ascontiguousarray(array, dtype=array.dtype.newbyteorder('<'))
+    data = little.tobytes()
+    return little.dtype.str, ','.join(str(n) for n in array.shape), data, _crc(data)
+
+
+def _unpack(dtype: str, shape: str, data: bytes) -> np.ndarray:
+    """Return the array stored as (dtype, shape, bytes); ValueError if they do not fit together."""
+    dims = tuple(int(n) for n in shape.split(',')) if shape else ()
+    array = np.frombuffer(data, dtype=np.dtype(dtype))
+    return array.reshape(dims)
+
+
+class MapStore:
+    """A map of snapshots in one SQLite file; MapStore.create() to write one, MapStore.open() to read one."""
+
+    def __init__(self, path: Path, connection: sqlite3.Connection, writable: bool) -> None:
+        """Wrap an open, checked connection (use create/open/build, not this)."""
+        self.path = path
+        self._db = connection
+        self._lock = threading.RLock()  # one connection, usable from any thread (e.g. a node's callbacks)
+        self.writable = writable
+        self._meta: dict[str, str] = {}
+        self._stamps = np.zeros(0, dtype=np.int64)
+        self._coefficients = np.zeros((0, 0))
+        self._poses = np.zeros((0, 7))
+        self._descriptor_cache: dict[str, np.ndarray] = {}
+        self._capacity = 0  # rows of the growable buffers behind the arrays above (writable maps)
+        self._stamp_buffer = self._stamps
+        self._coefficient_buffer = self._coefficients
+        self._pose_buffer = self._poses
+
+    # --- opening -------------------------------------------------------------------------------------------------
+
+    @classmethod
+    def create(cls, path: str | os.PathLike, name: str, max_degree: int, *, created_from: str = '',
+               metadata: Mapping[str, Any] | None = None, overwrite: bool = False) -> MapStore:
+        """Create an empty map file at path (SH degree L) and return it open for adding snapshots one by one."""
+        path = Path(path)
+        if int(max_degree) < 0:
+            raise MapError(f'{path}: SH degree must be >= 0, got {max_degree}')
+        if not path.parent.is_dir():
+            raise MapError(f'{path}: no such directory {path.parent}')
+        meta = {'format': MAP_FORMAT, 'schema_version': str(SCHEMA_VERSION), 'name': str(name),
+                'max_degree': str(int(max_degree)),
+                'created_utc': datetime.now(timezone.utc).isoformat(timespec='seconds'),
+                'created_from': str(created_from)}
+        for key, value in (metadata or {}).items():
+            if key in RESERVED_META:
+                raise MapError(f'{path}: metadata key {key!r} is reserved')
+            meta[str(key)] = value if isinstance(value, str) else json.dumps(value)
+        if path.exists() or Path(f'{path}-wal').exists():
+            if not overwrite:
+                raise MapError(f'{path}: exists already; choose another name or pass overwrite')
+            for stale in (path, Path(f'{path}-wal'), Path(f'{path}-shm'), Path(f'{path}-journal')):
+                stale.unlink(missing_ok=True)
+        db = None
+        try:
+            db = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
+            db.execute('PRAGMA journal_mode=WAL')
+            db.execute('PRAGMA synchronous=FULL')  # a commit is on disk before add_snapshot returns
+            db.execute(f'PRAGMA application_id={APPLICATION_ID}')
+            db.execute('BEGIN')
+            for statement in filter(str.strip, _SCHEMA.split(';')):
+                db.execute(statement)
+            db.executemany('INSERT INTO meta(key, value) VALUES (?, ?)', meta.items())
+            db.execute('COMMIT')
+        except sqlite3.Error as exc:
+            if db is not None:
+                db.close()
+            for leftover in (path, Path(f'{path}-wal'), Path(f'{path}-shm')):
+                leftover.unlink(missing_ok=True)
+            raise MapError(f'{path}: cannot create the map: {exc}') from None
+        store = cls(path, db, writable=True)
+        store._meta = meta
+        store._coefficients = store._coefficient_buffer = np.zeros((0, (int(max_degree) + 1) ** 2))
+        return store
+
+    @classmethod
+    def open(cls, path: str | os.PathLike, *, writable: bool = False, check: str = 'quick') -> MapStore:
+        """Open and check a map file, read-only unless writable; check 'quick'/'full' adds SQLite's own check."""
+        path = Path(path)
+        if check not in CHECKS:
+            raise ValueError(f'unknown check {check!r}; expected one of {CHECKS}')
+        if not path.exists():
+            raise MapError(f'{path}: no such map file')
+        if not path.is_file():
+            raise MapError(f'{path}: not a file (a map is one SQLite file)')
+        with path.open('rb') as stream:
+            head = stream.read(len(SQLITE_MAGIC))
+        if not head:
+            raise MapError(f'{path}: empty file, not a map')
+        if head != SQLITE_MAGIC:
+            raise MapError(f'{path}: not a map (not an SQLite database)')
+        try:
+            if writable:
+                db = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
+            else:
+                db = sqlite3.connect(f'file:{quote(str(path.resolve()))}?mode=ro', uri=True, isolation_level=None,
+                                     check_same_thread=False)
+        except sqlite3.Error as exc:
+            raise MapError(f'{path}: cannot open the map: {exc}') from None
+        store = cls(path, db, writable)
+        try:
+            store._check_schema()
+            if check != 'none':
+                pragma = 'quick_check' if check == 'quick' else 'integrity_check'
+                result = [row[0] for row in db.execute(f'PRAGMA {pragma}(3)')]
+                if result != ['ok']:
+                    raise MapError(f'{path}: corrupt map file (SQLite {pragma}: {"; ".join(result)})')
+            store._load_snapshots()
+            if writable:
+                db.execute('PRAGMA journal_mode=WAL')
+                db.execute('PRAGMA synchronous=FULL')
+        except MapError:
+            db.close()
+            raise
+        except sqlite3.DatabaseError as exc:
+            db.close()
+            raise MapError(f'{path}: corrupt or truncated map file ({exc})') from None
+        return store
+
+    @classmethod
+    def build(cls, path: str | os.PathLike, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
+              created_from: str = '', metadata: Mapping[str, Any] | None = None,
+              overwrite: bool = False) -> MapStore:
+        """Write a whole map in one go under a temporary name, rename it to path at the end; return it read-only."""
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise MapError(f'{path}: exists already; choose another name or pass overwrite')
+        partial = path.with_name(f'.{path.name}.partial')
+        store = cls.create(partial, name, max_degree, created_from=created_from, metadata=metadata,
+                           overwrite=True)
+        store._db.execute('PRAGMA synchronous=OFF')  # a crash leaves only the partial file, removed or redone
+        try:
+            for snapshot in snapshots:
+                store.add_snapshot(snapshot.coefficients, snapshot.stamp_ns, snapshot.pose, snapshot.descriptors)
+            store.close()
+            with partial.open('rb') as stream:
+                os.fsync(stream.fileno())
+            os.replace(partial, path)
+        except BaseException:
+            store.close()
+            for leftover in (partial, Path(f'{partial}-wal'), Path(f'{partial}-shm')):
+                leftover.unlink(missing_ok=True)
+            raise
+        return cls.open(path)
+
+    def _check_schema(self) -> None:
+        """Raise MapError unless the file holds a skynav map of a schema version this code reads."""
+        tables = {row[0] for row in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if 'meta' not in tables:
+            listed = ', '.join(sorted(tables)) or 'none'
+            raise MapError(f'{self.path}: an SQLite database but not a skynav map (no meta table; tables: {listed})')
+        try:
+            meta = dict(self._db.execute('SELECT key, value FROM meta'))
+        except sqlite3.OperationalError:
+            raise MapError(f'{self.path}: an SQLite database but not a skynav map (alien meta table)') from None
+        if meta.get('format') != MAP_FORMAT:
+            raise MapError(f'{self.path}: an SQLite database but not a skynav map (meta format is '
+                           f'{meta.get("format")!r}, expected {MAP_FORMAT!r})')
+        try:
+            version = int(meta.get('schema_version', ''))
+        except ValueError:
+            raise MapError(f'{self.path}: damaged map (schema_version {meta.get("schema_version")!r} '
+                           'is not a number)') from None
+        if version > SCHEMA_VERSION:
+            raise MapError(f'{self.path}: map schema version {version} is newer than this skynav reads '
+                           f'({SCHEMA_VERSION}); update skynav')
+        if version < 1:
+            raise MapError(f'{self.path}: damaged map (schema version {version})')
+        for table, columns in _REQUIRED_COLUMNS.items():
+            present = {row[1] for row in self._db.execute(f'PRAGMA table_info({table})')}
+            if missing := columns - present:
+                raise MapError(f'{self.path}: damaged map (table {table} lacks {", ".join(sorted(missing))})')
+        try:
+            degree = int(meta['max_degree'])
+            if degree < 0:
+                raise ValueError
+        except (KeyError, ValueError):
+            raise MapError(f'{self.path}: damaged map (max_degree {meta.get("max_degree")!r})') from None
+        self._meta = meta
+
+    def _load_snapshots(self) -> None:
+        """Read every snapshot's stamp, coefficients and pose, checking order, sizes and checksums."""
+        rows = self._db.execute('SELECT idx, stamp_ns, coefficients, checksum, ' + ', '.join(POSE_COLUMNS)
+                                + ' FROM snapshots ORDER BY idx').fetchall()
+        size = (self.max_degree + 1) ** 2
+        indices = np.fromiter((row[0] for row in rows), dtype=np.int64, count=len(rows))
+        if len(rows) and not np.array_equal(indices, np.arange(len(rows))):
+            gap = int(np.flatnonzero(indices != np.arange(len(rows)))[0])
+            raise MapError(f'{self.path}: damaged map (snapshot indices are not 0..{len(rows) - 1}; '
+                           f'index {gap} is missing)')
+        coefficients = np.empty((len(rows), size))
+        poses = np.full((len(rows), 7), np.nan)
+        for row in rows:
+            index, blob = row[0], row[2]
+            if not isinstance(blob, bytes) or len(blob) != 8 * size:
+                raise MapError(f'{self.path}: damaged map (snapshot {index} has {len(blob or b"")} bytes of '
+                               f'coefficients, expected {8 * size} for degree {self.max_degree})')
+            if _crc(blob) != row[3]:
+                raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
+            coefficients[index] = np.frombuffer(blob, dtype='<f8')
+            if row[4] is not None:
+                poses[index] = row[4:11]
+        self._stamps = np.fromiter((row[1] for row in rows), dtype=np.int64, count=len(rows))
+        self._coefficients = coefficients
+        self._poses = poses
+        self._stamp_buffer, self._coefficient_buffer, self._pose_buffer = self._stamps, coefficients, poses
+        self._capacity = len(rows)
+        self._descriptor_cache.clear()
+
+    # --- writing -------------------------------------------------------------------------------------------------
+
+    def _require_writable(self) -> None:
+        """Raise MapError when the map was opened read-only or is closed."""
+        if not self.writable:
+            raise MapError(f'{self.path}: map is open read-only')
+        if self._db is None:
+            raise MapError(f'{self.path}: map is closed')
+
+    def add_snapshot(self, coefficients: np.ndarray, stamp_ns: int, pose: np.ndarray | None = None,
+                     descriptors: Mapping[str, np.ndarray] | None = None) -> int:
+        """Append one snapshot (coefficients, stamp in ns, optional pose, named descriptors) in one transaction."""
+        self._require_writable()
+        coefficients = np.asarray(coefficients, dtype=float)
+        size = (self.max_degree + 1) ** 2
+        if coefficients.shape != (size,):
+            raise ValueError(f'{self.path}: expected {size} coefficients (degree {self.max_degree}), '
+                             f'got shape {coefficients.shape}')
+        if not np.all(np.isfinite(coefficients)):
+            raise ValueError(f'{self.path}: coefficients must be finite')
+        pose_values: tuple = (None,) * 7
+        if pose is not None:
+            pose_array = np.asarray(pose, dtype=float)
+            if pose_array.shape != (7,) or not np.all(np.isfinite(pose_array)):
+                raise ValueError(f'{self.path}: a pose is 7 finite numbers (x, y, z, qx, qy, qz, qw)')
+            pose_values = tuple(float(v) for v in pose_array)
+        blob = coefficients.astype('<f8').tobytes()
+        packed = [(str(name), *_pack(array)) for name, array in (descriptors or {}).items()]
+        with self._lock:
+            index = len(self)
+            try:
+                with self._transaction():
+                    self._db.execute('INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
+                                     (index, int(stamp_ns), blob, _crc(blob), *pose_values))
+                    self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
+                                         [(index, *row) for row in packed])
+            except sqlite3.Error as exc:
+                raise MapError(f'{self.path}: cannot write snapshot {index}: {exc}') from None
+            self._append(int(stamp_ns), coefficients, np.asarray(pose_values, dtype=float))
+            self._descriptor_cache.clear()
+        return index
+
+    def _append(self, stamp_ns: int, coefficients: np.ndarray, pose: np.ndarray) -> None:
+        """Append one row to the in-memory arrays, growing their capacity geometrically (amortised O(1))."""
+        count = len(self)
+        if count == self._capacity:
+            self._capacity = max(16, 2 * self._capacity)
+            self._stamp_buffer = np.resize(self._stamp_buffer, self._capacity)
+            self._coefficient_buffer = np.resize(self._coefficient_buffer, (self._capacity, coefficients.size))
+            self._pose_buffer = np.resize(self._pose_buffer, (self._capacity, 7))
+        self._stamp_buffer[count] = stamp_ns
+        self._coefficient_buffer[count] = coefficients
+        self._pose_buffer[count] = pose
+        self._stamps = self._stamp_buffer[: count + 1]
+        self._coefficients = self._coefficient_buffer[: count + 1]
+        self._poses = self._pose_buffer[: count + 1]
+
+    def put_descriptors(self, name: str, arrays: Iterable[np.ndarray] | np.ndarray) -> None:
+        """Store (or replace) descriptor `name` of every snapshot, one array per snapshot, in one transaction."""
+        self._require_writable()
+        rows = [(index, str(name), *_pack(array)) for index, array in enumerate(arrays)]
+        if len(rows) != len(self):
+            raise ValueError(f'{self.path}: {len(rows)} descriptors for {len(self)} snapshots')
+        try:
+            with self._transaction():
+                self._db.execute('DELETE FROM descriptors WHERE name = ?', (str(name),))
+                self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)', rows)
+        except sqlite3.Error as exc:
+            raise MapError(f'{self.path}: cannot write descriptors {name!r}: {exc}') from None
+        self._descriptor_cache.pop(name, None)
+
+    def put_artifact(self, name: str, array: np.ndarray) -> None:
+        """Store (or replace) a map-level array under a name (e.g. a vocabulary), in one transaction."""
+        self._require_writable()
+        try:
+            with self._transaction():
+                self._db.execute('INSERT OR REPLACE INTO artifacts VALUES (?, ?, ?, ?, ?)',
+                                 (str(name), *_pack(array)))
+        except sqlite3.Error as exc:
+            raise MapError(f'{self.path}: cannot write artifact {name!r}: {exc}') from None
+
+    def set_meta(self, key: str, value: Any) -> None:
+        """Store a metadata entry (text; other values as JSON) in one transaction; reserved keys are refused."""
+        self._require_writable()
+        if key in RESERVED_META:
+            raise MapError(f'{self.path}: metadata key {key!r} is reserved')
+        text = value if isinstance(value, str) else json.dumps(value)
+        try:
+            with self._transaction():
+                self._db.execute('INSERT OR REPLACE INTO meta VALUES (?, ?)', (str(key), text))
+        except sqlite3.Error as exc:
+            raise MapError(f'{self.path}: cannot write metadata {key!r}: {exc}') from None
+        self._meta[str(key)] = text
+
+    @contextmanager
+    def _transaction(self) -> Iterator[None]:
+        """Run the block as one IMMEDIATE transaction under the store's lock: committed, or rolled back on error."""
+        with self._lock:
+            self._db.execute('BEGIN IMMEDIATE')
+            try:
+                yield
+            except BaseException:
+                self._db.execute('ROLLBACK')
+                raise
+            self._db.execute('COMMIT')
+
+    def close(self) -> None:
+        """Close the file; a writable map is checkpointed into one self-contained file first."""
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
+        """Close the connection (caller holds the lock)."""
+        if self._db is None:
+            return
+        try:
+            if self.writable:
+                self._db.execute('PRAGMA wal_checkpoint(TRUNCATE)')
+                self._db.execute('PRAGMA journal_mode=DELETE')
+        except sqlite3.Error:
+            pass  # another reader holds the WAL: it stays beside the file and SQLite replays it on the next open
+        finally:
+            self._db.close()
+            self._db = None
+
+    def __enter__(self) -> MapStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- reading -------------------------------------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """Return the map's name."""
+        return self._meta.get('name', '')
+
+    @property
+    def max_degree(self) -> int:
+        """Return the SH degree L of the stored coefficients."""
+        return int(self._meta['max_degree'])
+
+    @property
+    def meta(self) -> dict[str, str]:
+        """Return a copy of the metadata table (key -> text)."""
+        return dict(self._meta)
+
+    def __len__(self) -> int:
+        """Return the number of snapshots."""
+        return int(self._stamps.size)
+
+    def coefficients(self) -> np.ndarray:
+        """Return all snapshots' SH coefficients, (N, (L+1)^2) float64, read-only, in index order."""
+        view = self._coefficients.view()
+        view.flags.writeable = False
+        return view
+
+    def stamps(self) -> np.ndarray:
+        """Return all snapshots' stamps (ns since the epoch), (N,) int64."""
+        return self._stamps.copy()
+
+    def poses(self) -> np.ndarray:
+        """Return all ground-truth poses (N, 7) as (x, y, z, qx, qy, qz, qw) of camera_link in map; NaN rows if none."""
+        return self._poses.copy()
+
+    def positions(self) -> np.ndarray:
+        """Return the ground-truth positions (N, 3) of camera_link in map (m); NaN rows if none."""
+        return self._poses[:, :3].copy()
+
+    @property
+    def has_poses(self) -> bool:
+        """Return whether every snapshot has a ground-truth pose."""
+        return bool(len(self)) and bool(np.all(np.isfinite(self._poses)))
+
+    def snapshot(self, index: int) -> Snapshot:
+        """Return one snapshot with all its descriptors."""
+        if not 0 <= index < len(self):
+            raise IndexError(f'{self.path}: no snapshot {index} (the map has {len(self)})')
+        rows = self._read('SELECT name, dtype, shape, data, checksum FROM descriptors WHERE snapshot_idx = ?',
+                          (int(index),))
+        descriptors = {row[0]: self._checked(row[1:], f'descriptor {row[0]!r} of snapshot {index}') for row in rows}
+        pose = self._poses[index]
+        return Snapshot(index, int(self._stamps[index]), self._coefficients[index].copy(),
+                        pose.copy() if np.all(np.isfinite(pose)) else None, descriptors)
+
+    def snapshots(self) -> list[Snapshot]:
+        """Return every snapshot (index order) with its descriptors."""
+        return [self.snapshot(index) for index in range(len(self))]
+
+    def descriptor_names(self) -> list[str]:
+        """Return the names of the stored per-snapshot descriptors."""
+        return [row[0] for row in self._read('SELECT DISTINCT name FROM descriptors ORDER BY name')]
+
+    def descriptor_list(self, name: str) -> list[np.ndarray]:
+        """Return descriptor `name` of every snapshot as a list (for variable-size ones such as ORB)."""
+        rows = self._read('SELECT snapshot_idx, dtype, shape, data, checksum FROM descriptors WHERE name = ? '
+                          'ORDER BY snapshot_idx', (str(name),))
+        if not rows:
+            raise KeyError(f'{self.path}: no descriptor {name!r} in this map '
+                           f'(it has: {", ".join(self.descriptor_names()) or "none"})')
+        if len(rows) != len(self) or any(row[0] != i for i, row in enumerate(rows)):
+            have = {row[0] for row in rows}
+            first = next(i for i in range(len(self)) if i not in have)
+            raise MapError(f'{self.path}: descriptor {name!r} is stored for {len(rows)} of {len(self)} snapshots '
+                           f'(snapshot {first} lacks it)')
+        return [self._checked(row[1:], f'descriptor {name!r} of snapshot {row[0]}') for row in rows]
+
+    def descriptor_matrix(self, name: str) -> np.ndarray:
+        """Return descriptor `name` of all snapshots as one (N, D) matrix (cached, read-only)."""
+        if name not in self._descriptor_cache:
+            arrays = self.descriptor_list(name)
+            shapes = {array.shape for array in arrays}
+            if len(shapes) != 1 or len(next(iter(shapes))) != 1:
+                raise MapError(f'{self.path}: descriptor {name!r} is not one vector of equal size per snapshot')
+            matrix = np.stack(arrays)
+            matrix.flags.writeable = False
+            self._descriptor_cache[name] = matrix
+        return self._descriptor_cache[name]
+
+    def artifact(self, name: str) -> np.ndarray | None:
+        """Return the map-level array stored under `name`, None if there is none."""
+        rows = self._read('SELECT dtype, shape, data, checksum FROM artifacts WHERE name = ?', (str(name),))
+        return self._checked(rows[0], f'artifact {name!r}') if rows else None
+
+    def _read(self, sql: str, parameters: tuple = ()) -> list[tuple]:
+        """Run a query, turning SQLite failures into MapError."""
+        if self._db is None:
+            raise MapError(f'{self.path}: map is closed')
+        try:
+            with self._lock:
+                return self._db.execute(sql, parameters).fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise MapError(f'{self.path}: corrupt or truncated map file ({exc})') from None
+
+    def _checked(self, row: tuple, what: str) -> np.ndarray:
+        """Return the array of a (dtype, shape, data, checksum) row; MapError if it is damaged."""
+        dtype, shape, data, checksum = row
+        if _crc(data) != checksum:
+            raise MapError(f'{self.path}: corrupt map (checksum of {what} does not match)')
+        try:
+            return _unpack(dtype, shape, data)
+        except (TypeError, ValueError) as exc:
+            raise MapError(f'{self.path}: damaged map ({what}: {exc})') from None
+
+    def snapshot_stamp(self, index: int) -> int:
+        """Return the stamp (ns since the epoch) of snapshot `index`."""
+        return int(self._stamps[index])
+
+    def info(self) -> dict[str, Any]:
+        """Return a summary for `skynav map info`: name, size, degree, descriptors, route length, time span."""
+        info: dict[str, Any] = {key: value for key, value in self._meta.items()}
+        info['schema_version'] = int(self._meta['schema_version'])
+        info['max_degree'] = self.max_degree
+        info['path'] = str(self.path)
+        info['file_bytes'] = self.path.stat().st_size if self.path.exists() else 0
+        info['snapshots'] = len(self)
+        info['descriptors'] = self.descriptor_names()
+        info['artifacts'] = [row[0] for row in self._read('SELECT name FROM artifacts ORDER BY name')]
+        info['has_poses'] = self.has_poses
+        if len(self):
+            info['first_stamp_ns'] = int(self._stamps[0])
+            info['last_stamp_ns'] = int(self._stamps[-1])
+            info['duration_s'] = float(self._stamps[-1] - self._stamps[0]) * 1e-9
+        if self.has_poses and len(self) > 1:
+            steps = np.linalg.norm(np.diff(self._poses[:, :3], axis=0), axis=1)
+            info['route_length_m'] = float(np.sum(steps))
+            info['median_spacing_m'] = float(np.median(steps))
+        return info
+
+    def __repr__(self) -> str:
+        return f'MapStore({str(self.path)!r}, name={self.name!r}, snapshots={len(self)}, L={self.max_degree})'
+

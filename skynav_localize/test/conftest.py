@@ -1,0 +1,91 @@
+"""Shared test data: synthetic SH routes, and the bundled synthetic recordings turned into SH coefficients.
+
+The recordings are read through skynav_bringup.bag; SH coefficients come from the ground-truth sky masks
+(FisheyeTransform, fill 'zero'), so these tests measure place recognition, not segmentation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skynav_sh.basis import degree_order, n_coefficients
+
+BAGS = Path(__file__).resolve().parents[2] / 'bags'
+BAG_DEGREE = 16  # SH degree L of the end-to-end tests
+
+
+def random_view(degree: int, rng: np.random.Generator) -> np.ndarray:
+    """Return random SH coefficients with a skyline-like spectrum (amplitude falling as 1 / (l + 1))."""
+    l, _ = degree_order(degree)
+    return rng.standard_normal(n_coefficients(degree)) / (l + 1.0)
+
+
+def synthetic_route(count: int, degree: int, step: float, seed: int) -> np.ndarray:
+    """Return (count, n) coefficients of views along a route: a random walk (step per snapshot) from a random view."""
+    rng = np.random.default_rng(seed)
+    start = random_view(degree, rng)
+    l, _ = degree_order(degree)
+    steps = rng.standard_normal((count, n_coefficients(degree))) * step / (l + 1.0)
+    steps[0] = 0.0
+    return start + np.cumsum(steps, axis=0)
+
+
+@dataclass
+class Recording:
+    """What the tests need of one bundled recording, in stamp order."""
+
+    stamps: np.ndarray  # (F,) ns
+    coefficients: np.ndarray  # (F, (L+1)^2) from the ground-truth masks
+    uv: np.ndarray  # (F, H, W) uint8
+    poses: np.ndarray  # (F, 7) camera_link in map
+    circle: np.ndarray  # (H, W) bool image circle
+    camera: object
+
+
+def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
+    """Read a bundled recording's masks, UV images and poses; SH coefficients from the ground-truth masks."""
+    from skynav_bringup.bag import open_bag
+    from skynav_sh.camera import EquidistantCamera
+    from skynav_sh.fisheye import FisheyeTransform
+
+    masks, uv, poses, info = {}, {}, {}, None
+    with open_bag(BAGS / name) as bag:
+        for raw in bag.messages(['/ground_truth/mask', '/camera/uv/image_raw', '/ground_truth/pose',
+                                 '/camera/uv/camera_info']):
+            msg = bag.deserialize(raw)
+            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            if raw.topic == '/camera/uv/camera_info':
+                info = msg
+            elif raw.topic == '/ground_truth/pose':
+                p, q = msg.pose.position, msg.pose.orientation
+                poses[stamp] = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+            else:
+                image = np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
+                (masks if raw.topic == '/ground_truth/mask' else uv)[stamp] = image
+    camera = EquidistantCamera.from_camera_info(info)
+    transform = FisheyeTransform(camera, degree, fill='zero')
+    stamps = np.array(sorted(masks), dtype=np.int64)
+    return Recording(stamps, np.array([transform(masks[s]) for s in stamps]), np.array([uv[s] for s in stamps]),
+                     np.array([poses[s] for s in stamps], dtype=float), camera.image_circle(), camera)
+
+
+@pytest.fixture(scope='session')
+def garden():
+    """The bundled garden teach and repeat drives and the garden compass recording (off the route)."""
+    return {part: read_recording(f'synthetic_garden_{part}.mcap') for part in ('teach', 'repeat', 'compass')}
+
+
+@pytest.fixture
+def make_route():
+    """The synthetic_route function: (count, degree, step, seed) -> (count, n) coefficients along a route."""
+    return synthetic_route
+
+
+@pytest.fixture
+def make_view():
+    """The random_view function: (degree, rng) -> coefficients of an unrelated view (off any route)."""
+    return random_view

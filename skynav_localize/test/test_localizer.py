@@ -1,0 +1,120 @@
+"""The Localizer on a synthetic route: rotated queries found, off-route queries rejected, online = offline."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
+from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
+from skynav_localize.store import MapError, MapStore
+
+DEGREE = 10
+SNAPSHOTS = 150
+SPACING = 0.1  # m between snapshots along x
+QUERY_START, QUERY_SPEED, QUERIES = 5.0, 1.3, 60  # snapshots, snapshots per query frame, frames
+
+
+@pytest.fixture
+def route(make_route):
+    return make_route(SNAPSHOTS, DEGREE, 0.4, seed=1)
+
+
+@pytest.fixture
+def store(route, tmp_path):
+    with create_map(tmp_path / 'route.db', 'route', DEGREE) as writer:
+        for i, coefficients in enumerate(route):
+            writer.add_snapshot(coefficients, i, np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0]),
+                                snapshot_descriptors(coefficients, DEGREE))
+    return MapStore.open(tmp_path / 'route.db')
+
+
+def repeat_drive(route: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return views between the snapshots (a repeat at another speed), each turned at random and noisy."""
+    rng = np.random.default_rng(seed)
+    position = QUERY_START + QUERY_SPEED * np.arange(QUERIES)
+    low = np.floor(position).astype(int)
+    weight = (position - low)[:, None]
+    views = (1 - weight) * route[low] + weight * route[low + 1]
+    views += 0.02 * rng.standard_normal(views.shape) * np.linalg.norm(route[0])
+    rotations = Rotation.random(QUERIES, random_state=seed).as_matrix()
+    from skynav_sh.rotation import rotate
+
+    return np.array([rotate(v, r) for v, r in zip(views, rotations)]), position
+
+
+@pytest.mark.parametrize('name', OUR_METHODS)
+def test_turned_repeat_drive_is_localized_and_online_equals_offline(store, route, name):
+    views, truth = repeat_drive(route, seed=2)
+    localizer = Localizer(store, name)
+    offline = localizer.match_sequence(views)
+    online = [localizer.query(v) for v in views]
+    np.testing.assert_array_equal([m.index for m in online], offline.index)
+    # the same numbers, summed in another order (matrix-vector vs matrix-matrix): rounding of the method's dtype
+    rounding = 1e-9 if localizer.method.dtype == np.float64 else 1e-5
+    np.testing.assert_allclose([m.score for m in online], offline.score, atol=rounding)
+    np.testing.assert_array_equal([m.accepted for m in online], offline.accepted)
+    settled = np.arange(QUERIES) >= (localizer.sequence.length - 1 if localizer.method.sequence else 0)
+    # the true place lies between two snapshots: the match is one of them or a neighbour of one of them
+    assert np.all(np.abs(offline.index[settled] - truth[settled]) <= 1.5)
+    assert np.all(offline.accepted[settled])
+    first = online[-1]
+    assert first.candidate_indices[0] == first.index and len(first.candidate_indices) == localizer.candidates
+    assert np.all(np.diff(first.candidate_distances) >= 0)
+
+
+@pytest.mark.parametrize('name', OUR_METHODS)
+def test_off_route_views_are_not_accepted(store, make_route, make_view, name):
+    localizer = Localizer(store, name)
+    rng = np.random.default_rng(7)
+    elsewhere = make_route(30, DEGREE, 0.4, seed=99)  # a drive somewhere else: a route of its own
+    matches = localizer.match_sequence(elsewhere)
+    assert not np.any(matches.accepted)
+    single = Localizer(store, name)
+    assert not any(single.query(make_view(DEGREE, rng)).accepted for _ in range(20))
+
+
+def test_empty_map_and_missing_baseline_data(tmp_path, route):
+    with MapStore.create(tmp_path / 'empty.db', 'empty', DEGREE) as writer:
+        pass
+    empty = MapStore.open(writer.path)
+    for name in ('amplitude', 'amplitude-seq', 'bispectrum'):
+        match = Localizer(empty, name).query(route[0])
+        assert match.index == -1 and match.distance == math.inf and not match.accepted
+        assert len(match.candidate_indices) == 0 and len(match.candidate_distances) == 0
+    assert len(Localizer(empty, 'amplitude').match_sequence(route[:3])) == 3
+    with MapStore.create(tmp_path / 'sh.db', 'sh', DEGREE) as writer:
+        writer.add_snapshot(route[0], 0)
+    sh_only = MapStore.open(writer.path)
+    with pytest.raises(MapError, match="needs raw UV descriptors"):
+        Localizer(sh_only, 'seqslam-raw-uv')
+    with pytest.raises(MapError, match='needs ORB descriptors'):
+        Localizer(sh_only, 'bow-orb')
+    # SH descriptors are derived from the coefficients when the map does not store them
+    one = Localizer(sh_only, 'amplitude').query(route[0])
+    assert one.index == 0 and one.distance == pytest.approx(0.0, abs=1e-7) and one.score == 0.0
+    with pytest.raises(ValueError, match='needs SH coefficients'):
+        Localizer(sh_only, 'amplitude').query()
+    with pytest.raises(ValueError, match='unknown localization method'):
+        method('nearest-neighbour')
+
+
+def test_method_table_is_honest():
+    assert set(OUR_METHODS) == {'amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'}
+    assert set(BASELINE_METHODS) == {'raw-uv', 'seqslam-raw-uv', 'bow-orb'}
+    assert all(METHODS[name].source == 'uv' for name in BASELINE_METHODS)
+    assert METHODS['seqslam-raw-uv'].sequence and not METHODS['bow-orb'].sequence
+    assert METHODS['raw-uv'].label == 'raw-uv (baseline)'
+
+
+def test_snapshot_selector_by_travel_and_by_view_change():
+    selector = SnapshotSelector(min_travel=0.5, min_change=0.2)
+    a, b = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+    assert selector.keep(a, np.zeros(3))  # the first frame always
+    assert not selector.keep(a, np.array([0.3, 0, 0]))
+    assert selector.keep(a, np.array([0.6, 0, 0]))  # 0.6 m from the last snapshot
+    assert selector.keep(b, np.array([0.7, 0, 0]))  # the view changed
+    assert not selector.keep(b, None)  # no position, same view

@@ -1,0 +1,134 @@
+"""Matching: nearest snapshot with the ratio test, SeqSLAM trajectories, online = offline."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skynav_localize.matching import (Acceptance, SequenceBuffer, SequenceParams, best_candidates,
+                                      contrast_normalise, distance_ratio, runner_up, sequence_match,
+                                      sequence_scores, single_frame, trajectory_scores)
+
+SNAPSHOTS = 200
+QUERIES = 60
+START = 20  # snapshot of the first query
+
+
+def diagonal_with_decoys(speed: float, seed: int, decoys: int = 3, noise: float = 0.15) -> tuple[np.ndarray, ...]:
+    """Return a distance matrix (Q, N) whose true match moves `speed` snapshots per query, and the true indices.
+
+    Distance grows with the gap to the true place, noise is added, and every query has `decoys` random snapshots
+    that look perfect (distance 0): perceptual aliasing that fools a single frame but does not line up in time.
+    """
+    rng = np.random.default_rng(seed)
+    truth = START + speed * np.arange(QUERIES)
+    gap = np.abs(np.arange(SNAPSHOTS)[None, :] - truth[:, None])
+    distances = np.minimum(0.1 * gap, 1.0) + noise * rng.random((QUERIES, SNAPSHOTS))
+    rows = np.repeat(np.arange(QUERIES), decoys)
+    distances[rows, rng.integers(0, SNAPSHOTS, rows.size)] = 0.0
+    return distances, truth
+
+
+@pytest.mark.parametrize('speed', [1.5, 0.7])
+def test_seqslam_recovers_the_diagonal_that_single_frames_miss(speed):
+    distances, truth = diagonal_with_decoys(speed, seed=int(speed * 10))
+    params = SequenceParams(length=10, min_speed=0.5, max_speed=2.0)
+    values, choice = sequence_scores(distances, params)
+    best, _, _ = sequence_match(values, choice, exclusion=10 + params.extent())
+    settled = np.arange(QUERIES) >= params.length - 1  # a full sequence behind the query
+    # the true place lies between two snapshots: the match is one of them or a neighbour of one of them
+    assert np.all(np.abs(best[settled] - truth[settled]) <= 1.5)
+    single, _, _ = single_frame(distances)
+    assert np.mean(np.abs(single - truth) > 1.5) > 0.5  # the decoys do fool single frames
+
+
+def test_contrast_normalisation_removes_a_stretch_of_the_route_that_resembles_everything():
+    # the true place's distance bottoms out at 0.3 (another time of day), while snapshots 120..179 sit at 0.25 for
+    # every query (a stretch of featureless route): raw distances, even in sequences, prefer that stretch; within
+    # a window of snapshots it is flat and the true valley stands out
+    rng = np.random.default_rng(8)
+    truth = START + 1.3 * np.arange(QUERIES)
+    gap = np.abs(np.arange(SNAPSHOTS)[None, :] - truth[:, None])
+    distances = np.minimum(0.3 + 0.14 * gap, 1.0)
+    distances[:, 120:180] = 0.25
+    distances += 0.05 * rng.random(distances.shape)
+    settled = np.arange(QUERIES) >= 9
+    for window, expect_right in ((0, False), (10, True)):
+        params = SequenceParams(length=10, window=window)
+        best, _, _ = sequence_match(*sequence_scores(distances, params), exclusion=10 + params.extent())
+        right = np.abs(best[settled] - truth[settled]) <= 1.5
+        assert np.all(right) if expect_right else not np.any(right)
+
+
+def test_trajectory_scores_by_brute_force():
+    rng = np.random.default_rng(1)
+    values = rng.random((7, 15))
+    params = SequenceParams(length=4, min_speed=0.5, max_speed=2.0)
+    expected = np.full(values.shape, np.inf)
+    for t in range(7):
+        for j in range(15):
+            for speed_offsets in params.offsets():
+                steps = range(min(t + 1, params.length))
+                mean = np.mean([values[t - k, max(j - speed_offsets[k], 0)] for k in steps])
+                expected[t, j] = min(expected[t, j], mean)
+    np.testing.assert_allclose(trajectory_scores(values, params), expected, atol=1e-12)
+
+
+def test_speed_offsets_cover_the_range_once():
+    offsets = SequenceParams(length=10, min_speed=0.5, max_speed=2.0).offsets()
+    assert np.all(offsets[:, 0] == 0)
+    assert len(np.unique(offsets, axis=0)) == len(offsets)
+    assert set(offsets[:, -1]) == set(range(5, 19))  # every whole number of snapshots in 0.5 x 9 .. 2 x 9
+    assert SequenceParams(length=10, min_speed=0.5, max_speed=2.0).extent() == 18
+    with pytest.raises(ValueError):
+        SequenceParams(min_speed=2.0, max_speed=1.0)
+
+
+@pytest.mark.parametrize('window', [0, 5])
+def test_online_buffer_equals_offline_scores(window):
+    distances, _ = diagonal_with_decoys(1.2, seed=4)
+    params = SequenceParams(length=6, min_speed=0.8, max_speed=1.6, window=window)
+    values, choice = sequence_scores(distances, params)
+    buffer = SequenceBuffer(params)
+    for q, row in enumerate(distances):
+        online_values, online_choice = buffer.push(row)
+        np.testing.assert_allclose(online_values, values[q], atol=1e-12)
+        np.testing.assert_allclose(online_choice, choice[q], atol=1e-12)
+    assert len(buffer) == params.length
+    buffer.clear()
+    assert len(buffer) == 0
+
+
+def test_contrast_normalisation_by_brute_force():
+    rng = np.random.default_rng(2)
+    rows = rng.random((3, 30)) + np.linspace(0, 2, 30)
+    window = 4
+    normalised = contrast_normalise(rows, window)
+    for q in range(3):
+        for j in range(30):
+            low = min(max(j - window, 0), 30 - (2 * window + 1))
+            part = rows[q, low : low + 2 * window + 1]
+            assert normalised[q, j] == pytest.approx((rows[q, j] - part.mean()) / part.std(), abs=1e-9)
+
+
+def test_ratio_score_and_runner_up():
+    distances = np.array([[0.5, 0.1, 0.12, 0.9, 0.4, 0.8]])
+    assert runner_up(distances, np.array([1]), exclusion=1)[0] == pytest.approx(0.4)
+    best, best_distance, ratio = single_frame(distances, exclusion=1)
+    assert best[0] == 1 and best_distance[0] == pytest.approx(0.1) and ratio[0] == pytest.approx(0.25)
+    assert runner_up(distances, np.array([1]), exclusion=10)[0] == np.inf
+    np.testing.assert_array_equal(distance_ratio([0.1, 0.0, 0.2], [np.inf, 0.0, 0.4]), [0.0, 1.0, 0.5])
+
+
+def test_best_candidates_best_first():
+    indices, values = best_candidates(np.array([0.3, 0.1, 0.2, 0.1, 0.9]), 3)
+    np.testing.assert_array_equal(indices, [1, 3, 2])
+    np.testing.assert_allclose(values, [0.1, 0.1, 0.2])
+    assert len(best_candidates(np.array([0.5, 0.4]), 10)[0]) == 2
+    assert len(best_candidates(np.zeros(0), 5)[0]) == 0
+
+
+def test_acceptance_is_vectorised():
+    acceptance = Acceptance(max_score=0.5, max_distance=0.2)
+    np.testing.assert_array_equal(acceptance.accepts(np.array([0.4, 0.6, 0.4]), np.array([0.1, 0.1, 0.3])),
+                                  [True, False, False])

@@ -1,0 +1,271 @@
+"""The SQLite map store: round trip, atomic build, durability under SIGKILL, and a clear error for bad files."""
+
+from __future__ import annotations
+
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from skynav_localize.store import SCHEMA_VERSION, MapError, MapStore, Snapshot
+
+DEGREE = 4
+SIZE = (DEGREE + 1) ** 2
+
+
+def coefficients_of(index: int) -> np.ndarray:
+    """Deterministic coefficients of snapshot `index` (so a reader can check every stored value)."""
+    return np.sin(np.arange(SIZE) * 0.37 + index)
+
+
+def pose_of(index: int) -> np.ndarray:
+    return np.array([0.1 * index, -0.05 * index, 0.3, 0.0, 0.0, np.sin(index / 10), np.cos(index / 10)])
+
+
+def write_map(path, count: int = 5, poses: bool = True) -> None:
+    with MapStore.create(path, 'garden', DEGREE, created_from='test.mcap') as store:
+        for i in range(count):
+            store.add_snapshot(coefficients_of(i), 1_000_000_000 + i, pose_of(i) if poses else None,
+                               {'amplitude': np.arange(DEGREE, dtype=float) + i,
+                                'orb': np.full((i + 1, 32), i, np.uint8)})
+
+
+def assert_one_line_map_error(excinfo, path, *words):
+    message = str(excinfo.value)
+    assert '\n' not in message and str(path) in message
+    for word in words:
+        assert word in message, message
+
+
+def test_round_trip(tmp_path):
+    path = tmp_path / 'garden.db'
+    write_map(path)
+    store = MapStore.open(path)
+    assert len(store) == 5 and store.name == 'garden' and store.max_degree == DEGREE
+    for i, snapshot in enumerate(store.snapshots()):
+        assert snapshot.index == i and snapshot.stamp_ns == 1_000_000_000 + i
+        np.testing.assert_array_equal(snapshot.coefficients, coefficients_of(i))
+        np.testing.assert_array_equal(snapshot.pose, pose_of(i))
+        np.testing.assert_array_equal(snapshot.descriptors['orb'], np.full((i + 1, 32), i, np.uint8))
+        assert snapshot.descriptors['orb'].dtype == np.uint8
+    matrix = store.descriptor_matrix('amplitude')
+    assert matrix.shape == (5, DEGREE) and not matrix.flags.writeable
+    assert store.descriptor_matrix('amplitude') is matrix  # cached
+    np.testing.assert_array_equal(store.poses(), np.array([pose_of(i) for i in range(5)]))
+    np.testing.assert_array_equal(store.stamps(), 1_000_000_000 + np.arange(5))
+    assert store.descriptor_names() == ['amplitude', 'orb']
+    info = store.info()
+    assert info['snapshots'] == 5 and info['schema_version'] == SCHEMA_VERSION and info['max_degree'] == DEGREE
+    assert info['created_from'] == 'test.mcap' and info['has_poses']
+    assert info['route_length_m'] == pytest.approx(4 * np.hypot(0.1, 0.05))
+    with pytest.raises(MapError, match='read-only'):
+        store.add_snapshot(coefficients_of(5), 0)
+    with pytest.raises(KeyError, match='no descriptor'):
+        store.descriptor_matrix('bispectrum')
+    with pytest.raises(MapError, match='not one vector'):
+        store.descriptor_matrix('orb')
+    store.close()
+
+
+def test_map_without_poses_and_finished_map_is_one_file(tmp_path):
+    path = tmp_path / 'plain.db'
+    write_map(path, count=3, poses=False)
+    assert not (tmp_path / 'plain.db-wal').exists()  # close() folded the WAL into the file
+    store = MapStore.open(path)
+    assert not store.has_poses and np.all(np.isnan(store.poses()))
+    assert store.snapshot(0).pose is None
+
+
+def test_appending_artifacts_and_descriptors(tmp_path):
+    path = tmp_path / 'garden.db'
+    write_map(path, count=3)
+    with MapStore.open(path, writable=True) as store:
+        store.put_artifact('bow-orb.idf', np.array([0.5, 1.5]))
+        store.put_descriptors('bow-orb', [np.full(2, i, np.float32) for i in range(3)])
+        assert store.descriptor_matrix('bow-orb').dtype == np.float32
+        store.set_meta('camera', {'fx': 100.0})
+        with pytest.raises(ValueError, match='2 descriptors for 3 snapshots'):
+            store.put_descriptors('other', [np.zeros(2)] * 2)
+        store.add_snapshot(coefficients_of(3), 7)  # added later: has no 'bow-orb' descriptor
+    store = MapStore.open(path)
+    assert len(store) == 4
+    np.testing.assert_array_equal(store.artifact('bow-orb.idf'), [0.5, 1.5])
+    assert store.artifact('missing') is None
+    assert store.meta['camera'] == '{"fx": 100.0}'
+    with pytest.raises(MapError, match="'bow-orb' is stored for 3 of 4 snapshots .snapshot 3 lacks it."):
+        store.descriptor_matrix('bow-orb')
+    np.testing.assert_array_equal(store.snapshot(2).descriptors['orb'], np.full((3, 32), 2, np.uint8))
+    assert store.snapshot(3).descriptors == {}
+
+
+def test_build_is_atomic(tmp_path):
+    path = tmp_path / 'built.db'
+    snapshots = [Snapshot(i, i, coefficients_of(i), pose_of(i), {'amplitude': np.ones(DEGREE)}) for i in range(4)]
+
+    def failing():
+        yield from snapshots[:2]
+        raise RuntimeError('bag ended badly')
+
+    with pytest.raises(RuntimeError):
+        MapStore.build(path, 'built', DEGREE, failing())
+    assert list(tmp_path.iterdir()) == []  # nothing at the target, no partial file left behind
+    store = MapStore.build(path, 'built', DEGREE, snapshots)
+    assert len(store) == 4 and [p.name for p in tmp_path.iterdir()] == ['built.db']
+    with pytest.raises(MapError, match='exists already'):
+        MapStore.build(path, 'built', DEGREE, snapshots)
+
+
+def test_bad_input_is_refused(tmp_path):
+    store = MapStore.create(tmp_path / 'm.db', 'm', DEGREE)
+    with pytest.raises(ValueError, match='expected 25 coefficients'):
+        store.add_snapshot(np.zeros(SIZE + 1), 0)
+    with pytest.raises(ValueError, match='finite'):
+        store.add_snapshot(np.full(SIZE, np.nan), 0)
+    with pytest.raises(ValueError, match='pose'):
+        store.add_snapshot(np.zeros(SIZE), 0, pose=np.zeros(6))
+    assert len(store) == 0
+    with pytest.raises(MapError, match='reserved'):
+        MapStore.create(tmp_path / 'n.db', 'n', DEGREE, metadata={'name': 'x'})
+    with pytest.raises(MapError, match='exists already'):
+        MapStore.create(tmp_path / 'm.db', 'm', DEGREE)
+
+
+# --- errors: one MapError line naming the file and the problem --------------------------------------------------
+
+def test_missing_file(tmp_path):
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(tmp_path / 'nothing.db')
+    assert_one_line_map_error(excinfo, tmp_path / 'nothing.db', 'no such map file')
+
+
+def test_not_sqlite_and_empty(tmp_path):
+    path = tmp_path / 'text.db'
+    path.write_text('this is a text file, not a map\n')
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'not an SQLite database')
+    empty = tmp_path / 'empty.db'
+    empty.write_bytes(b'')
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(empty)
+    assert_one_line_map_error(excinfo, empty, 'empty file')
+
+
+def test_foreign_sqlite(tmp_path):
+    path = tmp_path / 'foreign.db'
+    with sqlite3.connect(path) as db:
+        db.execute('CREATE TABLE songs (title TEXT)')
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'not a skynav map', 'songs')
+    alien = tmp_path / 'alien.db'
+    with sqlite3.connect(alien) as db:
+        db.execute('CREATE TABLE meta (key TEXT, value TEXT)')
+        db.execute("INSERT INTO meta VALUES ('format', 'someone-else')")
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(alien)
+    assert_one_line_map_error(excinfo, alien, 'not a skynav map', 'someone-else')
+
+
+def test_newer_schema(tmp_path):
+    path = tmp_path / 'future.db'
+    write_map(path, count=1)
+    with sqlite3.connect(path) as db:
+        db.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'", (str(SCHEMA_VERSION + 1),))
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, f'schema version {SCHEMA_VERSION + 1} is newer')
+
+
+def test_missing_table_or_snapshot(tmp_path):
+    path = tmp_path / 'damaged.db'
+    write_map(path, count=3)
+    with sqlite3.connect(path) as db:
+        db.execute('DELETE FROM snapshots WHERE idx = 1')
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'index 1 is missing')
+    with sqlite3.connect(path) as db:
+        db.execute('DROP TABLE artifacts')
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'damaged map', 'artifacts')
+
+
+def test_truncated_file(tmp_path):
+    path = tmp_path / 'cut.db'
+    write_map(path, count=200)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'corrupt')
+
+
+def test_corrupt_coefficients_are_caught_by_their_checksum(tmp_path):
+    path = tmp_path / 'flipped.db'
+    write_map(path, count=3)
+    data = bytearray(path.read_bytes())
+    blob = coefficients_of(2).astype('<f8').tobytes()
+    at = data.find(blob)
+    assert at > 0
+    data[at + 8 : at + 16] = np.float64(123.0).tobytes()  # a plausible but wrong value: SQLite cannot notice
+    path.write_bytes(bytes(data))
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'checksum of snapshot 2')
+
+
+def test_corrupt_descriptor_is_caught_when_read(tmp_path):
+    path = tmp_path / 'flipped.db'
+    write_map(path, count=3)
+    data = bytearray(path.read_bytes())
+    blob = (np.arange(DEGREE, dtype=float) + 1).astype('<f8').tobytes()
+    at = data.find(blob)
+    data[at : at + 8] = np.float64(-7.0).tobytes()
+    path.write_bytes(bytes(data))
+    store = MapStore.open(path)
+    with pytest.raises(MapError, match="checksum of descriptor 'amplitude' of snapshot 1"):
+        store.descriptor_matrix('amplitude')
+
+
+WRITER = textwrap.dedent('''
+    import itertools, sys
+    import numpy as np
+    from skynav_localize.store import MapStore
+    store = MapStore.create(sys.argv[1], 'killed', {degree})
+    for i in itertools.count():
+        store.add_snapshot(np.sin(np.arange({size}) * 0.37 + i), i, None, {{'amplitude': np.full({degree}, float(i))}})
+        print(i, flush=True)
+''')
+
+
+def test_sigkill_while_building_keeps_every_committed_snapshot(tmp_path):
+    path = tmp_path / 'killed.db'
+    writer = subprocess.Popen([sys.executable, '-c', WRITER.format(degree=DEGREE, size=SIZE), str(path)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in writer.stdout:
+            if int(line) >= 40:
+                break
+        writer.send_signal(signal.SIGKILL)
+    finally:
+        writer.wait(timeout=30)
+    assert writer.returncode == -signal.SIGKILL
+    reported = [int(n) for n in writer.stdout.read().split()]
+    committed = (reported[-1] if reported else int(line)) + 1  # printed only after its commit returned
+    store = MapStore.open(path)
+    assert committed <= len(store) <= committed + 1  # at most the snapshot in flight differs
+    for i in range(len(store)):
+        np.testing.assert_array_equal(store.coefficients()[i], coefficients_of(i))
+    np.testing.assert_array_equal(store.descriptor_matrix('amplitude')[:, 0], np.arange(len(store)))
+    assert store.info()['snapshots'] == len(store)
