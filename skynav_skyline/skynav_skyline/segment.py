@@ -29,6 +29,7 @@ is one.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -67,6 +68,7 @@ class SkylineParams:
     black_level: tuple[float, float] = (0.0, 0.0)  # (UV, green) in raw units (counts, or radiance for 32FC1)
     reference_percentile: float = REFERENCE_PERCENTILE  # per-channel normalisation percentile (%)
     min_separability: float = MIN_SEPARABILITY  # bimodality test, Otsu separability in [0, 1]
+    max_deviation: float = math.inf  # local thresholds stay within this of the global one (normalised log units)
 
     def __post_init__(self) -> None:
         """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
@@ -198,6 +200,13 @@ class SkylineSegmenter:
         return extract_features(uv, green if p.uses_green else None, encoding_uv, encoding_green,
                                 self.geometry.circle, p.black_level, p.reference_percentile)
 
+    def _bounded(self, thresholds: np.ndarray) -> np.ndarray:
+        """Return local thresholds kept within max_deviation of the global threshold (when there is one)."""
+        p = self.params
+        if p.threshold is None or not math.isfinite(p.max_deviation):
+            return thresholds
+        return np.clip(thresholds, p.threshold - p.max_deviation, p.threshold + p.max_deviation)
+
     def _pack(self, image: np.ndarray | None, encoding: str | None) -> np.ndarray | None:
         """Return the image-circle pixels of an image as one row, after checking its shape."""
         if image is None:
@@ -268,9 +277,9 @@ class SkylineSegmenter:
                 sectors = sector_thresholds(contrast[sample], trusted[sample], layout.sampled(stride), reference,
                                             split_method, p.bins, value_range, p.min_separability,
                                             MIN_SECTOR_PIXELS // stride, trusted_reference)
-                threshold = layout.interpolate(sectors.thresholds)
+                threshold = layout.interpolate(self._bounded(sectors.thresholds))
             else:
-                threshold = reference
+                threshold = float(self._bounded(np.array([reference]))[0])
         decided = features.by_threshold(circle, p.uses_green)
         sky = features.sky_by_rule(circle) | (decided & (contrast > threshold))
         mask = np.where(sky, np.uint8(SKY), np.uint8(GROUND))

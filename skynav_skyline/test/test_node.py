@@ -106,3 +106,18 @@ def test_unusable_parameters_fall_back_to_the_defaults(scene):
         assert node.get_parameter('method').value == 'sector-min-error'
         result = node.set_parameters([__import__('rclpy').parameter.Parameter('sectors', value=0)])[0]
         assert not result.successful and 'sector' in result.reason
+
+
+def test_bounded_sector_thresholds_reach_the_global_method(scene):
+    from skynav_skyline.geometry import SkylineGeometry
+    from skynav_skyline.parameters import defaults, skyline_params
+    from skynav_skyline.segment import SkylineSegmenter
+
+    uv, green = scene
+    geometry = SkylineGeometry.from_camera(CAMERA)
+    bounded = SkylineSegmenter(geometry, skyline_params({**defaults(), 'max_deviation': 0.0}))
+    global_ = SkylineSegmenter(geometry, skyline_params({**defaults(), 'method': 'global'}))
+    free = SkylineSegmenter(geometry, skyline_params({**defaults(), 'max_deviation': float('inf')}))
+    assert np.array_equal(bounded.segment(uv, green, 'mono16', 'mono16'), global_.segment(uv, green, 'mono16', 'mono16'))
+    thresholds = free.run(uv, green, 'mono16', 'mono16').threshold
+    assert np.nanmax(np.abs(thresholds - defaults()['threshold'])) > 0.05  # the free sectors do move
