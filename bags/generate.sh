@@ -8,15 +8,16 @@ out=${1:-.}
 sim() { ../.venv/bin/skynav sim bag "$@"; }
 common=(--size 320x240 --fov 200 --encoding mono8)
 
-# Teach and repeat drives along one route: other time of day, sideways offset, extra shake.
+# Teach and repeat drives along one route: other time of day, sideways offset, extra shake, and a
+# heading that wanders 25 degrees (rms) about the route's, as a mower's does while it steers.
 sim teach   --world garden  --seed 1 --length 8 --speed 1.0 --time forenoon "${common[@]}" \
     --out "$out/synthetic_garden_teach.mcap"
 sim repeat  --world garden  --seed 1 --length 8 --speed 0.9 --time morning --clouds 0.3 \
-    --offset 0.25 --shake 3 "${common[@]}" --out "$out/synthetic_garden_repeat.mcap"
+    --offset 0.25 --shake 3 --wobble 25 "${common[@]}" --out "$out/synthetic_garden_repeat.mcap"
 sim teach   --world mineral --seed 2 --length 6 --speed 1.0 --time noon "${common[@]}" \
     --out "$out/synthetic_mineral_teach.mcap"
 sim repeat  --world mineral --seed 2 --length 6 --speed 0.9 --time sunrise \
-    --offset -0.2 --shake 3 "${common[@]}" --out "$out/synthetic_mineral_repeat.mcap"
+    --offset -0.2 --shake 3 --wobble 25 "${common[@]}" --out "$out/synthetic_mineral_repeat.mcap"
 
 # A snapshot place and a 7 x 7 grid of places 0.75 m apart around it.
 sim homing  --world park    --seed 3 --spacing 0.75 --grid-radius 2.25 --time forenoon "${common[@]}" \

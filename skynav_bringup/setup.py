@@ -25,6 +25,7 @@ setup(
         'skynav.commands': [
             'demo = skynav_bringup.cli.demo',
             'echo = skynav_bringup.cli.echo',
+            'eval = skynav_bringup.cli.evaluate',
             'info = skynav_bringup.cli.info',
             'launch = skynav_bringup.cli.launch',
             'record = skynav_bringup.cli.record',

@@ -16,4 +16,14 @@ setup(
     maintainer_email='skynav@example.org',
     description='Rotation-invariant place recognition on a taught route, with SQLite maps.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['localize_node = skynav_localize.node:main'],
+        'skynav.nodes': ['localize = skynav_localize.node:LocalizeNode'],
+        'skynav.commands': [
+            'eval.localization = skynav_localize.cli.eval',
+            'map = skynav_localize.cli',
+            'map.build = skynav_localize.cli.build',
+            'map.info = skynav_localize.cli.info',
+        ],
+    },
 )

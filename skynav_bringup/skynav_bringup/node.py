@@ -101,6 +101,7 @@ class SkynavNode(Node):
         try:
             self.configure(self.parameter_values())
         except ValueError as exc:
+            self.rejected['parameters'] += 1
             self.get_logger().error(f'unusable parameters ({exc}); using the defaults')
             self.set_parameters([Parameter(name, value=value) for name, value in self._defaults.items()])
             self.configure(dict(self._defaults))

@@ -112,7 +112,7 @@ def create_map(path: str | Path, name: str, max_degree: int, *, created_from: st
 
 def build_map(path: str | Path, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
               created_from: str = '', metadata: Mapping[str, Any] | None = None,
-              overwrite: bool = False) -> MapStore:
+              overwrite: bool = False, finish=None) -> MapStore:
     """Write a whole map atomically (MapStore.build) with this library's descriptor settings; return it read-only."""
     return MapStore.build(path, name, max_degree, snapshots, created_from=created_from,
-                          metadata=_with_settings(metadata), overwrite=overwrite)
+                          metadata=_with_settings(metadata), overwrite=overwrite, finish=finish)

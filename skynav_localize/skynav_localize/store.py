@@ -25,7 +25,7 @@ import os
 import sqlite3
 import threading
 import zlib
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -228,8 +228,11 @@ class MapStore:
     @classmethod
     def build(cls, path: str | os.PathLike, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
               created_from: str = '', metadata: Mapping[str, Any] | None = None,
-              overwrite: bool = False) -> MapStore:
-        """Write a whole map in one go under a temporary name, rename it to path at the end; return it read-only."""
+              overwrite: bool = False, finish: Callable[[MapStore], None] | None = None) -> MapStore:
+        """Write a whole map in one go under a temporary name, rename it to path at the end; return it read-only.
+
+        `finish(store)` may add map-level data (a vocabulary) before the rename.
+        """
         path = Path(path)
         if path.exists() and not overwrite:
             raise MapError(f'{path}: exists already; choose another name or pass overwrite')
@@ -240,6 +243,8 @@ class MapStore:
         try:
             for snapshot in snapshots:
                 store.add_snapshot(snapshot.coefficients, snapshot.stamp_ns, snapshot.pose, snapshot.descriptors)
+            if finish is not None:
+                finish(store)
             store.close()
             with partial.open('rb') as stream:
                 os.fsync(stream.fileno())

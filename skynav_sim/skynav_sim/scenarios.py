@@ -49,6 +49,7 @@ class ScenarioParameters:
     speed: float = 0.5  # m/s (teach, repeat); at FRAME_RATE it sets the spacing of frames
     offset: float = 0.0  # m, sideways shift of a repeat drive (left positive)
     shake: float = 0.0  # degrees rms of extra roll/pitch (repeat), as a mower's bouncing
+    wobble: float = 0.0  # degrees rms of heading deviation from the route (repeat), as a mower steering
     spacing: float = 0.5  # m between grid places (homing)
     grid_radius: float = 3.0  # m, half side of the homing grid
     count: int = 40  # rotations and translated views each (compass); places per condition (skyline)
@@ -119,7 +120,7 @@ def _arc_length_spline(points: np.ndarray) -> tuple[CubicSpline, float]:
 
 
 def _drive(world: World, params: ScenarioParameters, rng: np.random.Generator, offset: float,
-           shake: float, label: str) -> list[Frame]:
+           shake: float, label: str, wobble: float = 0.0) -> list[Frame]:
     spline, total = route(world, params.route_seed, params.route_length)
     length = min(params.route_length, total)
     start = (total - length) / 2
@@ -132,6 +133,8 @@ def _drive(world: World, params: ScenarioParameters, rng: np.random.Generator, o
     if not world.is_free(xy[:, 0], xy[:, 1]).all():
         raise ValueError(f'a sideways offset of {offset} m leaves the free space of this route')
     jitter = _smooth_noise(rng, len(arc), 2, np.radians(shake)) if shake > 0 else None
+    if wobble > 0:
+        heading = heading + _smooth_noise(rng, len(arc), 1, np.radians(wobble))[:, 0]
     frames = []
     for k in range(len(arc)):
         extra = Rotation.from_rotvec([jitter[k, 0], jitter[k, 1], 0.0]) if jitter is not None else None
@@ -153,7 +156,7 @@ def _teach(world: World, params: ScenarioParameters, rng: np.random.Generator) -
 
 
 def _repeat(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
-    return _drive(world, params, rng, params.offset, params.shake, 'route')
+    return _drive(world, params, rng, params.offset, params.shake, 'route', params.wobble)
 
 
 def _snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:

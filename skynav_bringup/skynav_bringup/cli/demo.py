@@ -2,8 +2,11 @@
 
 Each step prints the command it runs, so every result can be reproduced by hand:
 
-  1. skyline and SH nodes over a repeat drive (`skynav run`): the classification rate of every
-     mask against the ground truth, the time per frame, and a contact sheet of inputs and masks.
+  1. a map of the teach drive (`skynav map build`);
+  2. the node graph over the repeat drive of the same route with that map (`skynav run --map`);
+  3. what the nodes did, against the ground truth: the classification rate of every skyline mask
+     and a contact sheet of inputs and masks; every place match, with a plot of the matches along
+     the route.
 
 Outputs go to the folder given with --out (default out/demo); earlier outputs there are replaced.
 Everything the demo shows is computed from synthetic recordings.
@@ -17,14 +20,18 @@ import sys
 from pathlib import Path
 
 HELP = 'run the chain over bundled synthetic recordings and summarise'
+DEFAULT_TEACH = Path('bags/synthetic_garden_teach.mcap')
 DEFAULT_REPEAT = Path('bags/synthetic_garden_repeat.mcap')
+TOLERANCE = 1.0  # m: a place match is correct when the snapshot lies this close to the true position
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav demo`."""
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR', help='output folder')
+    parser.add_argument('--teach', type=Path, default=DEFAULT_TEACH, metavar='BAG',
+                        help=f'teach drive to build the map from (default {DEFAULT_TEACH})')
     parser.add_argument('--repeat', type=Path, default=DEFAULT_REPEAT, metavar='BAG',
-                        help=f'repeat drive to run the graph over (default {DEFAULT_REPEAT})')
+                        help=f'repeat drive of the same route to run the graph over (default {DEFAULT_REPEAT})')
 
 
 def step(title: str, command: list[str]) -> None:
@@ -41,14 +48,19 @@ def run(args: argparse.Namespace) -> int:
     """Run the demo; return the exit code."""
     from . import CliError
 
-    if not args.repeat.is_file():
-        raise CliError(f'{args.repeat}: no such recording (run the demo from the repository root)')
+    for recording in (args.teach, args.repeat):
+        if not recording.is_file():
+            raise CliError(f'{recording}: no such recording (run the demo from the repository root)')
     args.out.mkdir(parents=True, exist_ok=True)
-    run_bag = args.out / 'repeat_run.mcap'
+    map_file, run_bag = args.out / f'{args.teach.stem}.db', args.out / 'repeat_run.mcap'
     run_bag.unlink(missing_ok=True)
-    step(f'1. skyline and SH over the synthetic repeat drive {args.repeat.name}',
-         ['skynav', 'run', str(args.repeat), '--out', str(run_bag)])
+    step(f'1. a map of the synthetic teach drive {args.teach.name}',
+         ['skynav', 'map', 'build', str(args.teach), '--out', str(map_file), '--overwrite'])
+    step(f'2. the node graph over the synthetic repeat drive {args.repeat.name}, with that map',
+         ['skynav', 'run', str(args.repeat), '--map', str(map_file), '--out', str(run_bag)])
+    print('\n== 3. what the nodes did, against the ground truth of the recordings')
     rates = skyline_summary(args.repeat, run_bag, args.out / 'skyline_sheet.png')
+    localization_summary(args.repeat, run_bag, map_file, args.out / 'localization_matches.png')
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
     return 0 if rates else 1
 
@@ -126,3 +138,46 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
     figure.suptitle('skynav demo on a synthetic recording: the skyline node')
     figure.savefig(path, dpi=70)
     plt.close(figure)
+
+
+def localization_summary(recording: Path, run_bag: Path, map_file: Path, plot: Path) -> None:
+    """Print the place matches of the run against the true positions, and plot them along the route."""
+    import numpy as np
+
+    from skynav_localize.evaluation import correct_matches, plot_matches_along_route
+    from skynav_localize.store import MapStore
+
+    from ..bag import open_bag
+    from ..images import stamp_ns
+
+    positions = {}
+    with open_bag(recording) as bag:
+        for raw in bag.messages(['/ground_truth/pose']):
+            message = bag.deserialize(raw)
+            p = message.pose.position
+            positions[stamp_ns(message.header)] = np.array([p.x, p.y, p.z])
+    with open_bag(run_bag) as bag:
+        matches = [bag.deserialize(raw) for raw in bag.messages(['/localization/match'])]
+    store = MapStore.open(map_file)
+    snapshots = store.positions()
+    stamps = [stamp_ns(m.header) for m in matches]
+    query = np.stack([positions[s] for s in stamps])
+    matched = np.array([m.index for m in matches])
+    accepted = np.array([m.accepted for m in matches])
+    correct = correct_matches(matched, query, snapshots, TOLERANCE)
+    error = np.linalg.norm(snapshots[np.maximum(matched, 0)] - query, axis=1)
+    print(f'\nplace matches against the map {store.name!r} ({len(store)} snapshots): {len(matches)} views, '
+          f'{int(accepted.sum())} accepted, {int((accepted & correct).sum())} of them within {TOLERANCE:g} m '
+          f'of the true place (precision {100 * (accepted & correct).sum() / max(accepted.sum(), 1):.0f} %, '
+          f'recall {100 * (accepted & correct).sum() / len(matches):.0f} %)')
+    print(f'  distance from the true place to the matched snapshot: median {np.median(error):.2f} m, '
+          f'largest {error.max():.2f} m')
+    print('  frame: matched snapshot (distance to the true place in m; * = not accepted)')
+    cells = [f'{k:3d}:{i:3d} ({e:4.2f}){" " if a else "*"}' for k, (i, e, a) in
+             enumerate(zip(matched, error, accepted))]
+    for row in range(0, len(cells), 6):
+        print('  ' + '  '.join(cells[row : row + 6]))
+    plot_matches_along_route(snapshots, query, matched, correct, accepted,
+                             f'skynav demo: {recording.stem} against the map of the teach drive', True, plot)
+    store.close()
+    print(f'  plot: {plot}')

@@ -78,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
                     graph.run(bag, progress=bar.update)
                 report = summary(graph)
                 errors = sum(node.errors for node in graph.nodes)
+                refused = [node.get_name() for node in graph.nodes if node.rejected.get('parameters')]
         except BaseException:
             writer.abort()  # an interrupted run must not leave an output that looks complete
             raise
@@ -88,7 +89,10 @@ def run(args: argparse.Namespace) -> int:
     print(f'skynav run: wrote {sum(writer.counts.values())} messages to {writer.path}', file=sys.stderr)
     if errors:
         print(f'skynav run: error: {errors} inputs failed with an exception (see the log above)', file=sys.stderr)
-    return 1 if errors else 0
+    if refused:
+        print(f'skynav run: error: {", ".join(refused)} could not use the given parameters and ran on defaults '
+              '(see the log above)', file=sys.stderr)
+    return 1 if errors or refused else 0
 
 
 def summary(graph) -> str:

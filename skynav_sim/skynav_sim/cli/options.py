@@ -34,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     drive.add_argument('--speed', type=float, default=0.5, metavar='M/S', help='speed; frames at 10 Hz (default 0.5)')
     drive.add_argument('--offset', type=float, default=0.0, metavar='M', help='sideways shift, left positive')
     drive.add_argument('--shake', type=float, default=0.0, metavar='DEG', help='extra roll/pitch rms')
+    drive.add_argument('--wobble', type=float, default=0.0, metavar='DEG',
+                       help='heading deviation from the route, rms (repeat drives)')
     grid = parser.add_argument_group('homing grid and compass set')
     grid.add_argument('--spacing', type=float, default=0.5, metavar='M', help='homing grid spacing (default 0.5)')
     grid.add_argument('--grid-radius', type=float, default=3.0, metavar='M', help='homing grid half side (3)')
@@ -91,7 +93,7 @@ def scenario(args: argparse.Namespace):
         raise ValueError('--max-tilt must be between 0 and 90 degrees')
     params = ScenarioParameters(
         hours=parse_time(args.time), cloud_cover=args.clouds, route_seed=args.route_seed, route_length=args.length,
-        speed=args.speed, offset=args.offset, shake=args.shake, spacing=args.spacing, grid_radius=args.grid_radius,
+        speed=args.speed, offset=args.offset, shake=args.shake, wobble=args.wobble, spacing=args.spacing, grid_radius=args.grid_radius,
         count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation,
     )
     world = generate(args.world, args.seed)

@@ -1,0 +1,87 @@
+"""Measure place recognition on repeat drives against a map: skynav's methods and the baselines, side by side.
+
+Every query frame of each recording goes through the skyline and SH nodes (as in `skynav run`),
+then every method matches it against the map. A match is correct when the matched snapshot lies
+within --tolerance metres of the query's true position (ground truth of both). Prints, per method,
+recall at 100 % precision, the area under the precision-recall curve and recall@1, and saves the
+precision-recall curves and the matches along the route as plots in --plots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = 'precision-recall of localization methods against ground truth'
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav eval localization`."""
+    from ..localizer import METHODS
+
+    parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
+    parser.add_argument('--map', required=True, type=Path, metavar='MAP.db', help='map of the teach drive')
+    parser.add_argument('--methods', nargs='+', default=list(METHODS), metavar='METHOD',
+                        help=f'methods to compare (default all: {", ".join(METHODS)})')
+    parser.add_argument('--tolerance', type=float, default=1.0, metavar='M',
+                        help='a match is correct within this distance (default 1 m)')
+    parser.add_argument('--plots', type=Path, default=Path('localization_eval'), metavar='DIR',
+                        help='folder for the plots (default localization_eval)')
+    parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate; return the exit code."""
+    import numpy as np
+
+    from skynav_bringup.cli import CliError
+    from skynav_bringup.cli.run import ros_arguments
+    from skynav_sh.views import recording_views
+
+    from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
+    from ..localizer import METHODS, Localizer
+    from ..store import MapError, MapStore
+
+    if unknown := [m for m in args.methods if m not in METHODS]:
+        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
+    try:
+        store = MapStore.open(args.map)
+    except MapError as exc:
+        raise CliError(str(exc)) from None
+    if not store.has_poses:
+        raise CliError(f'{args.map}: the map has no ground-truth poses; evaluation needs them')
+    args.plots.mkdir(parents=True, exist_ok=True)
+    for bag in args.bags:
+        recording = recording_views(bag, ros_arguments(args.params, None))
+        views = [v for v in recording.views if v.pose is not None]
+        if not views:
+            raise CliError(f'{bag}: no ground-truth poses to evaluate against')
+        coefficients = np.stack([v.coefficients[: (store.max_degree + 1) ** 2] for v in views])
+        uvs = np.stack([v.uv for v in views])
+        positions = np.stack([v.pose[:3] for v in views])
+        circle = recording.camera.image_circle()
+        results, all_matches = [], {}
+        for name in args.methods:
+            localizer = Localizer(store, name, circle=circle)
+            matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs)
+            all_matches[name] = matches
+            results.append(evaluate(METHODS[name].label, matches.index, matches.score, positions,
+                                    store.positions(), args.tolerance, accepted=matches.accepted))
+        kind = 'synthetic ' if recording.synthetic else ''
+        print(f'\n{Path(bag).name}: {len(views)} {kind}queries against map {store.name!r} '
+              f'({len(store)} snapshots); a match is correct within {args.tolerance:g} m')
+        print(format_table(results))
+        stem = Path(bag).stem
+        title = f'{stem} against map {store.name}'
+        plot_pr_curves(results, title, recording.synthetic, args.plots / f'{stem}_pr.png')
+        shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else args.methods[0]
+        matches = all_matches[shown]
+        plot_matches_along_route(store.positions(), positions, matches.index,
+                                 correct_matches(matches.index, positions, store.positions(), args.tolerance),
+                                 matches.accepted, f'{title}: {shown}', recording.synthetic,
+                                 args.plots / f'{stem}_matches.png')
+        print(f'plots: {args.plots / (stem + "_pr.png")}, {args.plots / (stem + "_matches.png")} '
+              f'(matches of {shown})')
+    store.close()
+    return 0

@@ -1,0 +1,121 @@
+"""The localize node: where on the taught route is the current view?
+
+Subscribes /skyline/sh; publishes /localization/match (skynav_msgs/PlaceMatch) for every view: the
+best snapshot of the map given by the `map` parameter, its descriptor distance, whether it passed
+the acceptance test, and the runners-up. Setting `map` at run time switches maps; a map that cannot
+be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from skynav_msgs.msg import PlaceMatch, ShCoefficients
+
+from skynav_bringup.images import stamp_ns
+from skynav_bringup.node import SkynavNode
+from skynav_bringup.ros import run_node
+
+from .localizer import OUR_METHODS, Localizer
+from .matching import Acceptance, SequenceParams
+from .store import MapError, MapStore
+
+SH_TOPIC = '/skyline/sh'
+MATCH_TOPIC = '/localization/match'
+SEQUENCE_GAP_NS = 2_000_000_000  # views further apart than this do not form a sequence: history is forgotten
+
+
+class LocalizeNode(SkynavNode):
+    """Matches every view's SH coefficients against the snapshots of a map."""
+
+    needs_map = True
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('localize', **kwargs)
+        self.parameter('map', '', 'SQLite map file (`skynav map build`); empty: no map')
+        self.parameter('method', 'amplitude-seq', f'one of {", ".join(OUR_METHODS)}')
+        self.parameter('sequence_length', 10, 'views in a sequence (sequence methods)')
+        self.parameter('min_speed', 0.5, 'slowest progress along the map, snapshots per view (sequence methods)')
+        self.parameter('max_speed', 2.0, 'fastest progress along the map, snapshots per view (sequence methods)')
+        self.parameter('max_ratio', math.nan, "acceptance: best / runner-up distance at most this; NaN: the method's")
+        self.parameter('max_distance', math.inf, 'acceptance: best descriptor distance at most this')
+        self.parameter('candidates', 5, 'runners-up in each match')
+        self.store: MapStore | None = None
+        self.localizer: Localizer | None = None
+        self.last_stamp = -1
+        self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
+        self.output(MATCH_TOPIC, PlaceMatch)
+        self.start()
+
+    def configure(self, values: dict) -> None:
+        """Open the map and prepare the method (ValueError, with the map's problem, if unusable)."""
+        if values['method'] not in OUR_METHODS:
+            raise ValueError(f'method must be one of {", ".join(OUR_METHODS)}')
+        if not 0 < values['min_speed'] <= values['max_speed']:
+            raise ValueError('need 0 < min_speed <= max_speed')
+        if values['sequence_length'] < 1 or values['candidates'] < 1:
+            raise ValueError('sequence_length and candidates must be at least 1')
+        store = self.store
+        if values['map'] != (str(store.path) if store is not None else ''):
+            store = None
+            if values['map']:
+                try:
+                    store = MapStore.open(Path(values['map']))
+                except MapError as exc:
+                    raise ValueError(str(exc)) from None
+        if store is None:
+            self.store, self.localizer = None, None
+            return
+        method_acceptance = Localizer(store, values['method']).acceptance
+        ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
+        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion)
+        sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
+        self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
+                                   candidates=values['candidates'])
+        if self.store is not None and self.store is not store:
+            self.store.close()
+        self.store = store
+        self.get_logger().info(f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, '
+                               f'method {values["method"]}')
+
+    def on_coefficients(self, message: ShCoefficients) -> None:
+        """Match one view and publish the result."""
+        stamp = stamp_ns(message.header)
+        coefficients = np.asarray(message.coefficients, np.float64)
+        degree = int(message.max_degree)
+        if coefficients.size != (degree + 1) ** 2 or not np.all(np.isfinite(coefficients)):
+            self.reject('malformed', f'coefficients stamped {stamp}: {coefficients.size} values for degree {degree}'
+                                     ' or not finite')
+            return
+        if stamp <= self.last_stamp:
+            self.reject('out_of_order', f'coefficients stamped {stamp} are not newer than the last ones')
+            return
+        if self.localizer is not None and self.last_stamp >= 0 and stamp - self.last_stamp > SEQUENCE_GAP_NS:
+            self.localizer.reset()
+        self.last_stamp = stamp
+        with self.processing(stamp):
+            result = PlaceMatch()
+            result.header = message.header
+            result.index, result.distance, result.accepted = -1, math.inf, False
+            if self.localizer is not None:
+                if degree < self.store.max_degree:
+                    self.reject('degree', f'coefficients of degree {degree} cannot match a map of degree '
+                                          f'{self.store.max_degree}')
+                    return
+                match = self.localizer.query(coefficients=coefficients[: (self.store.max_degree + 1) ** 2])
+                result.map_name = self.store.name
+                result.index, result.distance, result.accepted = int(match.index), float(match.distance), \
+                    bool(match.accepted)
+                if match.index >= 0:
+                    sec, nanosec = divmod(self.store.snapshot_stamp(match.index), 1_000_000_000)
+                    result.snapshot_stamp.sec, result.snapshot_stamp.nanosec = sec, nanosec
+                result.candidate_indices = [int(i) for i in match.candidate_indices]
+                result.candidate_distances = [float(d) for d in match.candidate_distances]
+            self.emit(MATCH_TOPIC, result)
+
+
+def main(args=None) -> int:
+    """Run the localize node until Ctrl-C."""
+    return run_node(LocalizeNode, args)

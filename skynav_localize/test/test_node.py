@@ -1,0 +1,85 @@
+"""The localize node in the in-process graph: matches on the route, none accepted off it, unusable maps."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+from skynav_bringup.bag import RawMessage
+from skynav_bringup.graph import in_process, type_name
+from skynav_bringup.nodes import NodeSpec
+from skynav_bringup.testing import run_skynav
+from skynav_sh.views import recording_views
+
+BAGS = Path(__file__).parents[2] / 'bags'
+SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
+
+
+@pytest.fixture(scope='module')
+def garden_map(tmp_path_factory):
+    path = tmp_path_factory.mktemp('maps') / 'garden.db'
+    result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
+    assert result.returncode == 0, result.stderr
+    return path
+
+
+def feed(graph, views, start=0):
+    """Feed views as /skyline/sh messages (stamps in order from `start`); return the matches published."""
+    from skynav_msgs.msg import ShCoefficients
+
+    before = len(graph.outputs)
+    for k, view in enumerate(views):
+        message = ShCoefficients(max_degree=view.max_degree, coefficients=view.coefficients.tolist(), fill='zero')
+        stamp = start + k * 10**8
+        message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+        graph.feed(RawMessage('/skyline/sh', type_name(message), stamp, serialize_message(message)))
+    return [o.message for o in graph.outputs[before:] if o.topic == '/localization/match']
+
+
+def test_on_route_views_are_accepted_and_off_route_views_are_not(garden_map):
+    on_route = recording_views(BAGS / 'synthetic_garden_repeat.mcap', images=False).views
+    elsewhere = recording_views(BAGS / 'synthetic_park_skyline.mcap', images=False).views
+    with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
+        graph.keep_outputs = True
+        matches = feed(graph, on_route, start=10**18)
+        assert len(matches) == len(on_route)
+        assert np.mean([m.accepted for m in matches]) > 0.9
+        assert all(m.map_name == 'garden' and len(m.candidate_indices) == 5 for m in matches)
+        assert all(m.candidate_indices[0] == m.index for m in matches)
+        off = feed(graph, elsewhere, start=2 * 10**18)
+        assert len(off) == len(elsewhere) and not any(m.accepted for m in off)
+
+
+def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
+    foreign = tmp_path / 'foreign.db'
+    __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
+    views = recording_views(BAGS / 'synthetic_garden_repeat.mcap', images=False).views[:3]
+    with in_process([SPEC], ['-p', f'map:={foreign}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        assert node.rejected['parameters'] == 1 and node.get_parameter('map').value == ''
+        matches = feed(graph, views[:1], start=10**18)
+        assert matches[0].index == -1 and matches[0].distance == float('inf') and not matches[0].accepted
+        # Switching maps at run time: an unusable one is refused, a good one taken.
+        refused = node.set_parameters([Parameter('map', value=str(tmp_path / 'missing.db'))])[0]
+        assert not refused.successful and 'missing.db' in refused.reason
+        assert node.set_parameters([Parameter('map', value=str(garden_map))])[0].successful
+        matches = feed(graph, views[1:], start=2 * 10**18)
+        assert all(m.index >= 0 and m.map_name == 'garden' for m in matches)
+
+
+def test_map_info_refuses_foreign_and_corrupt_files(tmp_path, garden_map):
+    from skynav_bringup.testing import one_line_error
+
+    foreign = tmp_path / 'foreign.db'
+    __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
+    corrupt = tmp_path / 'corrupt.db'
+    data = bytearray(garden_map.read_bytes())
+    data[len(data) // 2 : len(data) // 2 + 4096] = bytes(4096)
+    corrupt.write_bytes(bytes(data))
+    for path in (foreign, corrupt, tmp_path / 'missing.db'):
+        result = run_skynav('map', 'info', str(path))
+        assert result.returncode == 1 and one_line_error(result.stderr) and str(path) in result.stderr
+    assert run_skynav('map', 'info', str(garden_map)).returncode == 0
