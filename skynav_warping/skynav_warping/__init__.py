@@ -1,1 +1,63 @@
-"""Homing by 3D-warping: the home vector from the current view to a snapshot."""
+"""Homing by warping: the home vector from the current view to a snapshot's place, on bumpy ground.
+
+- 3D-warping in the SH basis (warping3d): movement direction on the sphere, distance ratio and rotation, masked
+  comparison of a hemispherical view; estimate_home_vector (homing) combines it with a compass rotation.
+- Planar baselines on panoramic bands unwrapped from the fish-eye (panorama, planar): 2D-warping, min-warping.
+- Evaluation against ground truth (evaluation), reading homing grids from recordings (recording), and made-up
+  scenes with known geometry for tests (synthetic).
+
+Conventions (CONTRACT.md): everything in the current camera_link (z up through the fish-eye, x forward = image
+right, y left = image down); the home vector points from the current place to the snapshot's place,
+Q_c^-1 (p_s - p_c) normalised; the rotation R maps current to snapshot directions, d_snapshot = R d_current.
+Public names load on first use (PEP 562), so `import skynav_warping` stays light.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS = {
+    'views': ('DEFAULT_RIM_TAPER', 'WarpView', 'cap_fraction', 'rim_weights', 'view_from_coefficients',
+              'view_from_fisheye', 'view_from_samples'),
+    'warping3d': ('WarpResult', 'WarpingSettings', 'align_rotation', 'coarse_costs', 'hypothesis_costs',
+                  'tilt_hypotheses', 'warp_home_vector', 'warping_tables'),
+    'homing': ('HomeEstimate', 'estimate_home_vector', 'rotation_matrix'),
+    'panorama': ('DEFAULT_ELEVATIONS', 'PanoramaUnwrapper'),
+    'planar': ('PlanarResult', 'horizon_profile', 'min_warping', 'min_warping_costs', 'scale_planes',
+               'warping_2d'),
+    'evaluation': ('DISTANCE_BINS', 'TILT_BINS', 'BinStatistics', 'angular_errors', 'binned_statistics',
+                   'home_vectors_in_map', 'quiver_plot', 'rotation_errors', 'seconds_per_call', 'summary_table',
+                   'tilt_angles', 'true_home_directions', 'true_rotations'),
+    'recording': ('HomingGrid', 'load_homing_grid'),
+    'synthetic': ('BlobScene', 'PoleWorld', 'blob_scene', 'pole_world', 'render_equal_distance_view',
+                  'render_pole_panorama'),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    """Import the submodule that defines a public name on first access."""
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(f'{__name__}.{module}'), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """List the public names next to the module's own."""
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static analysers see the real imports
+    from skynav_warping.evaluation import *  # noqa: F401,F403
+    from skynav_warping.homing import *  # noqa: F401,F403
+    from skynav_warping.panorama import *  # noqa: F401,F403
+    from skynav_warping.planar import *  # noqa: F401,F403
+    from skynav_warping.recording import *  # noqa: F401,F403
+    from skynav_warping.synthetic import *  # noqa: F401,F403
+    from skynav_warping.views import *  # noqa: F401,F403
+    from skynav_warping.warping3d import *  # noqa: F401,F403

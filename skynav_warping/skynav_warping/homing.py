@@ -1,0 +1,63 @@
+"""The combined estimate: a compass rotation (optional) and 3D-warping give the home vector to a snapshot.
+
+Output conventions are those of skynav_msgs/HomeVector (CONTRACT.md): a unit direction towards the snapshot's
+place in the current camera_link, the rotation R with d_snapshot = R d_current (quaternion x, y, z, w), and a
+residual (the masked mean squared difference of the warped current view and the snapshot, view units^2).
+When no translation explains the views better than a pure rotation (confidence below the threshold) the
+direction is the zero vector: there is no confident home vector, which also means "at the snapshot's place or
+too close to tell".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from skynav_warping.views import WarpView
+from skynav_warping.warping3d import WarpingSettings, WarpResult, warp_home_vector
+
+
+@dataclass(frozen=True)
+class HomeEstimate:
+    """Home vector, rotation and residual of one current view against one snapshot (current camera_link)."""
+
+    direction: np.ndarray  # unit home vector, or zeros when not confident
+    rotation: np.ndarray  # 3x3 R, d_snapshot = R d_current
+    residual: float  # masked mean squared difference at the optimum (view units^2)
+    confidence: float  # 1 - residual / residual of the best pure rotation, in [0, 1]
+    confident: bool
+    distance_ratio: float  # |t| / rho of the optimum (equal-distance model)
+    best_direction: np.ndarray  # the optimum's direction, also when not confident (diagnostics)
+    compass_used: bool  # True if a compass rotation started the search
+    warp: WarpResult  # the full 3D-warping result
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        """Return the rotation as a quaternion (x, y, z, w), as geometry_msgs/Quaternion orders it."""
+        from scipy.spatial.transform import Rotation
+
+        return Rotation.from_matrix(self.rotation).as_quat()
+
+
+def rotation_matrix(rotation) -> np.ndarray:
+    """Return a 3x3 matrix from a 3x3 matrix, a quaternion (x, y, z, w) or a scipy Rotation."""
+    from skynav_sh.rotation import as_matrix
+
+    return as_matrix(rotation)
+
+
+def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
+                         settings: WarpingSettings = WarpingSettings()) -> HomeEstimate:
+    """Return the home vector (current camera_link) from the current view to the snapshot's place.
+
+    compass: the compass rotation R (d_snapshot = R d_current) as a 3x3 matrix, quaternion (x, y, z, w) or scipy
+    Rotation, used as the start of the rotation search (refined there); None: a rotational pre-alignment over tilt
+    and a whole turn of yaw starts it instead.
+    """
+    start = None if compass is None else rotation_matrix(compass)
+    result = warp_home_vector(current, snapshot, start, settings)
+    return HomeEstimate(direction=result.direction, rotation=result.rotation, residual=result.residual,
+                        confidence=result.confidence, confident=result.confident,
+                        distance_ratio=result.distance_ratio, best_direction=result.best_direction,
+                        compass_used=start is not None, warp=result)

@@ -1,0 +1,94 @@
+"""Batched SH rotations with one rotation per hypothesis (camera_link, contract basis), coefficient axis first.
+
+skynav_sh.rotate turns a whole batch by one rotation; a warping search needs a different rotation per hypothesis.
+Arrays here hold the coefficient index on axis 0 and hypotheses on the last axis, c[(L+1)^2, ..., M]: the sparse
+quarter turn J then multiplies one contiguous (n, K) block and the elementwise z-steps run along long rows.
+rotate_zyz_columns(c, a, b, g) turns column i (c[..., i]) by
+Rz(a_i) Ry(b_i) Rz(g_i) with the convention of skynav_sh.rotate (coefficients of f(R^T d)): z-steps are
+elementwise cos/sin of m * angle, the y-step is J Z(b) J^T with skynav_sh's cached quarter turn.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from skynav_sh.basis import degree_from_size, degree_order
+from skynav_sh.rotation import quarter_turn
+
+
+@lru_cache(maxsize=16)
+def z_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return (|m|, sign of the sine term, partner index l*l + l - m) for every flat index of degree L."""
+    l, m = degree_order(max_degree)
+    return np.abs(m), np.where(m > 0, -1.0, 1.0), l * l + l - m
+
+
+@lru_cache(maxsize=16)
+def _signed_order(max_degree: int) -> np.ndarray:
+    """Return, per flat index, the row of the table [sin(|m| a) for m >= 0; -sin(|m| a) for m > 0] it reads."""
+    _, m = degree_order(max_degree)
+    # the sine term enters with sign -1 for m > 0 (cosine-type) and +1 for m <= 0: rows L + 1 .. 2L hold -sin
+    return np.where(m > 0, max_degree + m, -m)
+
+
+@lru_cache(maxsize=16)
+def quarter_turn_matrices(max_degree: int):  # -> tuple[csr_matrix, csr_matrix]
+    """Return the block-diagonal quarter turn J and its transpose as sparse CSR matrices (degree L)."""
+    from scipy.sparse import block_diag
+
+    forward = block_diag(quarter_turn(max_degree), format='csr')
+    forward.eliminate_zeros()
+    return forward, forward.T.tocsr()
+
+
+def z_factors(max_degree: int, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return cos(|m| a) and signed sin(|m| a), shape (n,) + angles.shape, and the partner index; angles in rad."""
+    L = int(max_degree)
+    order, _, partner = z_index(L)
+    multiple = np.arange(L + 1).reshape((-1,) + (1,) * np.ndim(angles)) * np.asarray(angles, dtype=float)
+    sin = np.sin(multiple)
+    # one gather per table (no full-size temporaries): the signs sit in the small table
+    return np.cos(multiple)[order], np.concatenate([sin, -sin[1:]])[_signed_order(L)], partner
+
+
+def rotate_z_columns(c: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Return c (n, ..., M) with column i turned by angles[i] (rad) about +z: g(theta, phi) = f(theta, phi - a_i)."""
+    # factors repeated over the middle axes, so that every product runs over one flat (n, K M) array, in place
+    repeats = int(np.prod(c.shape[1:-1], dtype=int))
+    cos, sin, partner = z_factors(degree_from_size(c.shape[0]), np.tile(np.asarray(angles, dtype=float), repeats))
+    flat = c.reshape(c.shape[0], -1)
+    cos *= flat
+    sin *= flat[partner]
+    cos += sin
+    return cos.reshape(c.shape)
+
+
+def apply_sparse(matrix, c: np.ndarray) -> np.ndarray:
+    """Return matrix @ c over the coefficient axis 0 of c (n, ...)."""
+    return (matrix @ c.reshape(c.shape[0], -1)).reshape(c.shape)
+
+
+def rotate_zyz_columns(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+    """Return c (n, ..., M) with column i turned by Rz(alpha_i) Ry(beta_i) Rz(gamma_i) (rad; skynav_sh convention)."""
+    forward, backward = quarter_turn_matrices(degree_from_size(c.shape[0]))
+    c = apply_sparse(backward, rotate_z_columns(np.asarray(c, dtype=float), gamma))
+    return rotate_z_columns(apply_sparse(forward, rotate_z_columns(c, beta)), alpha)
+
+
+def zyz_from_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return ZYZ angles (alpha, beta, gamma) in rad of rotation matrices (M, 3, 3): R = Rz(a) Ry(b) Rz(g)."""
+    r = np.asarray(matrices, dtype=float)
+    alpha = np.arctan2(r[:, 1, 2], r[:, 0, 2])
+    beta = np.arctan2(np.hypot(r[:, 0, 2], r[:, 1, 2]), r[:, 2, 2])
+    # gamma from the well-conditioned sum (beta <= 90 degrees) or difference (beta > 90 degrees) of the angles
+    total = np.arctan2(r[:, 1, 0] - r[:, 0, 1], r[:, 0, 0] + r[:, 1, 1])
+    difference = np.arctan2(-(r[:, 1, 0] + r[:, 0, 1]), -(r[:, 0, 0] - r[:, 1, 1]))
+    gamma = np.where(r[:, 2, 2] >= 0, total - alpha, alpha - difference)
+    return alpha, beta, gamma
+
+
+def rotate_columns(c: np.ndarray, matrices: np.ndarray) -> np.ndarray:
+    """Return c (n, ..., M) with column i turned by the rotation matrix matrices[i] (coefficients of f(R_i^T d))."""
+    return rotate_zyz_columns(c, *zyz_from_matrices(matrices))
