@@ -1,0 +1,66 @@
+"""The SH node in the in-process graph: a mask in, the library's coefficients out; bad masks rejected."""
+
+import math
+
+import numpy as np
+from rclpy.serialization import serialize_message
+
+from skynav_bringup.bag import RawMessage
+from skynav_bringup.graph import in_process, type_name
+from skynav_bringup.images import fill_image
+from skynav_bringup.nodes import NodeSpec
+from skynav_sh.camera import EquidistantCamera
+from skynav_sh.fisheye import FisheyeTransform
+
+SPEC = NodeSpec('sh', 'skynav_sh', 'skynav_sh.node:ShNode')
+CAMERA = EquidistantCamera.for_field_of_view(96, 72, math.radians(200))
+T0 = 1_700_000_000 * 10**9
+
+
+def raw(topic, message, stamp):
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+    return RawMessage(topic, type_name(message), stamp, serialize_message(message))
+
+
+def camera_info():
+    from sensor_msgs.msg import CameraInfo
+
+    info = CameraInfo()
+    for key, value in CAMERA.camera_info_fields().items():
+        setattr(info, key, value)
+    return info
+
+
+def mask_message(pixels, encoding='mono8'):
+    from sensor_msgs.msg import Image
+
+    return fill_image(Image(), pixels, encoding)
+
+
+def test_mask_in_library_coefficients_out():
+    v, u = np.mgrid[0:72, 0:96]
+    mask = np.where((u > 30) | (v > 50), 255, 0).astype(np.uint8) * CAMERA.image_circle()
+    with in_process([SPEC], ['-p', 'max_degree:=8', '-p', 'fill:=mean']) as graph:
+        graph.keep_outputs = True
+        graph.feed(raw('/skyline/mask', mask_message(mask), T0))  # waits for the camera
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        outputs = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
+    assert len(outputs) == 1
+    message = outputs[0]
+    expected = FisheyeTransform(CAMERA, 8, 'mean').coefficients(mask)
+    assert message.max_degree == 8 and message.fill == 'mean' and len(message.coefficients) == 81
+    assert np.allclose(message.coefficients, expected, rtol=0, atol=1e-12)
+    assert message.field_of_view == np.float32(CAMERA.field_of_view)
+    assert message.header.stamp.sec * 10**9 + message.header.stamp.nanosec == T0
+    assert message.header.frame_id == 'camera_link'
+
+
+def test_bad_masks_are_rejected_and_counted():
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw('/skyline/mask', mask_message(np.zeros((72, 96), np.uint16), 'mono16'), T0))
+        graph.feed(raw('/skyline/mask', mask_message(np.zeros((36, 48), np.uint8)), T0 + 1))
+        assert not [o for o in graph.outputs if o.topic == '/skyline/sh']
+        assert node.rejected == {'encoding': 1, 'camera_info_mismatch': 1} and node.errors == 0
