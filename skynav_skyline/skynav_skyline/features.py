@@ -135,12 +135,11 @@ def reference_level(channel: Channel, circle: np.ndarray, percentile: float = RE
     if not usable.any():
         raise ValueError('no finite pixel inside the image circle (all NaN/inf or empty circle)')
     if channel.counts is not None:
-        # Integer images: the same inverted-CDF percentile, by counting raw values instead of sorting.
+        # Integer images: the same inverted-CDF percentile, found by partial sorting of the raw values.
         counts = channel.counts[every]
-        everything = usable.all()
-        histogram = np.bincount((counts if everything else counts[usable]).ravel())
-        rank = int(np.ceil(percentile / 100 * (usable.size if everything else int(usable.sum()))))
-        raw = int(np.searchsorted(np.cumsum(histogram), max(rank, 1)))
+        values = (counts if usable.all() else counts[usable]).ravel()
+        rank = max(int(np.ceil(percentile / 100 * values.size)), 1) - 1
+        raw = int(np.partition(values, rank)[rank])
         return float(max(np.float32(raw - channel.black_level), np.float32(channel.floor)))
     values = np.maximum(channel.linear[every][usable], np.float32(channel.floor))
     return float(np.percentile(values, percentile, method='inverted_cdf'))

@@ -216,7 +216,7 @@ class SkylineSegmenter:
             image = image[:, :, 0]
         if image.shape != self.geometry.shape:
             raise ValueError(f'{encoding} image {image.shape} and image circle {self.geometry.shape} differ in shape')
-        return image.reshape(-1)[self._pixels][None]
+        return image.reshape(-1).take(self._pixels)[None]
 
     def _scatter(self, row: np.ndarray, outside: float | int) -> np.ndarray:
         """Return an image with `row` at the image-circle pixels and `outside` elsewhere."""
