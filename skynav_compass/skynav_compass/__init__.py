@@ -1,1 +1,63 @@
-"""The visual 3D compass: full 3D rotation between a current view and a snapshot."""
+"""The visual 3D compass: full 3D rotation between a current view and a snapshot, from the skyline, in the SH basis.
+
+Convention (CONTRACT.md, camera_link): every estimate is R with d_snapshot = R d_current for any view direction d,
+so f_snapshot(d) = f_current(R^T d); from ground-truth orientations of camera_link in map, R = Q_s^-1 Q_c.
+R comes as a 3x3 matrix, a scipy Rotation or a quaternion (x, y, z, w). ZYZ Euler angles mean
+R = Rz(alpha) Ry(beta) Rz(gamma); beta is the tilt between the two views' z axes.
+
+Public names are loaded on first use (PEP 562), so `import skynav_compass` stays light.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+_EXPORTS = {
+    'compass': ('Compass', 'CompassConfig', 'estimate_rotation', 'rotation_angle', 'zyz_matrices'),
+    'estimate': ('CompassEstimate', 'Hypothesis'),
+    'views': ('CompassView', 'cap_visibility'),
+    'cost': ('COSTS', 'CostProblem', 'build_problem'),
+    'so3': ('EulerGrid', 'so3_correlation', 'correlation_products', 'wigner_small_d_table', 'generators',
+            'to_padded', 'from_padded', 'rotate_padded'),
+    'refine': ('refine', 'newton_prediction'),
+    'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
+    'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
+    'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
+    'evaluation': ('ErrorStatistics', 'MethodResult', 'angular_error', 'error_statistics', 'format_table',
+                   'heading_error', 'plot_errors', 'relative_tilt', 'summary_rows'),
+    'dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
+    'runner': ('Method', 'run_methods', 'standard_methods'),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str) -> Any:
+    """Import the submodule that defines a public name on first access."""
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(import_module(f'{__name__}.{module}'), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """List the public names next to the module's own."""
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static analysers see the real imports
+    from skynav_compass.compass import *  # noqa: F401,F403
+    from skynav_compass.cost import *  # noqa: F401,F403
+    from skynav_compass.dataset import *  # noqa: F401,F403
+    from skynav_compass.estimate import *  # noqa: F401,F403
+    from skynav_compass.evaluation import *  # noqa: F401,F403
+    from skynav_compass.exhaustive import *  # noqa: F401,F403
+    from skynav_compass.features import *  # noqa: F401,F403
+    from skynav_compass.refine import *  # noqa: F401,F403
+    from skynav_compass.runner import *  # noqa: F401,F403
+    from skynav_compass.so3 import *  # noqa: F401,F403
+    from skynav_compass.views import *  # noqa: F401,F403
+    from skynav_compass.yaw import *  # noqa: F401,F403

@@ -1,0 +1,144 @@
+"""Evaluation of compass estimates against ground truth: angular errors, statistics, tables and plots.
+
+Rotations are compass rotations R (d_snapshot = R d_current, camera_link) given as quaternions (..., 4) in
+(x, y, z, w) order, scipy Rotations or 3x3 matrices (..., 3, 3). Angles out are in degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+ERROR_THRESHOLD_DEG = 2.0  # the share of estimates under this error is reported
+
+
+def _as_rotation(rotations):  # -> scipy Rotation (stack)
+    """Return a scipy Rotation from quaternions (..., 4), matrices (..., 3, 3) or a Rotation."""
+    from scipy.spatial.transform import Rotation
+
+    if isinstance(rotations, Rotation):
+        return rotations
+    array = np.asarray(rotations, dtype=float)
+    if array.shape[-2:] == (3, 3):
+        return Rotation.from_matrix(array.reshape(-1, 3, 3) if array.ndim > 2 else array)
+    return Rotation.from_quat(array)
+
+
+def angular_error(estimated, true) -> np.ndarray:
+    """Return the angle (deg) of R_true^-1 R_est per estimate: the full 3D rotation error."""
+    return np.degrees((_as_rotation(true).inv() * _as_rotation(estimated)).magnitude())
+
+
+def relative_tilt(rotations) -> np.ndarray:
+    """Return the tilt (deg) of compass rotations: the angle between R z and z (the Euler beta of ZYZ)."""
+    z = _as_rotation(rotations).apply(np.array([0.0, 0.0, 1.0]))
+    return np.degrees(np.arccos(np.clip(z[..., 2], -1.0, 1.0)))
+
+
+def heading(rotations) -> np.ndarray:
+    """Return the heading (deg) of compass rotations: the azimuth of R x projected on the snapshot's xy-plane."""
+    x = _as_rotation(rotations).apply(np.array([1.0, 0.0, 0.0]))
+    return np.degrees(np.arctan2(x[..., 1], x[..., 0]))
+
+
+def heading_error(estimated, true) -> np.ndarray:
+    """Return the absolute heading difference (deg, in [0, 180]): the error a yaw-only compass is judged by."""
+    difference = heading(estimated) - heading(true)
+    return np.abs((difference + 180.0) % 360.0 - 180.0)
+
+
+@dataclass(frozen=True)
+class ErrorStatistics:
+    """Summary of angular errors (deg): median, 90th percentile, maximum, share under 2 deg, count."""
+
+    median: float
+    p90: float
+    p95: float
+    max: float
+    share_under: float  # share (0..1) of errors below ERROR_THRESHOLD_DEG
+    count: int
+
+    def as_dict(self) -> dict:
+        """Return the statistics as a plain dict."""
+        return {'median': self.median, 'p90': self.p90, 'p95': self.p95, 'max': self.max,
+                'share_under_2deg': self.share_under, 'count': self.count}
+
+
+def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD_DEG) -> ErrorStatistics:
+    """Return median, p90, p95, max and the share under `threshold` deg of angular errors (deg)."""
+    e = np.asarray(errors, dtype=float)
+    if e.size == 0:
+        nan = float('nan')
+        return ErrorStatistics(nan, nan, nan, nan, nan, 0)
+    e = np.where(np.isfinite(e), e, 180.0)  # a failed estimate counts as the worst error
+    return ErrorStatistics(float(np.median(e)), float(np.percentile(e, 90)), float(np.percentile(e, 95)),
+                           float(e.max()), float(np.mean(e < threshold)), int(e.size))
+
+
+@dataclass(frozen=True)
+class MethodResult:
+    """One method's results on one set: errors (deg) per query frame and seconds per estimate."""
+
+    method: str
+    errors: np.ndarray  # (Q,) deg
+    seconds: np.ndarray  # (Q,) s per estimate
+    residuals: np.ndarray | None = None  # (Q,) cost at the optimum (method's units)
+    confident: np.ndarray | None = None  # (Q,) bool
+
+
+def summary_rows(results: Sequence[MethodResult], groups: Mapping[str, np.ndarray]) -> list[dict]:
+    """Return one row per (method, group): statistics of the errors in each group (boolean masks over queries)."""
+    rows = []
+    for result in results:
+        for group, selection in groups.items():
+            stats = error_statistics(result.errors[selection])
+            rows.append({'method': result.method, 'group': group, **stats.as_dict(),
+                         'ms_per_estimate': 1e3 * float(np.median(result.seconds[selection]))
+                         if np.any(selection) else float('nan')})
+    return rows
+
+
+def format_table(rows: Sequence[dict]) -> str:
+    """Return a text table of summary rows: method, group, median/p90/max error (deg), share < 2 deg, ms."""
+    header = f"{'method':<28} {'views':<12} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {'<2deg':>6} {'ms':>8}"
+    lines = [header, '-' * len(header)]
+    for r in rows:
+        lines.append(f"{r['method']:<28} {r['group']:<12} {r['count']:>3d} {r['median']:>7.2f} {r['p90']:>7.2f} "
+                     f"{r['max']:>7.2f} {100 * r['share_under_2deg']:>5.0f}% {r['ms_per_estimate']:>8.2f}")
+    return '\n'.join(lines)
+
+
+def plot_errors(results: Sequence[MethodResult], tilt: np.ndarray, translation: np.ndarray,
+                path: str | Path, synthetic: bool = True, title: str = '') -> Path:
+    """Save a figure of angular error (deg) against relative tilt (deg) and against translation (m) per method."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    tag = 'synthetic data' if synthetic else 'recorded data'
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    markers = 'os^vD<>xP*'
+    for k, result in enumerate(results):
+        errors = np.where(np.isfinite(result.errors), result.errors, 180.0)
+        for axis, x in zip(axes, (tilt, translation)):
+            axis.plot(x, errors, linestyle='none', marker=markers[k % len(markers)], alpha=0.8,
+                      label=result.method)
+    for axis, label in zip(axes, ('relative tilt against the snapshot (deg)', 'distance from the snapshot (m)')):
+        axis.set_yscale('log')
+        axis.axhline(ERROR_THRESHOLD_DEG, color='grey', linewidth=0.8, linestyle='--')
+        axis.set_xlabel(label)
+        axis.set_ylabel('3D rotation error (deg)')
+        axis.grid(True, which='both', alpha=0.3)
+    axes[0].set_title(f'compass error against tilt ({tag})')
+    axes[1].set_title(f'compass error against translation ({tag})')
+    axes[1].legend(fontsize=8, loc='best')
+    if title:
+        figure.suptitle(f'{title} ({tag})')
+    path = Path(path)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path

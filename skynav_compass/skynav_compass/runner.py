@@ -1,0 +1,142 @@
+"""Run compass methods over a compass set: one prepared view per frame, one estimate per query against the reference.
+
+A Method turns a frame's images (uv, green, mask) into its prepared view (SH coefficients, panorama, features;
+timed as preparation) and two prepared views into a CompassEstimate (timed as the estimate). The default
+methods: the FFT compass (masked and with the three fills; on masks, and on grey UV images with illumination
+invariance), the exhaustive baseline, the yaw-only visual compass (panorama and SH) and the feature compass.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from skynav_compass.estimate import CompassEstimate
+from skynav_compass.evaluation import MethodResult, angular_error
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named compass method: prepare(uv, green, mask) -> view; estimate(snapshot view, current view)."""
+
+    name: str
+    prepare: Callable[[np.ndarray, np.ndarray, np.ndarray], Any]
+    estimate: Callable[[Any, Any], CompassEstimate]
+
+
+METHOD_NAMES = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-tilt60', 'fft-uv-normalised',
+                'exhaustive-masked', 'exhaustive-zero', 'visual-compass-panorama', 'visual-compass-sh', 'features-sift',
+                'features-orb')
+
+
+def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None = None) -> list[Method]:
+    """Return the named methods (default all of METHOD_NAMES) for a camera and SH degree L; masks feed the SH ones."""
+    from skynav_sh.fisheye import FisheyeTransform
+
+    from skynav_compass.compass import Compass, CompassConfig
+    from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
+    from skynav_compass.features import FeatureCompass, FeatureConfig
+    from skynav_compass.views import CompassView
+    from skynav_compass.yaw import PanoramicCompass, YawCompass
+
+    L = int(max_degree)
+    transforms: dict[str, FisheyeTransform] = {}
+
+    def transform(fill: str) -> FisheyeTransform:
+        if fill not in transforms:
+            transforms[fill] = FisheyeTransform(camera, L, fill)
+        return transforms[fill]
+
+    def masked_view(uv, green, mask):
+        return CompassView.from_image(transform('zero'), mask, binary=True)
+
+    def filled(fill: str):
+        return lambda uv, green, mask: transform(fill).coefficients(mask)
+
+    makers: dict[str, Callable[[], Method]] = {
+        'fft-masked': lambda: Method('fft-masked', masked_view, Compass(L).estimate),
+        'fft-masked-tilt60': lambda: Method('fft-masked-tilt60', masked_view,
+                                            Compass(L, CompassConfig(max_tilt=np.radians(60))).estimate),
+        'exhaustive-masked': lambda: Method('exhaustive-masked', masked_view, ExhaustiveCompass(L).estimate),
+        'exhaustive-zero': lambda: Method('exhaustive-zero', filled('zero'),
+                                          ExhaustiveCompass(L, ExhaustiveConfig(cost='plain')).estimate),
+        'visual-compass-sh': lambda: Method('visual-compass-sh', masked_view, YawCompass(L).estimate),
+        # grey UV image instead of the mask, gain and offset removed over the overlap (masked correlation coefficient)
+        'fft-uv-normalised': lambda: Method(
+            'fft-uv-normalised', lambda uv, green, mask: CompassView.from_image(transform('zero'), uv, binary=False),
+            Compass(L, CompassConfig(normalise=True)).estimate),
+    }
+    for fill in ('zero', 'mean', 'mirror'):
+        makers[f'fft-{fill}'] = (lambda fill=fill: Method(f'fft-{fill}', filled(fill),
+                                                          Compass(L, CompassConfig(cost='plain')).estimate))
+
+    def panorama() -> Method:
+        compass = PanoramicCompass(camera)
+        return Method('visual-compass-panorama', lambda uv, green, mask: compass.unwrap(mask),
+                      compass.estimate_panoramas)
+
+    def features(detector: str) -> Method:
+        compass = FeatureCompass(camera, FeatureConfig(detector=detector))
+        return Method(f'features-{detector}', lambda uv, green, mask: compass.features(uv),
+                      compass.estimate_features)
+
+    makers['visual-compass-panorama'] = panorama
+    makers['features-sift'] = lambda: features('sift')
+    makers['features-orb'] = lambda: features('orb')
+    chosen = METHOD_NAMES if names is None else names
+    unknown = [n for n in chosen if n not in makers]
+    if unknown:
+        raise ValueError(f'unknown methods {unknown}; expected some of {METHOD_NAMES}')
+    return [makers[name]() for name in chosen]
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A method's result on a set, with the estimates and the preparation time per view (s)."""
+
+    result: MethodResult
+    estimates: tuple[CompassEstimate, ...]
+    prepare_seconds: float
+
+
+def run_methods(compass_set, methods: Sequence[Method], queries: Sequence[int] | None = None,
+                clock: Callable[[], float] = time.process_time, repeats: int = 1) -> list[RunResult]:
+    """Return every method's errors (deg) and seconds per estimate on the queries against the set's reference.
+
+    The methods take turns on every query and every repetition, so a change of load on the machine hits them alike;
+    each estimate's least time over `repeats` counts (CPU time of this process by default).
+    """
+    queries = list(compass_set.queries if queries is None else queries)
+    truth = compass_set.true_rotations()
+    frames = [compass_set.reference] + queries
+    prepared: list[dict[int, Any]] = []
+    prepare_seconds = []
+    for method in methods:
+        views = {}
+        start = clock()
+        for i in frames:
+            views[i] = method.prepare(compass_set.uv[i], compass_set.green[i], compass_set.masks[i])
+        prepare_seconds.append((clock() - start) / len(frames))
+        method.estimate(views[compass_set.reference], views[queries[0]])  # warm-up (tables, caches)
+        prepared.append(views)
+    seconds = np.full((len(methods), len(queries)), np.inf)
+    estimates: list[list[CompassEstimate]] = [[] for _ in methods]
+    for q, i in enumerate(queries):
+        for repeat in range(max(int(repeats), 1)):
+            for k, method in enumerate(methods):
+                start = clock()
+                estimate = method.estimate(prepared[k][compass_set.reference], prepared[k][i])
+                seconds[k, q] = min(seconds[k, q], clock() - start)
+                if repeat == 0:
+                    estimates[k].append(estimate)
+    out = []
+    for k, method in enumerate(methods):
+        errors = angular_error(np.array([e.quaternion for e in estimates[k]]), truth[queries])
+        out.append(RunResult(MethodResult(method.name, errors, seconds[k],
+                                          np.array([e.residual for e in estimates[k]]),
+                                          np.array([e.confident for e in estimates[k]])),
+                             tuple(estimates[k]), prepare_seconds[k]))
+    return out
