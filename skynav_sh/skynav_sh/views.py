@@ -25,6 +25,7 @@ class View:
     uv: np.ndarray | None  # the raw UV image, when asked for
     pose: np.ndarray | None  # (x, y, z, qx, qy, qz, qw) of camera_link in map, when the recording has one
     label: str  # the frame's label in a synthetic recording ('' otherwise)
+    mask: np.ndarray | None = None  # the skyline node's mask (uint8, 255 sky), when asked for
 
 
 @dataclass
@@ -43,8 +44,11 @@ class RecordingViews:
 
 
 def recording_views(path: str | Path, ros_args: list[str] | None = None, images: bool = True,
-                    progress=None) -> RecordingViews:
-    """Run the skyline and SH nodes over a recording in this process and return its views in stamp order."""
+                    progress=None, masks: bool = False) -> RecordingViews:
+    """Run the skyline and SH nodes over a recording in this process and return its views in stamp order.
+
+    `images` keeps each view's raw UV image, `masks` the skyline node's mask.
+    """
     import yaml
 
     from skynav_bringup.bag import BagError, open_bag
@@ -57,6 +61,7 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
         raise RuntimeError('the skyline and sh nodes are not installed')
     path = Path(path)
     coefficients: dict[int, tuple[np.ndarray, int]] = {}
+    node_masks: dict[int, np.ndarray] = {}
     with open_bag(path) as bag:
         needed = ['/camera/uv/image_raw', '/camera/uv/camera_info']
         if missing := [t for t in needed if t not in bag.topics]:
@@ -65,6 +70,8 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
             graph.keep_outputs = True
             graph.run(bag, progress=progress)
             for output in graph.outputs:
+                if masks and output.topic == '/skyline/mask':
+                    node_masks[stamp_ns(output.message.header)] = image_to_array(output.message)
                 if output.topic == '/skyline/sh':
                     message = output.message
                     coefficients[stamp_ns(message.header)] = (np.asarray(message.coefficients, np.float64),
@@ -88,6 +95,6 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
                 uvs[stamp] = image_to_array(message)
     frame_index = {stamp: k for k, stamp in enumerate(sorted(set(order) | set(coefficients)))}
     views = [View(stamp, c, degree, uvs.get(stamp), poses.get(stamp),
-                  labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '')
+                  labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '', node_masks.get(stamp))
              for stamp, (c, degree) in sorted(coefficients.items())]
     return RecordingViews(path, views, camera, description)
