@@ -165,7 +165,10 @@ class SkynavNode(Node):
 
     @contextmanager
     def processing(self, stamp: int) -> Iterator[None]:
-        """Measure the processing of the input stamped `stamp` (ns) for the diagnostics."""
+        """Measure the processing of the input stamped `stamp` (ns) for the diagnostics.
+
+        Publish after the block: in `skynav run` publishing runs the downstream nodes at once.
+        """
         start = time.perf_counter()
         yield
         elapsed = time.perf_counter() - start

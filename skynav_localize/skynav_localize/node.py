@@ -113,7 +113,7 @@ class LocalizeNode(SkynavNode):
                     result.snapshot_stamp.sec, result.snapshot_stamp.nanosec = sec, nanosec
                 result.candidate_indices = [int(i) for i in match.candidate_indices]
                 result.candidate_distances = [float(d) for d in match.candidate_distances]
-            self.emit(MATCH_TOPIC, result)
+        self.emit(MATCH_TOPIC, result)
 
 
 def main(args=None) -> int:

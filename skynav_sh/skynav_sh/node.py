@@ -88,7 +88,7 @@ class ShNode(SkynavNode):
                                      field_of_view=float(self.camera_input.camera.field_of_view))
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             message.header.frame_id = 'camera_link'
-            self.emit(SH_TOPIC, message)
+        self.emit(SH_TOPIC, message)
 
 
 def main(args=None) -> int:

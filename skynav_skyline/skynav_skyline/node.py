@@ -106,8 +106,8 @@ class SkylineNode(SkynavNode):
             message = fill_image(Image(), mask, 'mono8')
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             message.header.frame_id = CAMERA_FRAME
-            self.emit(MASK_TOPIC, message)
         self.last_stamp = max(self.last_stamp, stamp)
+        self.emit(MASK_TOPIC, message)
 
 
 def main(args=None) -> int:
