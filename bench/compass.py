@@ -7,7 +7,9 @@ ground truth (median, 90th percentile, maximum, share under 2 deg) separately fo
 up to 0.5 m, and the CPU time per estimate (the least of --repeats runs; the methods take turns on every query so
 that other load on the machine hits them alike). Views are prepared once per frame (SH of the ground-truth mask,
 panorama or keypoints) and timed apart. Then the speed ratio of the default (FFT correlation + Newton refinement)
-to the exhaustive baseline with the same cost, and how often each reached the lower cost.
+to the exhaustive baseline with the same cost, and how often each reached the lower cost: cold (every estimate
+starts from the two views) and with the snapshot prepared once (NAME+prepared: Compass.prepare /
+ExhaustiveCompass.prepare, as the compass node compares many views against one snapshot; same estimates).
 
 Methods: fft-masked (the default), fft-zero / fft-mean / fft-mirror (plain cost on filled views), fft-masked-tilt60
 (Euler beta limited to 60 deg), fft-uv-normalised (grey UV image instead of the mask, masked correlation coefficient:
@@ -31,26 +33,36 @@ import numpy as np  # noqa: E402
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SETS = ('garden', 'mineral')
 SH_METHODS = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-tilt60', 'fft-uv-normalised',
-              'exhaustive-masked', 'exhaustive-zero', 'visual-compass-sh')
+              'exhaustive-masked', 'exhaustive-zero', 'visual-compass-sh', 'fft-masked+prepared',
+              'exhaustive-masked+prepared', 'fft-zero+prepared', 'exhaustive-zero+prepared')
 IMAGE_METHODS = ('visual-compass-panorama', 'features-sift', 'features-orb')
 PAIRS = (('fft-masked', 'exhaustive-masked'), ('fft-zero', 'exhaustive-zero'))
+PREPARED = '+prepared'
 
 
 def ratio_lines(runs, label: str) -> list[str]:
-    """Return lines comparing the default with the exhaustive baseline: time ratio, accuracy, who found lower costs."""
+    """Return lines comparing the default with the exhaustive baseline: time ratio, accuracy, who found lower costs.
+
+    Per pair one line with both cold and both prepared (when both were run), and the time the preparation took.
+    """
     by_name = {run.result.method: run for run in runs}
     lines = []
     for fast, slow in PAIRS:
-        if fast not in by_name or slow not in by_name:
-            continue
-        a, b = by_name[fast].result, by_name[slow].result
-        ratio = np.median(b.seconds) / np.median(a.seconds)
-        lower = np.mean(a.residuals < b.residuals - 1e-12)
-        higher = np.mean(a.residuals > b.residuals + 1e-12)
-        lines.append(f'  {label}: {slow} / {fast} time ratio {ratio:5.1f}x  (median {1e3 * np.median(b.seconds):.1f} ms'
-                     f' vs {1e3 * np.median(a.seconds):.2f} ms); median error {np.median(a.errors):.2f} vs'
-                     f' {np.median(b.errors):.2f} deg; {fast} reached the lower cost in {100 * lower:.0f} %,'
-                     f' the higher in {100 * higher:.0f} % of the queries')
+        for suffix, mode in (('', 'cold    '), (PREPARED, 'prepared')):
+            if fast + suffix not in by_name or slow + suffix not in by_name:
+                continue
+            a, b = by_name[fast + suffix].result, by_name[slow + suffix].result
+            ratio = np.median(b.seconds) / np.median(a.seconds)
+            lower = np.mean(a.residuals < b.residuals - 1e-12)
+            higher = np.mean(a.residuals > b.residuals + 1e-12)
+            once = ''
+            if suffix:
+                once = (f'; snapshot prepared once in {1e3 * by_name[fast + suffix].snapshot_seconds:.2f} /'
+                        f' {1e3 * by_name[slow + suffix].snapshot_seconds:.2f} ms')
+            lines.append(f'  {label} {mode}: {slow} / {fast} time ratio {ratio:5.1f}x  (median'
+                         f' {1e3 * np.median(b.seconds):.1f} ms vs {1e3 * np.median(a.seconds):.2f} ms{once});'
+                         f' median error {np.median(a.errors):.2f} vs {np.median(b.errors):.2f} deg; {fast} reached'
+                         f' the lower cost in {100 * lower:.0f} %, the higher in {100 * higher:.0f} % of the queries')
     return lines
 
 

@@ -17,9 +17,9 @@ _EXPORTS = {
     'compass': ('Compass', 'CompassConfig', 'estimate_rotation', 'rotation_angle', 'zyz_matrices'),
     'estimate': ('CompassEstimate', 'Hypothesis'),
     'views': ('CompassView', 'cap_visibility'),
-    'cost': ('COSTS', 'CostProblem', 'build_problem'),
+    'cost': ('COSTS', 'CostProblem', 'PreparedSnapshot', 'build_problem', 'cost_channels', 'prepare_snapshot'),
     'so3': ('EulerGrid', 'so3_correlation', 'correlation_products', 'wigner_small_d_table', 'generators',
-            'to_padded', 'from_padded', 'rotate_padded'),
+            'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded', 'rotate_padded'),
     'refine': ('refine', 'newton_prediction'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
     'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
@@ -27,7 +27,9 @@ _EXPORTS = {
     'evaluation': ('ErrorStatistics', 'MethodResult', 'angular_error', 'error_statistics', 'format_table',
                    'heading_error', 'plot_errors', 'relative_tilt', 'summary_rows'),
     'dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
-    'runner': ('Method', 'run_methods', 'standard_methods'),
+    'runner': ('Method', 'RunResult', 'run_methods', 'standard_methods', 'timed_estimates'),
+    'recording': ('ExternalSnapshot', 'EvaluationError', 'RecordingEvaluation', 'evaluate_recording',
+                  'evaluate_views', 'format_report', 'recording_methods'),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_MODULE_OF)
@@ -56,6 +58,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.evaluation import *  # noqa: F401,F403
     from skynav_compass.exhaustive import *  # noqa: F401,F403
     from skynav_compass.features import *  # noqa: F401,F403
+    from skynav_compass.recording import *  # noqa: F401,F403
     from skynav_compass.refine import *  # noqa: F401,F403
     from skynav_compass.runner import *  # noqa: F401,F403
     from skynav_compass.so3 import *  # noqa: F401,F403

@@ -7,6 +7,10 @@ next few distinct minima (hypotheses) one Newton model predicts the cost of thei
 close are refined fully. The estimate is R with d_snapshot = R d_current in camera_link (CONTRACT.md), its
 residual the cost there; a small margin to the second hypothesis (relative to the depth of the cost landscape)
 or a large residual marks it as not confident instead of silently picking one of several similar yaws.
+
+Many views compared against one snapshot: `prepared = compass.prepare(snapshot)` does the snapshot's share of the
+work once (padded and complex coefficients, the derivative matrix of the refinement), and
+`compass.estimate(prepared, current)` gives the same estimate as `compass.estimate(snapshot, current)`.
 """
 
 from __future__ import annotations
@@ -16,13 +20,14 @@ from typing import Union
 
 import numpy as np
 
-from skynav_compass.cost import CostProblem, build_problem
+from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, cost_channels, prepare_snapshot
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 from skynav_compass.refine import newton_prediction, refine
 from skynav_compass.so3 import EulerGrid
 from skynav_compass.views import CompassView
 
 View = Union[CompassView, np.ndarray]
+Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by Compass.prepare
 UNITS = {('masked', False): 'mean squared difference over the overlap (value^2)',
          ('masked', True): '1 - correlation coefficient over the overlap',
          ('plain', False): 'integral of the squared difference (value^2 sr)',
@@ -105,23 +110,39 @@ class Compass:
         """Return a short name of the configured method."""
         return f"fft-{self.config.cost}{'-normalised' if self.config.normalise else ''}"
 
-    def problem(self, snapshot: View, current: View) -> CostProblem:
+    def prepare(self, snapshot: Snapshot) -> PreparedSnapshot:
+        """Return the snapshot's side of this compass's cost, built once for any number of estimates against it.
+
+        `estimate(prepared, current)` equals `estimate(snapshot, current)` and skips the snapshot's share of the work
+        (the padded and complex coefficients and the refinement's derivative matrix are built here, on first use).
+        """
+        c = self.config
+        prepared = prepare_snapshot(snapshot, self.max_degree, c.cost, c.normalise)
+        prepared.conjugate()  # build the cached parts now, not in the first estimate
+        prepared.zonal()
+        prepared.channel_matrix(cost_channels(c.cost, c.normalise), True)
+        return prepared
+
+    def problem(self, snapshot: Snapshot, current: View) -> CostProblem:
         """Return the cost problem of two views (CompassView for 'masked', coefficients or CompassView for 'plain')."""
         c = self.config
         return build_problem(snapshot, current, self.max_degree, c.cost, c.normalise, c.min_overlap)
 
-    def cost(self, snapshot: View, current: View, rotation) -> float:
+    def cost(self, snapshot: Snapshot, current: View, rotation) -> float:
         """Return the cost of a rotation R (scipy Rotation, 3x3 or quaternion x, y, z, w; d_s = R d_c)."""
         from skynav_sh.rotation import as_matrix
 
         return self.problem(snapshot, current).cost(as_matrix(rotation))
 
-    def grid_costs(self, snapshot: View, current: View) -> np.ndarray:
+    def grid_costs(self, snapshot: Snapshot, current: View) -> np.ndarray:
         """Return the cost on the Euler grid (n_beta, n, n) [beta, alpha, gamma] (see self.grid for the angles)."""
         return self.problem(snapshot, current).grid_costs(self.grid)
 
-    def estimate(self, snapshot: View, current: View) -> CompassEstimate:
-        """Return R with d_snapshot = R d_current (camera_link), its residual and the other hypotheses."""
+    def estimate(self, snapshot: Snapshot, current: View) -> CompassEstimate:
+        """Return R with d_snapshot = R d_current (camera_link), its residual and the other hypotheses.
+
+        The snapshot may be a view or prepared by `prepare` (same estimate, less work per call).
+        """
         c = self.config
         problem = self.problem(snapshot, current)
         costs = problem.grid_costs(self.grid)
@@ -176,12 +197,15 @@ class Compass:
                                UNITS[c.cost, c.normalise], details, relative_margin=relative)
 
 
-def estimate_rotation(snapshot: View, current: View, max_degree: int | None = None,
+def estimate_rotation(snapshot: Snapshot, current: View, max_degree: int | None = None,
                       config: CompassConfig | None = None) -> CompassEstimate:
     """Return the compass estimate of two views with a cached Compass of degree L (default: the views' degree)."""
     if max_degree is None:
-        source = snapshot.weighted if isinstance(snapshot, CompassView) else snapshot
-        max_degree = int(round(np.sqrt(np.shape(source)[-1]))) - 1
+        if isinstance(snapshot, PreparedSnapshot):
+            max_degree = snapshot.max_degree
+        else:
+            source = snapshot.weighted if isinstance(snapshot, CompassView) else snapshot
+            max_degree = int(round(np.sqrt(np.shape(source)[-1]))) - 1
     return _cached_compass(int(max_degree), config or CompassConfig()).estimate(snapshot, current)
 
 

@@ -15,17 +15,21 @@ from typing import Union
 import numpy as np
 
 from skynav_compass.compass import UNITS, rotation_angle, zyz_matrices
-from skynav_compass.cost import CostProblem, build_problem
+from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, prepare_snapshot
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 from skynav_compass.so3 import quarter_turn_padded, rotate_z_padded
 from skynav_compass.views import CompassView
 
 View = Union[CompassView, np.ndarray]
+Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by ExhaustiveCompass.prepare
 
 
-def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray,
-                        gammas: np.ndarray) -> np.ndarray:
-    """Return every channel at all R = Rz(a) Ry(b) Rz(g) of the outer grid: (channels, n_alpha, n_beta, n_gamma)."""
+def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray,
+                        turned_snapshot: np.ndarray | None = None) -> np.ndarray:
+    """Return every channel at all R = Rz(a) Ry(b) Rz(g) of the outer grid: (channels, n_alpha, n_beta, n_gamma).
+
+    turned_snapshot: Z(-alpha) a for these alphas, (A, q, L+1, 2L+1), if already at hand.
+    """
     L = problem.max_degree
     size = 2 * L + 1
     turn = quarter_turn_padded(L)  # (L+1, 2L+1, 2L+1)
@@ -46,7 +50,8 @@ def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndar
     right = rotated.reshape(n_beta, L + 1, size, r, n_gamma).transpose(1, 2, 3, 0, 4).reshape((L + 1) * size, -1)
     # snapshot side: Z(alpha)^T a = Z(-alpha) a; each channel sums w <Z(-alpha) a_i, Y(beta) Z(gamma) b_j> over its
     # terms, one matrix product per term (only the pairs the cost uses)
-    snap = rotate_z_padded(problem.snapshot, -np.asarray(alphas, dtype=float))  # (A, q, L+1, 2L+1)
+    snap = turned_snapshot if turned_snapshot is not None else rotate_z_padded(
+        problem.snapshot, -np.asarray(alphas, dtype=float))  # (A, q, L+1, 2L+1)
     n_alpha, block = snap.shape[0], n_beta * n_gamma
     out = np.zeros((len(problem.channels), n_alpha, block))
     for k, channel in enumerate(problem.channels):
@@ -55,10 +60,10 @@ def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndar
     return out.reshape(len(problem.channels), n_alpha, n_beta, n_gamma)
 
 
-def grid_search_costs(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray,
-                      gammas: np.ndarray) -> np.ndarray:
+def grid_search_costs(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray,
+                      turned_snapshot: np.ndarray | None = None) -> np.ndarray:
     """Return the cost at all R = Rz(a) Ry(b) Rz(g) of the outer grid, (n_alpha, n_beta, n_gamma); inf if invalid."""
-    values = list(grid_channel_values(problem, alphas, betas, gammas))
+    values = list(grid_channel_values(problem, alphas, betas, gammas, turned_snapshot))
     with np.errstate(divide='ignore', invalid='ignore'):
         return problem.mask_invalid(values, problem.formula(values))
 
@@ -97,17 +102,36 @@ class ExhaustiveCompass:
         c = self.config
         return c.coarse_step if c.coarse_step is not None else 2 * np.pi / (2 * self.max_degree + 2)
 
-    def estimate(self, snapshot: View, current: View) -> CompassEstimate:
-        """Return R with d_snapshot = R d_current (camera_link) by exhaustive coarse-to-fine search."""
+    def _coarse_alphas(self) -> np.ndarray:
+        """Return the alphas (= gammas) of the first level (rad)."""
+        n = int(round(2 * np.pi / self.coarse_step))
+        return 2 * np.pi / n * np.arange(n)
+
+    def prepare(self, snapshot: Snapshot) -> PreparedSnapshot:
+        """Return the snapshot's side of the search, built once for any number of estimates against it.
+
+        Holds the padded snapshot functions and the snapshot turned by every alpha of the first level;
+        `estimate(prepared, current)` equals `estimate(snapshot, current)`.
+        """
+        c = self.config
+        prepared = prepare_snapshot(snapshot, self.max_degree, c.cost, c.normalise)
+        alphas = self._coarse_alphas()
+        prepared.memo[('exhaustive-coarse', len(alphas))] = rotate_z_padded(prepared.padded, -alphas)
+        return prepared
+
+    def estimate(self, snapshot: Snapshot, current: View) -> CompassEstimate:
+        """Return R with d_snapshot = R d_current (camera_link) by exhaustive coarse-to-fine search.
+
+        The snapshot may be a view or prepared by `prepare` (same estimate, less work per call).
+        """
         c = self.config
         problem = build_problem(snapshot, current, self.max_degree, c.cost, c.normalise, c.min_overlap)
-        step = self.coarse_step
-        n = int(round(2 * np.pi / step))
-        step = 2 * np.pi / n
+        alphas = self._coarse_alphas()
+        step = 2 * np.pi / len(alphas)
         max_beta = np.pi if c.max_tilt is None else float(c.max_tilt)
-        alphas = step * np.arange(n)
         betas = np.linspace(0.0, max_beta, int(np.ceil(max_beta / step - 1e-9)) + 1)
-        costs = grid_search_costs(problem, alphas, betas, alphas)
+        turned = problem.side.memo.get(('exhaustive-coarse', len(alphas)))
+        costs = grid_search_costs(problem, alphas, betas, alphas, turned)
         candidates = self._best(costs, alphas, betas, alphas, c.keep, 2 * step)
         evaluated = costs.size
         offsets = np.arange(-c.factor, c.factor + 1)

@@ -12,6 +12,7 @@ turns Z(alpha) into diag(exp(i m alpha)) and D_l(Ry(beta)) into Wigner's small d
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from functools import lru_cache
 from typing import Sequence
 
@@ -134,6 +135,47 @@ def rotate_by_matrix(padded: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     x = np.matmul(turn, x[..., None])[..., 0]
     x = cos[:, 2][expand] * x + sin[:, 2][expand] * x[..., ::-1]
     return x.reshape(batch + padded.shape)
+
+
+@lru_cache(maxsize=16)
+def _quarter_turn_transposed(max_degree: int) -> np.ndarray:
+    """Return J_l^T for l = 0..L, contiguous and read-only (L+1, 2L+1, 2L+1)."""
+    out = np.ascontiguousarray(np.swapaxes(quarter_turn_padded(max_degree), -1, -2))
+    out.flags.writeable = False
+    return out
+
+
+def _zyz(matrix: np.ndarray) -> tuple[float, float, float]:
+    """Return ZYZ angles (alpha, beta, gamma) of a 3x3 rotation, as skynav_sh.rotation.zyz_angles, in plain floats."""
+    (r00, r01, r02), (r10, r11, r12), (_, _, r22) = matrix.tolist()
+    alpha = math.atan2(r12, r02)
+    beta = math.atan2(math.hypot(r02, r12), r22)
+    if r22 >= 0:
+        gamma = math.atan2(r10 - r01, r00 + r11) - alpha
+    else:
+        gamma = alpha - math.atan2(-(r10 + r01), -(r00 - r11))
+    return alpha, beta, (gamma + math.pi) % (2 * math.pi) - math.pi
+
+
+def rotate_degree_major(stack: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Return D(R) applied to functions laid out degree first, (L+1, r, 2L+1) [l, function, m + L].
+
+    The same rotation as rotate_by_matrix, with every quarter turn one matrix product per degree for all r
+    functions at once. A stack of K matrices (K, 3, 3) gives (K, L+1, r, 2L+1).
+    """
+    matrix = np.asarray(matrix, dtype=float)
+    batch = matrix.shape[:-2]
+    angles = np.array([_zyz(m) for m in matrix.reshape(-1, 3, 3)])[:, ::-1]  # (K, 3): gamma, beta, alpha
+    L = stack.shape[-3] - 1
+    order, sign = _z_factors(L)
+    phases = angles[:, :, None] * order  # the three z-steps of every rotation at once, (K, 3, 2L+1)
+    cos, sin = np.cos(phases)[:, :, None, None, :], (sign * np.sin(phases))[:, :, None, None, :]
+    x = cos[:, 0] * stack + sin[:, 0] * stack[..., ::-1]
+    x = x @ quarter_turn_padded(L)  # J^T x, as the rows x^T J
+    x = cos[:, 1] * x + sin[:, 1] * x[..., ::-1]
+    x = x @ _quarter_turn_transposed(L)  # J x, as the rows x^T J^T
+    x = cos[:, 2] * x + sin[:, 2] * x[..., ::-1]
+    return x.reshape(batch + stack.shape)
 
 
 @lru_cache(maxsize=16)
@@ -276,18 +318,33 @@ def so3_correlation(products: np.ndarray, grid: EulerGrid) -> np.ndarray:
     e^(i n gamma) B_ln = <a, D(Rz(alpha) Ry(beta) Rz(gamma)) b>.
     """
     L = grid.max_degree
-    k = products.shape[0]
     if products.shape[1:] != (L + 1, 2 * L + 1, L + 1):
         raise ValueError('products and grid of different degrees')
+    return so3_correlation_cells(np.ascontiguousarray(products.transpose(2, 3, 1, 0)), grid)
+
+
+def so3_correlation_cells(products: np.ndarray, grid: EulerGrid) -> np.ndarray:
+    """Return correlations on the Euler grid, (K, n_beta, n, n), of products laid out per cell: (2L+1, L+1, L+1, K).
+
+    products[m + L, n, l, k] = sum conj(A_lm) B_ln of correlation k (n >= 0), complex and C-contiguous (the layout
+    so3_correlation turns its input into; building it directly saves the copies).
+    """
+    from scipy.fft import irfft2
+
+    L = grid.max_degree
+    k = products.shape[-1]
+    if products.shape[:3] != (2 * L + 1, L + 1, L + 1) or products.dtype != complex:
+        raise ValueError('products and grid of different degrees (or not complex)')
     n_beta = len(grid.betas)
     cells = (2 * L + 1) * (L + 1)
-    # T[k, b, (m, n)] = sum_l d[b, l, (m, n)] P[k, l, (m, n)]: one batched real product over the (m, n) cells
+    # T[(m, n), b, k] = sum_l d[(m, n), b, l] P[(m, n), l, k]: one batched real product over the (m, n) cells, on
+    # the real and imaginary parts side by side (the complex array seen as interleaved floats)
     lhs = grid.half_table()  # (cells, B, l)
-    rhs = products.reshape(k, L + 1, cells).transpose(2, 1, 0)  # (cells, l, K)
-    prod = np.matmul(lhs, np.concatenate([rhs.real, rhs.imag], axis=-1))  # (cells, B, 2K)
-    values = (prod[..., :k] + 1j * prod[..., k:]).transpose(2, 1, 0).reshape(k, n_beta, 2 * L + 1, L + 1)
+    values = np.matmul(lhs, np.ascontiguousarray(products).reshape(cells, L + 1, k).view(float))  # (cells, B, 2K)
+    values = values.view(complex).reshape(2 * L + 1, L + 1, n_beta, k)
     spectrum = np.zeros((k, n_beta, grid.n, grid.n // 2 + 1), dtype=complex)
-    spectrum[:, :, : L + 1, : L + 1] = values[:, :, L:]  # m = 0..L
-    spectrum[:, :, grid.n - L :, : L + 1] = values[:, :, :L]  # m = -L..-1
-    # the correlation is real, so T_-m,-n = conj(T_mn) and the half n >= 0 is exactly what irfft2 expects
-    return np.fft.irfft2(spectrum, s=(grid.n, grid.n), axes=(-2, -1)) * (grid.n * grid.n)
+    spectrum[:, :, : L + 1, : L + 1] = values[L:].transpose(3, 2, 0, 1)  # m = 0..L
+    spectrum[:, :, grid.n - L :, : L + 1] = values[:L].transpose(3, 2, 0, 1)  # m = -L..-1
+    # the correlation is real, so T_-m,-n = conj(T_mn) and the half n >= 0 is exactly what irfft2 expects;
+    # norm='forward' leaves the inverse transform unscaled: the plain sum over (m, n)
+    return irfft2(spectrum, s=(grid.n, grid.n), axes=(-2, -1), norm='forward', overwrite_x=True)
