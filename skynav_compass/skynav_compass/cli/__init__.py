@@ -1,0 +1,1 @@
+"""The compass's `skynav` commands (found through the skynav.commands entry points)."""

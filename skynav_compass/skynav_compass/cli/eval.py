@@ -1,0 +1,107 @@
+"""Measure the visual 3D compass on a recording against ground truth: skynav's compass and its peers, side by side.
+
+Every frame of the recording goes through the skyline and SH nodes (as in `skynav run`); each method then
+estimates the rotation of every view against one snapshot: by default the recording's frame labelled 'reference'
+(the bundled compass sets, `skynav sim bag compass`), with --map the map snapshot --index. The error of an estimate
+is the angle of the 3D rotation between it and the truth Q_s^-1 Q_c from the ground-truth orientations of
+camera_link. Prints, per method, median, 90th percentile and maximum error and the share under 2 degrees,
+separately for pure rotations and for moved views (by the frame labels of a synthetic compass set against its
+reference frame, else by the true translation: under / from 0.05 m on), and the CPU time per estimate (views
+prepared once; the fft-* and exhaustive-* compasses prepare the snapshot once, as the compass node does). Saves a
+plot of error against tilt and against translation as DIR/<bag name>_errors.png.
+
+Methods: fft-masked (the default compass: SO(3) correlation by FFT on the masked cost, then Newton refinement),
+fft-masked-tilt60 (tilt limited to 60 degrees), fft-zero (plain cost on the zero-filled view), exhaustive-masked
+and exhaustive-zero (the source method's coarse-to-fine ZYZ search), visual-compass-sh (yaw only, on the SH);
+needing the snapshot's images, so run only against the recording's reference frame: visual-compass-panorama
+(yaw only, rotational image difference of the skyline mask's panorama), features-sift and features-orb (UV image,
+bearings, RANSAC rotation / essential matrix).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = 'compass error against ground truth, per method, for pure rotations and moved views'
+METHODS = ('fft-masked', 'fft-masked-tilt60', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
+           'visual-compass-sh', 'visual-compass-panorama', 'features-sift', 'features-orb')  # = RECORDING_METHODS
+DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav eval compass`."""
+    parser.add_argument('bag', metavar='BAG', help='recording with camera topics and /ground_truth/pose')
+    parser.add_argument('--map', type=Path, metavar='MAP.db',
+                        help="compare against a snapshot of this map (default: the recording's reference frame)")
+    parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to compare against (0)')
+    parser.add_argument('--methods', nargs='+', default=list(DEFAULT_METHODS), metavar='METHOD',
+                        help=f'methods to compare (default {" ".join(DEFAULT_METHODS)}; one of {", ".join(METHODS)})')
+    parser.add_argument('--plots', type=Path, default=Path('compass_eval'), metavar='DIR',
+                        help='folder for the plot (default compass_eval)')
+    parser.add_argument('--repeats', type=int, default=1, metavar='N',
+                        help='time every estimate N times, the least counts (default 1)')
+    parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate; return the exit code."""
+    from skynav_bringup.cli import CliError
+    from skynav_bringup.cli.run import ros_arguments
+
+    from ..evaluation import plot_errors
+    from ..recording import EvaluationError, evaluate_recording, format_report
+
+    if unknown := [m for m in args.methods if m not in METHODS]:
+        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})')
+    if args.repeats < 1:
+        raise CliError('--repeats must be at least 1', exit_code=2)
+    if args.index < 0:
+        raise CliError('--index must not be negative', exit_code=2)
+    if not Path(args.bag).exists():
+        raise CliError(f'{args.bag}: no such recording')
+    snapshot = None
+    if args.map is not None:
+        snapshot = map_snapshot(args.map, args.index)
+    elif args.index:
+        raise CliError('--index chooses a map snapshot; give the map with --map', exit_code=2)
+    try:
+        evaluation = evaluate_recording(args.bag, args.methods, snapshot, ros_arguments(args.params, None),
+                                        repeats=args.repeats)
+    except EvaluationError as exc:
+        raise CliError(str(exc)) from None
+    print(format_report(evaluation))
+    try:
+        args.plots.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f'{args.plots}: cannot create the folder for the plot ({exc.strerror})') from None
+    stem = Path(args.bag).stem
+    path = plot_errors(evaluation.results, evaluation.tilts, evaluation.translations,
+                       args.plots / f'{stem}_errors.png', evaluation.synthetic, f'{stem} against {evaluation.snapshot}')
+    print(f'plot: {path}')
+    return 0
+
+
+def map_snapshot(path: Path, index: int):
+    """Return the map's snapshot `index` as an ExternalSnapshot (CliError if the map or its pose is unusable)."""
+    from skynav_bringup.cli import CliError
+    from skynav_localize.store import MapError, MapStore
+
+    from ..recording import ExternalSnapshot
+
+    try:
+        store = MapStore.open(path)
+    except MapError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        if not 0 <= index < len(store):
+            raise CliError(f'{path}: no snapshot {index} (the map has {len(store)})')
+        snapshot = store.snapshot(index)
+        name = store.name
+    except MapError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        store.close()
+    if snapshot.pose is None:
+        raise CliError(f'{path}: snapshot {index} has no ground-truth pose, so the true rotation is unknown')
+    return ExternalSnapshot(snapshot.coefficients, snapshot.pose, f'snapshot {index} of map {name!r}')
