@@ -16,4 +16,9 @@ setup(
     maintainer_email='skynav@example.org',
     description='The visual 3D compass: full 3D rotation between a current view and a snapshot.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['compass_node = skynav_compass.node:main'],
+        'skynav.nodes': ['compass = skynav_compass.node:CompassNode'],
+        'skynav.commands': ['eval.compass = skynav_compass.cli.eval'],
+    },
 )
