@@ -3,7 +3,8 @@
 - 3D-warping in the SH basis (warping3d): movement direction on the sphere, distance ratio and rotation, masked
   comparison of a hemispherical view; estimate_home_vector (homing) combines it with a compass rotation.
 - Planar baselines on panoramic bands unwrapped from the fish-eye (panorama, planar): 2D-warping, min-warping.
-- Evaluation against ground truth (evaluation), reading homing grids from recordings (recording), and made-up
+- Evaluation against ground truth (evaluation; homing_eval runs every method over a recording's views for
+  `skynav eval homing`), reading homing grids from recordings (recording), and made-up
   scenes with known geometry for tests (synthetic).
 
 Conventions (CONTRACT.md): everything in the current camera_link (z up through the fish-eye, x forward = image
@@ -30,6 +31,8 @@ _EXPORTS = {
                    'home_vectors_in_map', 'quiver_plot', 'rotation_errors', 'seconds_per_call', 'summary_table',
                    'tilt_angles', 'true_home_directions', 'true_rotations'),
     'recording': ('HomingGrid', 'load_homing_grid'),
+    'homing_eval': ('HomingEvalError', 'HomingEvaluation', 'HomingSnapshot', 'MethodResult', 'evaluate_homing',
+                    'map_snapshot', 'recording_snapshot'),
     'synthetic': ('BlobScene', 'PoleWorld', 'blob_scene', 'pole_world', 'render_equal_distance_view',
                   'render_pole_panorama'),
 }
@@ -55,6 +58,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_warping.evaluation import *  # noqa: F401,F403
     from skynav_warping.homing import *  # noqa: F401,F403
+    from skynav_warping.homing_eval import *  # noqa: F401,F403
     from skynav_warping.panorama import *  # noqa: F401,F403
     from skynav_warping.planar import *  # noqa: F401,F403
     from skynav_warping.recording import *  # noqa: F401,F403

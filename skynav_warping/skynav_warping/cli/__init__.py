@@ -1,0 +1,1 @@
+"""The `skynav` subcommands of skynav_warping (found through the skynav.commands entry points)."""

@@ -1,0 +1,108 @@
+"""Measure homing on a recorded grid: the home vector of every view towards a snapshot, by each method.
+
+Every frame of the recording goes through the skyline and SH nodes (as in `skynav run`). The
+snapshot is the recording's frame labelled 'snapshot' (else its first frame), or with --map
+snapshot --index of that map (it needs a ground-truth pose). Each other frame with a ground-truth
+pose is homed to it, and the estimate is compared with the true home direction
+Q_c^-1 (p_s - p_c) in the current camera_link. Methods:
+
+  3d-warping             the compass estimate starts the 3D-warping search (as the nodes run)
+  3d-warping-no-compass  3D-warping from its own rotational pre-alignment
+  2d-warping             planar baseline on panoramas unwrapped from the skyline masks
+  min-warping            planar baseline on the same panoramas
+
+The planar baselines need the snapshot's skyline mask, so they run only when the snapshot is a
+frame of the recording (a map snapshot built from it counts). Prints, per method, the median and
+90th percentile of the angular error by distance (0.5-1, 1-2, 2-4 m) and by the current camera's
+tilt, and the CPU time per estimate (preparing the current view and estimating; the snapshot's
+preparation spread over all estimates); saves a quiver plot of true and estimated home vectors
+over the grid in --plots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = 'angular error of home vectors (3D-, 2D-, min-warping) against ground truth'
+METHOD_NAMES = ('3d-warping', '3d-warping-no-compass', '2d-warping', 'min-warping')  # homing_eval.METHODS
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav eval homing`."""
+    parser.add_argument('bag', metavar='BAG', help='homing grid recording with /ground_truth/pose')
+    parser.add_argument('--map', type=Path, metavar='MAP.db',
+                        help="home to a snapshot of this map (default: the recording's snapshot frame)")
+    parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to home to (default 0)')
+    parser.add_argument('--methods', nargs='+', default=list(METHOD_NAMES), metavar='METHOD',
+                        help=f'methods to compare (default all: {", ".join(METHOD_NAMES)})')
+    parser.add_argument('--plots', type=Path, default=Path('homing_eval'), metavar='DIR',
+                        help='folder for the quiver plot (default homing_eval)')
+    parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate; return the exit code."""
+    from tqdm import tqdm
+
+    from skynav_bringup.bag import open_bag
+    from skynav_bringup.cli import CliError
+    from skynav_bringup.cli.run import ros_arguments
+    from skynav_sh.views import recording_views
+
+    from ..homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
+
+    if unknown := [m for m in args.methods if m not in METHODS]:
+        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
+    if args.index < 0:
+        raise CliError('--index must not be negative', exit_code=2)
+    store = None
+    if args.map is not None:
+        from skynav_localize.store import MapError, MapStore
+
+        try:
+            store = MapStore.open(args.map)
+        except MapError as exc:
+            raise CliError(str(exc)) from None
+    try:
+        if store is not None:
+            map_snapshot(store, args.index)  # fail before the nodes run
+        with open_bag(args.bag) as bag:
+            inputs = sum(t.count for name, t in bag.topics.items() if name.startswith('/camera/'))
+        try:
+            args.plots.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CliError(f'{args.plots}: cannot create the plot folder ({exc.strerror or exc})') from None
+        with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
+            recording = recording_views(args.bag, ros_arguments(args.params, None), images=False, masks=True,
+                                        progress=bar.update)
+        if not recording.views:
+            raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')
+        snapshot = None if store is None else map_snapshot(store, args.index, recording)
+        with tqdm(unit='estimate', desc='homing', file=sys.stderr, disable=None) as bar:
+            evaluation = evaluate_homing(recording, args.methods, snapshot, progress=bar.update)
+    except HomingEvalError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        if store is not None:
+            store.close()
+
+    stem = Path(args.bag).stem
+    kind = 'synthetic ' if evaluation.synthetic else ''
+    d, tilt = evaluation.distances, evaluation.tilts
+    print(f'\n{Path(args.bag).name}: {len(d)} {kind}views homing to {evaluation.snapshot.name}, '
+          f'{d.min():.2f}-{d.max():.2f} m away, camera tilt {tilt.min():.1f}-{tilt.max():.1f} deg')
+    if evaluation.left_out:
+        views = 'view' if evaluation.left_out == 1 else 'views'
+        print(f'({evaluation.left_out} {views} within 5 cm of the snapshot left out: no home direction)')
+    print('angular error of the home vector (degrees): median / 90th percentile; ms/estimate: CPU time '
+          '(all threads) from SH coefficients or masks')
+    print(evaluation.table())
+    for method, why in evaluation.skipped.items():
+        print(f'{method} skipped: it {why}')
+    if evaluation.results:
+        path = args.plots / f'{stem}_quiver.png'
+        evaluation.quiver(path, f'{stem}: home vectors to {evaluation.snapshot.name}')
+        print(f'plot: {path}')
+    return 0
