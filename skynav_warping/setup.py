@@ -16,4 +16,9 @@ setup(
     maintainer_email='skynav@example.org',
     description='Homing by 3D-warping: the home vector from the current view to a snapshot.',
     license='Apache-2.0',
+    entry_points={
+        'console_scripts': ['warping_node = skynav_warping.node:main'],
+        'skynav.nodes': ['warping = skynav_warping.node:WarpingNode'],
+        'skynav.commands': ['eval.homing = skynav_warping.cli.eval'],
+    },
 )

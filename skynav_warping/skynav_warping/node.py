@@ -1,0 +1,168 @@
+"""The warping node: which way is the snapshot's place from here?
+
+Subscribes /skyline/sh (fill 'zero': the masked comparison needs the seen part alone),
+/localization/match and, with `use_compass`, /compass/orientation; publishes /homing/home_vector
+(skynav_msgs/HomeVector) for every view: the unit direction towards the target snapshot's place in
+the current camera_link, the rotation R (d_snapshot = R d_current), and as residual the 3D-warping
+cost at the optimum relative to the best pure rotation's: near 0 the views agree once moved, near
+1 they tell nothing about where home is (for instance, at home).
+
+The target snapshot: the one the latest accepted place match names (`target: match`), a fixed
+index (`target: index`), or the match's successor `lookahead` snapshots along the route
+(`target: next`, route following). With `use_compass` a view waits for the compass estimate of
+the same stamp and the search starts from it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
+
+from skynav_bringup.images import stamp_ns
+from skynav_bringup.node import SkynavNode
+from skynav_bringup.pairing import StampPairer
+from skynav_bringup.ros import run_node
+
+from .homing import estimate_home_vector
+from .views import view_from_coefficients
+from .warping3d import WarpingSettings
+
+SH_TOPIC = '/skyline/sh'
+MATCH_TOPIC = '/localization/match'
+COMPASS_TOPIC = '/compass/orientation'
+HOME_TOPIC = '/homing/home_vector'
+TARGETS = ('match', 'index', 'next')
+SNAPSHOT_VIEWS_CACHED = 64
+
+
+class WarpingNode(SkynavNode):
+    """Estimates the home vector of every view towards the target snapshot."""
+
+    needs_map = True
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('warping', **kwargs)
+        self.parameter('map', '', 'SQLite map file (`skynav map build`) whose snapshots are homed to')
+        self.parameter('target', 'match', f'which snapshot to home to: {", ".join(TARGETS)}')
+        self.parameter('index', 0, "the snapshot of target 'index'")
+        self.parameter('lookahead', 1, "how many snapshots beyond the matched one target 'next' aims at")
+        self.parameter('use_compass', True, 'start from the compass estimate of the same view (wait for it)')
+        self.parameter('max_degree', 16, 'SH degree of the search')
+        self.store = None
+        self._snapshot_views: dict = {}
+        self.match: PlaceMatch | None = None
+        self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0)
+        self.last_stamp = -1
+        self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
+        self.input(MATCH_TOPIC, PlaceMatch, self.on_match)
+        self.input(COMPASS_TOPIC, CompassEstimate, self.on_compass)
+        self.output(HOME_TOPIC, HomeVector)
+        self.start()
+
+    def configure(self, values: dict) -> None:
+        """Open the map and set the search up (ValueError if unusable)."""
+        from skynav_localize.store import MapError, MapStore
+
+        if values['target'] not in TARGETS:
+            raise ValueError(f'target must be one of {", ".join(TARGETS)}')
+        if values['lookahead'] < 0 or values['index'] < 0 or not 4 <= values['max_degree'] <= 32:
+            raise ValueError('lookahead and index must not be negative; max_degree must be within 4..32')
+        store = self.store
+        if values['map'] != (str(store.path) if store is not None else ''):
+            store = None
+            if values['map']:
+                try:
+                    store = MapStore.open(values['map'])
+                except MapError as exc:
+                    raise ValueError(str(exc)) from None
+        self.values = values
+        self.settings = WarpingSettings(degree=values['max_degree'])
+        self.store = store
+        self._snapshot_views.clear()
+
+    def snapshot_view(self, index: int, field_of_view: float):
+        """Return the warping view of one map snapshot (kept for the next views)."""
+        key = (index, field_of_view)
+        if key not in self._snapshot_views:
+            if len(self._snapshot_views) >= SNAPSHOT_VIEWS_CACHED:
+                self._snapshot_views.pop(next(iter(self._snapshot_views)))
+            self._snapshot_views[key] = view_from_coefficients(self.store.snapshot(index).coefficients,
+                                                               field_of_view, self.settings.degree)
+        return self._snapshot_views[key]
+
+    def on_match(self, match: PlaceMatch) -> None:
+        """Remember the latest accepted place match."""
+        if match.accepted and match.index >= 0:
+            self.match = match
+
+    def on_compass(self, estimate: CompassEstimate) -> None:
+        """Pair a compass estimate with the view of the same stamp."""
+        if self.values['use_compass']:
+            pair = self.pairer.add('compass', stamp_ns(estimate.header), estimate)
+            if pair is not None:
+                self.home(pair[1], pair[2])
+
+    def on_coefficients(self, message: ShCoefficients) -> None:
+        """Take a view: home at once, or when its compass estimate has come."""
+        if message.fill != 'zero':
+            self.reject('fill', f"coefficients filled with {message.fill!r}; warping needs fill 'zero'")
+            return
+        if not self.values['use_compass']:
+            self.home(message, None)
+            return
+        pair = self.pairer.add('sh', stamp_ns(message.header), message)
+        if pair is not None:
+            self.home(pair[1], pair[2])
+
+    def target_index(self) -> int | None:
+        """Return the snapshot to home to, or None when there is none yet."""
+        count = len(self.store)
+        if count == 1:
+            return 0
+        if self.values['target'] == 'index':
+            return min(self.values['index'], count - 1)
+        if self.match is None:
+            return None
+        if self.values['target'] == 'next':
+            return min(self.match.index + self.values['lookahead'], count - 1)
+        return int(self.match.index)
+
+    def home(self, message: ShCoefficients, compass: CompassEstimate | None) -> None:
+        """Publish the home vector of one view."""
+        stamp = stamp_ns(message.header)
+        if stamp <= self.last_stamp:
+            self.reject('out_of_order', f'view stamped {stamp} is not newer than the last one')
+            return
+        if self.store is None or len(self.store) == 0:
+            self.reject('no_map', 'no map with snapshots to home to (set the map parameter)')
+            return
+        index = self.target_index()
+        if index is None:
+            self.reject('no_target', 'no accepted place match yet to choose the snapshot to home to')
+            return
+        coefficients = np.asarray(message.coefficients, np.float64)
+        if coefficients.size != (message.max_degree + 1) ** 2 or message.max_degree < self.settings.degree:
+            self.reject('degree', f'coefficients of degree {message.max_degree} ({coefficients.size} values); '
+                                  f'the search needs degree {self.settings.degree}')
+            return
+        self.last_stamp = stamp
+        with self.processing(stamp):
+            current = view_from_coefficients(coefficients, float(message.field_of_view), self.settings.degree)
+            snapshot = self.snapshot_view(index, float(message.field_of_view))
+            rotation = None
+            if compass is not None:  # against this snapshot or a neighbour: a good start either way
+                q = compass.rotation
+                rotation = np.array([q.x, q.y, q.z, q.w])
+            estimate = estimate_home_vector(current, snapshot, rotation, self.settings)
+            result = HomeVector(snapshot_index=index)
+            result.header = message.header
+            result.direction.x, result.direction.y, result.direction.z = (float(v) for v in estimate.best_direction)
+            (result.rotation.x, result.rotation.y, result.rotation.z,
+             result.rotation.w) = (float(v) for v in estimate.quaternion)
+            result.residual = float(1.0 - estimate.confidence)
+        self.emit(HOME_TOPIC, result)
+
+
+def main(args=None) -> int:
+    """Run the warping node until Ctrl-C."""
+    return run_node(WarpingNode, args)
