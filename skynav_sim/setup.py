@@ -21,6 +21,8 @@ setup(
         'skynav.commands': [
             'sim = skynav_sim.cli',
             'sim.bag = skynav_sim.cli.bag',
+            'sim.follow = skynav_sim.cli.follow',
+            'sim.home = skynav_sim.cli.home',
             'sim.preview = skynav_sim.cli.preview',
         ],
     },

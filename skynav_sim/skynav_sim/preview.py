@@ -35,6 +35,33 @@ def _display(image: np.ndarray) -> np.ndarray:
     return np.clip(values / max(top, 1e-12), 0, 1) ** 0.5
 
 
+def draw_world(figure, axis, world: World, extent: float) -> None:
+    """Draw a top view of a world into `axis`: relief, object footprints (crowns shaded), the yard's edge."""
+    from matplotlib.patches import Circle, Rectangle
+
+    axis_values = np.linspace(-extent, extent, 300)
+    x, y = np.meshgrid(axis_values, axis_values)
+    relief = axis.imshow(world.terrain.height(x, y), origin='lower', extent=(-extent, extent, -extent, extent),
+                         cmap='terrain', alpha=0.8)
+    figure.colorbar(relief, ax=axis, shrink=0.5, label='terrain height (m)')
+    for f in world.footprints:
+        colour = KIND_COLOURS.get(f.kind, 'k')
+        if f.canopy:
+            axis.add_patch(Circle(f.center, f.canopy, color=colour, alpha=0.35))
+        if f.disc:
+            axis.add_patch(Circle(f.center, f.half_sizes[0], color=colour))
+        else:
+            corner = f.center - Rotation.from_euler('z', f.yaw).apply([*f.half_sizes, 0])[:2]
+            axis.add_patch(Rectangle(corner, 2 * f.half_sizes[0], 2 * f.half_sizes[1], angle=np.degrees(f.yaw),
+                                     color=colour))
+    axis.add_patch(Circle((0, 0), YARD_RADIUS, fill=False, linestyle='--', color='k', linewidth=0.8))
+    axis.set_xlim(-extent, extent)
+    axis.set_ylim(-extent, extent)
+    axis.set_aspect('equal')
+    axis.set_xlabel('x east (m)')
+    axis.set_ylabel('y north (m)')
+
+
 def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, world: World | None,
          title: str) -> Path:
     """Draw the contact sheet of `frames` (and a top view of `world` with every pose) into a PNG file."""
@@ -42,7 +69,6 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Rectangle
 
     rows = len(frames)
     figure = plt.figure(figsize=(4 * 3 + 7, max(3.2 * rows, 7)), layout='constrained')
@@ -50,23 +76,7 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
     top = figure.add_subplot(grid[:, 0])
     extent = YARD_RADIUS + TOP_VIEW_MARGIN
     if world is not None:
-        terrain = world.terrain
-        axis = np.linspace(-extent, extent, 300)
-        x, y = np.meshgrid(axis, axis)
-        relief = top.imshow(terrain.height(x, y), origin='lower', extent=(-extent, extent, -extent, extent),
-                            cmap='terrain', alpha=0.8)
-        figure.colorbar(relief, ax=top, shrink=0.5, label='terrain height (m)')
-        for f in world.footprints:
-            colour = KIND_COLOURS.get(f.kind, 'k')
-            if f.canopy:
-                top.add_patch(Circle(f.center, f.canopy, color=colour, alpha=0.35))
-            if f.disc:
-                top.add_patch(Circle(f.center, f.half_sizes[0], color=colour))
-            else:
-                corner = f.center - Rotation.from_euler('z', f.yaw).apply([*f.half_sizes, 0])[:2]
-                top.add_patch(Rectangle(corner, 2 * f.half_sizes[0], 2 * f.half_sizes[1],
-                                        angle=np.degrees(f.yaw), color=colour))
-        top.add_patch(Circle((0, 0), YARD_RADIUS, fill=False, linestyle='--', color='k', linewidth=0.8))
+        draw_world(figure, top, world, extent)
     top.plot(all_positions[:, 0], all_positions[:, 1], '.', color='#1565c0', markersize=3, label='all poses')
     for frame in frames:
         forward = Rotation.from_quat(frame.quaternion).apply([1.0, 0.0, 0.0])
@@ -76,8 +86,6 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
     top.set_xlim(-extent, extent)
     top.set_ylim(-extent, extent)
     top.set_aspect('equal')
-    top.set_xlabel('x east (m)')
-    top.set_ylabel('y north (m)')
     top.set_title('top view (synthetic world); red: frames shown, arrow = robot forward')
     for row, frame in enumerate(frames):
         for column, (image, name) in enumerate(((frame.uv, 'UV'), (frame.green, 'green'),

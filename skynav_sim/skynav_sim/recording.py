@@ -48,10 +48,14 @@ class Capture:
     green: np.ndarray
 
 
+def start_stamp(hours: float) -> int:
+    """Return the stamp (ns) of a recording's first frame taken at `hours` local solar time."""
+    return int(round((SIMULATED_DATE + datetime.timedelta(hours=hours)).timestamp() * 1e9))
+
+
 def stamps(frames: list[Frame]) -> list[int]:
     """Return the header stamps (ns) of frames: FRAME_RATE apart from the first frame's time of day."""
-    start = SIMULATED_DATE + datetime.timedelta(hours=frames[0].hours)
-    first = int(round(start.timestamp() * 1e9))
+    first = start_stamp(frames[0].hours)
     period = int(round(1e9 / FRAME_RATE))
     return [first + k * period for k in range(len(frames))]
 

@@ -159,14 +159,14 @@ def _repeat(world: World, params: ScenarioParameters, rng: np.random.Generator) 
     return _drive(world, params, rng, params.offset, params.shake, 'route', params.wobble)
 
 
-def _snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
+def snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
     """Return the place of the homing/compass snapshot: the free point nearest to the middle of the route."""
     spline, total = route(world, params.route_seed, params.route_length)
     return spline(total / 2)
 
 
 def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
-    home = _snapshot_place(world, params)
+    home = snapshot_place(world, params)
     frames = [Frame(camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi)), params.hours,
                     params.cloud_cover, 'snapshot')]
     steps = np.arange(-params.grid_radius, params.grid_radius + 1e-9, params.spacing)
@@ -181,7 +181,7 @@ def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) 
 
 
 def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
-    place = _snapshot_place(world, params)
+    place = snapshot_place(world, params)
     reference = camera_pose(world.terrain, *place, rng.uniform(0, 2 * np.pi))
     frames = [Frame(reference, params.hours, params.cloud_cover, 'reference')]
     for _ in range(params.count):

@@ -1,0 +1,138 @@
+"""Closed-loop route following in the synthetic world of a teach drive, with the skynav nodes in the loop.
+
+The map (`skynav map build TEACH.mcap`) holds the snapshots of a synthetic teach drive; the world,
+its seed and the camera are read back from the teach recording. A simulated robot starts beside the
+route's first snapshot, off by --offset metres to the left and turned by --turn degrees, and each
+cycle renders its view and publishes it as a camera would; the skyline, SH, localize, compass and
+warping nodes answer in this process: the place match, the rotation against the matched snapshot
+and the home vector to the snapshot ROUTE_LOOKAHEAD (6) ahead. The robot steers along the route's
+direction at the matched snapshot (from the compass), pulled towards the snapshot ahead as far as
+the home vector is confident, and drives 0.25 m a step until the match reaches the route's end.
+Reports how far the path stayed from the taught route and plots both. Everything is synthetic.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = 'closed-loop route following of a simulated robot along a taught (synthetic) route'
+END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end (a correct place match's tolerance)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav sim follow`."""
+    parser.add_argument('teach', type=Path, metavar='TEACH.mcap', help='the synthetic teach drive the map was built from')
+    parser.add_argument('--map', type=Path, required=True, metavar='MAP.db', help='its map (`skynav map build`)')
+    parser.add_argument('--offset', type=float, default=0.3, metavar='M',
+                        help="start this far left of the route's first snapshot (negative: right; default 0.3)")
+    parser.add_argument('--turn', type=float, default=20.0, metavar='DEG',
+                        help="start turned this far left of the route's direction (default 20)")
+    parser.add_argument('--time', default='morning', help='time of day of the run (default morning)')
+    parser.add_argument('--max-steps', type=int, default=0, metavar='N',
+                        help='steps before the run is given up (default: twice the route length over the step)')
+    parser.add_argument('--out', type=Path, default=Path('sim_follow'), metavar='DIR',
+                        help='folder for the plot (default sim_follow)')
+
+
+def teach_world(teach: Path):
+    """Return (world, seed, camera) of a synthetic teach recording; CliError when it is not one."""
+    import yaml
+
+    from skynav_bringup.bag import BagError, open_bag
+    from skynav_bringup.cli import CliError
+    from skynav_sh.camera import EquidistantCamera
+
+    from ..world import STYLES, generate
+
+    try:
+        with open_bag(teach) as bag:
+            description = yaml.safe_load(bag.custom_data.get('skynav_sim', '')) or {}
+            info = next((bag.deserialize(raw) for raw in bag.messages(['/camera/uv/camera_info'])), None)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
+    if description.get('scenario') != 'teach' or description.get('world') not in STYLES or info is None:
+        raise CliError(f'{teach}: not a synthetic teach drive of skynav_sim (its world is needed to drive in)')
+    seed = int(description['seed'])
+    return generate(description['world'], int(description.get('world_seed', seed))), seed, \
+        EquidistantCamera.from_camera_info(info)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Follow the route once; return the exit code."""
+    import numpy as np
+
+    from skynav_bringup.cli import CliError
+    from skynav_localize.store import MapError, MapStore
+
+    from ..closed_loop import STEP, follow_route, route_deviation
+    from ..sky import parse_time
+
+    try:
+        hours = parse_time(args.time)
+    except ValueError as exc:
+        raise CliError(str(exc), exit_code=2) from None
+    if args.max_steps < 0:
+        raise CliError('--max-steps must not be negative', exit_code=2)
+    world, seed, camera = teach_world(args.teach)
+    try:
+        with MapStore.open(args.map) as store:
+            poses = store.poses()
+            count = len(store)
+    except MapError as exc:
+        raise CliError(str(exc)) from None
+    if count < 2 or not np.all(np.isfinite(poses[:, :2])):
+        raise CliError(f'{args.map}: route following needs a map of at least 2 snapshots with poses')
+    route = poses[:, :2]
+    forward = route[min(3, count - 1)] - route[0]
+    route_heading = float(np.arctan2(forward[1], forward[0]))
+    left = np.array([-np.sin(route_heading), np.cos(route_heading)])
+    start = route[0] + args.offset * left
+    length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
+    max_steps = args.max_steps or int(2 * length / STEP) + 10
+    print(f'following the {length:.1f} m route of {args.map.name} ({count} snapshots) in the synthetic '
+          f'{world.style} world (seed {seed}) at {hours:.1f} h, from {args.offset:+.2f} m beside its start, '
+          f'turned {args.turn:+.0f} deg', flush=True)
+    run, route = follow_route(world, camera, args.map, start, route_heading + np.radians(args.turn), hours, seed,
+                              max_steps)
+    deviation = route_deviation(run, route)
+    end = float(np.linalg.norm(run.path[-1] - route[-1]))
+    reached = run.stopped == 'end' and end <= END_RADIUS
+    print(f'{len(run.path) - 1} steps; stopped: {run.stopped}; {end:.2f} m from the last snapshot '
+          f'({"reached the end" if reached else "did NOT reach the end"})')
+    print(f'distance from the taught route: median {np.median(deviation):.2f} m, 90th percentile '
+          f'{np.percentile(deviation, 90):.2f} m, largest {deviation.max():.2f} m (at the start {deviation[0]:.2f} m)')
+    args.out.mkdir(parents=True, exist_ok=True)
+    plot = args.out / 'route_following.png'
+    draw_route(plot, world, route, run, f'SYNTHETIC closed-loop route following: {world.style} world, seed {seed}')
+    print(f'plot: {plot}')
+    return 0 if reached else 1
+
+
+def draw_route(path: Path, world, route, run, title: str) -> None:
+    """Plot the taught route and the driven path over a top view of the world."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from ..preview import draw_world
+
+    points = np.array(run.path)
+    both = np.vstack([route, points])
+    centre = (both.min(axis=0) + both.max(axis=0)) / 2
+    half = float(np.max(both.max(axis=0) - both.min(axis=0))) / 2 + 1.5
+    figure, axis = plt.subplots(figsize=(9, 8), layout='constrained')
+    draw_world(figure, axis, world, 40.0)
+    axis.plot(route[:, 0], route[:, 1], '.-', color='gold', markeredgecolor='k', linewidth=2,
+              label='taught route (snapshots)')
+    axis.plot(points[:, 0], points[:, 1], 'o-', color='#1565c0', markersize=3, linewidth=1.5, label='driven path')
+    axis.plot(*points[0], 's', color='#1565c0', markersize=8, label='start')
+    axis.set_xlim(centre[0] - half, centre[0] + half)
+    axis.set_ylim(centre[1] - half, centre[1] + half)
+    axis.legend(loc='upper right')
+    axis.set_title(title)
+    figure.savefig(path, dpi=80)
+    plt.close(figure)
