@@ -14,7 +14,6 @@ import sys
 import threading
 import time
 from collections.abc import Sequence
-from pathlib import Path
 from typing import TextIO
 
 from .environment import apply_ros_environment
@@ -25,20 +24,17 @@ STOP_GRACE = 10.0
 POLL_PERIOD = 0.1
 
 
-def node_command(spec: NodeSpec, params_file: Path | None = None) -> list[str]:
-    """Return the command line that runs one node in a process of its own."""
-    command = [sys.executable, '-m', 'skynav_bringup.run_node', spec.entry, '--ros-args']
-    if params_file is not None:
-        command += ['--params-file', str(params_file)]
-    return command
+def node_command(spec: NodeSpec, ros_args: Sequence[str] = ()) -> list[str]:
+    """Return the command line that runs one node in a process of its own, with its --ros-args."""
+    return [sys.executable, '-m', 'skynav_bringup.run_node', spec.entry, '--ros-args', *ros_args]
 
 
 class Launcher:
     """The processes of a set of nodes."""
 
-    def __init__(self, specs: Sequence[NodeSpec], params_file: Path | None = None, out: TextIO = sys.stdout):
+    def __init__(self, specs: Sequence[NodeSpec], ros_args: Sequence[str] = (), out: TextIO = sys.stdout):
         self.specs = list(specs)
-        self.params_file = params_file
+        self.ros_args = list(ros_args)
         self.out = out
         self.processes: dict[str, subprocess.Popen] = {}
         self.exit_codes: dict[str, int] = {}
@@ -57,7 +53,7 @@ class Launcher:
         env['PYTHONUNBUFFERED'] = '1'
         for spec in self.specs:
             process = subprocess.Popen(
-                node_command(spec, self.params_file),
+                node_command(spec, self.ros_args),
                 stdout=subprocess.PIPE,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,

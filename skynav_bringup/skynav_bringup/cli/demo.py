@@ -6,7 +6,9 @@ Each step prints the command it runs, so every result can be reproduced by hand:
   2. the node graph over the repeat drive of the same route with that map (`skynav run --map`);
   3. what the nodes did, against the ground truth: the classification rate of every skyline mask
      and a contact sheet of inputs and masks; every place match, with a plot of the matches along
-     the route.
+     the route; the compass's rotation errors and the home vectors' direction errors;
+  4. the whole chain in closed loop: a simulated robot follows the taught route in the synthetic
+     world of the teach drive, the nodes steering it (`skynav sim follow`), with a plot.
 
 Outputs go to the folder given with --out (default out/demo); earlier outputs there are replaced.
 Everything the demo shows is computed from synthetic recordings.
@@ -23,6 +25,8 @@ HELP = 'run the chain over bundled synthetic recordings and summarise'
 DEFAULT_TEACH = Path('bags/synthetic_garden_teach.mcap')
 DEFAULT_REPEAT = Path('bags/synthetic_garden_repeat.mcap')
 TOLERANCE = 1.0  # m: a place match is correct when the snapshot lies this close to the true position
+HOMING_NEAR = 0.5  # m: home vectors to a snapshot nearer than this are reported apart (cf. skynav eval homing)
+HOMING_MISS = 30.0  # deg: a home vector off by more than this is a miss
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -61,6 +65,9 @@ def run(args: argparse.Namespace) -> int:
     print('\n== 3. what the nodes did, against the ground truth of the recordings')
     rates = skyline_summary(args.repeat, run_bag, args.out / 'skyline_sheet.png')
     localization_summary(args.repeat, run_bag, map_file, args.out / 'localization_matches.png')
+    navigation_summary(args.repeat, run_bag, map_file)
+    step('4. closed loop: a simulated robot follows the taught route, steered by the nodes',
+         ['skynav', 'sim', 'follow', str(args.teach), '--map', str(map_file), '--out', str(args.out)])
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
     return 0 if rates else 1
 
@@ -181,3 +188,63 @@ def localization_summary(recording: Path, run_bag: Path, map_file: Path, plot: P
                              f'skynav demo: {recording.stem} against the map of the teach drive', True, plot)
     store.close()
     print(f'  plot: {plot}')
+
+
+def navigation_summary(recording: Path, run_bag: Path, map_file: Path) -> None:
+    """Print the compass's rotation errors and the home vectors' direction errors against ground truth."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from skynav_localize.store import MapStore
+
+    from ..bag import open_bag
+    from ..images import stamp_ns
+
+    poses = {}
+    with open_bag(recording) as bag:
+        for raw in bag.messages(['/ground_truth/pose']):
+            message = bag.deserialize(raw)
+            p, q = message.pose.position, message.pose.orientation
+            poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), Rotation.from_quat([q.x, q.y, q.z, q.w]))
+    with open_bag(run_bag) as bag:
+        compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]
+        homing = [bag.deserialize(raw) for raw in bag.messages(['/homing/home_vector'])]
+    with MapStore.open(map_file) as store:
+        snapshots = store.poses()
+
+    def percentiles(values) -> str:
+        return (f'median {np.median(values):.1f} deg, 90th percentile {np.percentile(values, 90):.1f} deg, '
+                f'largest {np.max(values):.1f} deg') if len(values) else 'none'
+
+    rotation_errors = []
+    for estimate in compass:
+        _, current = poses[stamp_ns(estimate.header)]
+        truth = Rotation.from_quat(snapshots[estimate.snapshot_index, 3:]).inv() * current  # d_snapshot = R d_current
+        q = estimate.rotation
+        rotation_errors.append(np.degrees((Rotation.from_quat([q.x, q.y, q.z, q.w]) * truth.inv()).magnitude()))
+    print(f'\ncompass (/compass/orientation) against the matched snapshot: {len(compass)} estimates; '
+          f'3D rotation error {percentiles(rotation_errors)}')
+    direction_errors, distances, residuals = [], [], []
+    for vector in homing:
+        position, current = poses[stamp_ns(vector.header)]
+        offset = snapshots[vector.snapshot_index, :3] - position
+        truth = current.inv().apply(offset / np.linalg.norm(offset))  # in the current camera_link
+        direction = np.array([vector.direction.x, vector.direction.y, vector.direction.z])
+        direction_errors.append(np.degrees(np.arccos(np.clip(direction @ truth, -1.0, 1.0))))
+        distances.append(np.linalg.norm(offset))
+        residuals.append(vector.residual)
+    if not homing:
+        print('home vectors (/homing/home_vector): none')
+        return
+    direction_errors, distances, residuals = np.array(direction_errors), np.array(distances), np.array(residuals)
+    far = distances >= HOMING_NEAR
+    print(f'home vectors (/homing/home_vector) to the snapshot ahead: {len(homing)} vectors, '
+          f'{np.min(distances):.1f}-{np.max(distances):.1f} m from it; direction error')
+    print(f'  {far.sum():3d} at {HOMING_NEAR:g} m or more: {percentiles(direction_errors[far])}')
+    print(f'  {(~far).sum():3d} nearer (little parallax; at the route\'s end): '
+          f'{percentiles(direction_errors[~far])}')
+    miss = direction_errors > HOMING_MISS
+    if miss.any() and (~miss).any():
+        print(f'  the residual (1 - confidence) flags the misses: median {np.median(residuals[~miss]):.2f} where the '
+              f'error is under {HOMING_MISS:g} deg ({(~miss).sum()}), {np.median(residuals[miss]):.2f} where it is '
+              f'over ({miss.sum()})')

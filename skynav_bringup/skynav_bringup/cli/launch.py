@@ -1,9 +1,9 @@
 """Start the skynav node graph on live topics, one process per node; Ctrl-C stops every node cleanly.
 
 The nodes are those installed in this environment (see `skynav_bringup.nodes`).
-Parameters come from the YAML file given with --params, in the ROS 2 format
-(`node_name: {ros__parameters: {...}}`), by default the one shipped in
-skynav_bringup/config. On a full ROS 2 install,
+Parameters come from the defaults shipped in skynav_bringup/config, overridden by the YAML file
+given with --params, in the ROS 2 format (`node_name: {ros__parameters: {...}}`); --map sets the
+map of the nodes that compare against one (localize, compass, warping). On a full ROS 2 install,
 `ros2 launch skynav_bringup skynav.launch.py` starts the same graph.
 """
 
@@ -18,7 +18,9 @@ HELP = 'start the whole node graph on live topics'
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav launch`."""
-    parser.add_argument('--params', metavar='FILE', type=Path, help='ROS 2 parameter file (YAML)')
+    parser.add_argument('--params', metavar='FILE', type=Path,
+                        help='ROS 2 parameter file (YAML) over the shipped defaults')
+    parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--nodes', nargs='+', metavar='NAME', help='start only these nodes')
 
 
@@ -56,10 +58,11 @@ def run(args: argparse.Namespace) -> int:
     from ..nodes import installed_nodes
     from ..ros import StopRequest
     from . import CliError
+    from .run import ros_arguments
 
-    params = args.params or default_params_file()
-    if params is not None:
-        check_params_file(params)
+    if args.map is not None and not args.map.is_file():
+        raise CliError(f'{args.map}: no such map file')
+    ros_args = ros_arguments(args.params, args.map)
     specs = installed_nodes()
     if args.nodes:
         if unknown := sorted(set(args.nodes) - {s.name for s in specs}):
@@ -69,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     if not specs:
         print('skynav launch: no skynav nodes are installed yet; nothing to start.', file=sys.stderr)
         return 0
-    launcher = Launcher(specs, params)
+    launcher = Launcher(specs, ros_args)
     with StopRequest() as stop:
         launcher.start()
         return launcher.wait(lambda: stop.requested)

@@ -1,0 +1,106 @@
+"""The running graph localizes a replayed repeat drive on the map of its teach drive, and steers along it.
+
+`skynav launch --map` starts every node (skyline, sh, localize, compass, warping), `skynav replay`
+plays the synthetic repeat drive, and the outputs are checked against the ground truth. Offline
+(`skynav eval localization`, `skynav demo`) every place match of this pair is accepted and correct,
+the compass's error against the matched snapshot is 0.8 deg median and 1.5 deg at most, and the home
+vectors to the snapshot ahead are off by 16 deg (median). Live, a camera frame may occasionally be
+dropped by the best-effort camera subscription, which the bounds allow for.
+"""
+
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from skynav_bringup.bag import open_bag
+from skynav_bringup.images import stamp_ns
+from skynav_bringup.testing import run_skynav, start_skynav, wait_text
+from skynav_localize.evaluation import correct_matches
+from skynav_localize.store import MapStore
+
+BAGS = Path(__file__).parents[1] / 'bags'
+RECENT_NS = 500_000_000  # a match of a view this far (ns) from another may be the latest a node has
+
+
+def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_context):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from scipy.spatial.transform import Rotation
+    from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch
+
+    map_file = tmp_path / 'garden.db'
+    built = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(map_file))
+    assert built.returncode == 0, built.stderr
+    repeat = BAGS / 'synthetic_garden_repeat.mcap'
+    truth, orientation = {}, {}
+    with open_bag(repeat) as bag:
+        for raw in bag.messages(['/ground_truth/pose']):
+            message = bag.deserialize(raw)
+            p, q = message.pose.position, message.pose.orientation
+            truth[stamp_ns(message.header)] = np.array([p.x, p.y, p.z])
+            orientation[stamp_ns(message.header)] = Rotation.from_quat([q.x, q.y, q.z, q.w])
+
+    node = Node('localize_test', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    matches, compass, homing = {}, {}, {}
+    for topic, message_type, received in (('/localization/match', PlaceMatch, matches),
+                                          ('/compass/orientation', CompassEstimate, compass),
+                                          ('/homing/home_vector', HomeVector, homing)):
+        node.create_subscription(message_type, topic, lambda m, r=received: r.__setitem__(stamp_ns(m.header), m), 100)
+    launch = start_skynav('launch', '--map', str(map_file))
+    try:
+        deadline = time.monotonic() + 60
+        outputs = ('/localization/match', '/compass/orientation', '/homing/home_vector')
+        while min(node.count_publishers(t) for t in outputs) == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        replay = start_skynav('replay', str(repeat), '--rate', '1', '--wait-for-subscribers', '30',
+                              '--topics', '/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+        while replay.poll() is None:
+            executor.spin_once(timeout_sec=0.05)
+        assert replay.returncode == 0, replay.stderr.read()
+        deadline = time.monotonic() + 10
+        while min(len(matches), len(homing)) < len(truth) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        launch.send_signal(signal.SIGINT)
+        out, err = launch.communicate(timeout=60)
+        executor.shutdown()
+        node.destroy_node()
+    assert launch.returncode == 0, out + err
+    assert len(matches) >= 0.95 * len(truth), f'{len(matches)} matches for {len(truth)} frames'
+    with MapStore.open(map_file) as store:
+        snapshots = store.poses()
+    stamps = sorted(matches)
+    matched = np.array([matches[s].index for s in stamps])
+    accepted = np.array([matches[s].accepted for s in stamps])
+    correct = correct_matches(matched, np.stack([truth[s] for s in stamps]), snapshots[:, :3], 1.0)
+    assert accepted.mean() >= 0.9
+    assert correct[accepted].all()  # precision 100 %
+    assert all(matches[s].map_name == 'garden' for s in stamps)
+
+    # the compass against the matched snapshot: d_snapshot = R d_current, true R = Q_s^-1 Q_c
+    assert len(compass) >= 0.9 * len(truth)
+    errors = []
+    for stamp, estimate in compass.items():
+        q = estimate.rotation
+        true = Rotation.from_quat(snapshots[estimate.snapshot_index, 3:]).inv() * orientation[stamp]
+        errors.append(np.degrees((Rotation.from_quat([q.x, q.y, q.z, q.w]) * true.inv()).magnitude()))
+    assert np.median(errors) < 2.0 and max(errors) < 5.0
+
+    # home vectors to the snapshot 6 ahead of the latest match the warping node had (this view's, or one of a
+    # view shortly before or after: the topics arrive independently), in the current camera_link
+    assert len(homing) >= 0.9 * len(truth)
+    errors = []
+    for stamp, vector in homing.items():
+        recent = [m.index for t, m in matches.items() if abs(t - stamp) <= RECENT_NS]
+        assert vector.snapshot_index in {min(i + 6, len(snapshots) - 1) for i in recent}
+        offset = snapshots[vector.snapshot_index, :3] - truth[stamp]
+        true = orientation[stamp].inv().apply(offset / np.linalg.norm(offset))
+        direction = np.array([vector.direction.x, vector.direction.y, vector.direction.z])
+        assert np.linalg.norm(direction) == pytest.approx(1.0, abs=1e-6) and 0.0 <= vector.residual <= 1.0
+        errors.append(np.degrees(np.arccos(np.clip(direction @ true, -1.0, 1.0))))
+    assert np.median(errors) < 25.0
