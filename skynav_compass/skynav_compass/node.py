@@ -55,20 +55,13 @@ class CompassNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Open the map and set the compass up (ValueError if unusable)."""
-        from skynav_localize.store import MapError, MapStore
+        from skynav_localize.store import map_for_parameter
 
         if values['reference'] not in REFERENCES:
             raise ValueError(f'reference must be one of {", ".join(REFERENCES)}')
         if values['index'] < 0 or not 2 <= values['max_degree'] <= 64:
             raise ValueError('index must not be negative; max_degree must be within 2..64')
-        store = self.store
-        if values['map'] != (str(store.path) if store is not None else ''):
-            store = None
-            if values['map']:
-                try:
-                    store = MapStore.open(values['map'])
-                except MapError as exc:
-                    raise ValueError(str(exc)) from None
+        store = map_for_parameter(self.store, values['map'])
         self.values = values
         self.compass = Compass(values['max_degree'])
         self.store = store

@@ -9,7 +9,6 @@ be opened is refused (the old one stays). Without a usable map every match is in
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from skynav_msgs.msg import PlaceMatch, ShCoefficients
@@ -20,7 +19,7 @@ from skynav_bringup.ros import run_node
 
 from .localizer import OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
-from .store import MapError, MapStore
+from .store import MapStore, map_for_parameter
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
@@ -57,14 +56,7 @@ class LocalizeNode(SkynavNode):
             raise ValueError('need 0 < min_speed <= max_speed')
         if values['sequence_length'] < 1 or values['candidates'] < 1:
             raise ValueError('sequence_length and candidates must be at least 1')
-        store = self.store
-        if values['map'] != (str(store.path) if store is not None else ''):
-            store = None
-            if values['map']:
-                try:
-                    store = MapStore.open(Path(values['map']))
-                except MapError as exc:
-                    raise ValueError(str(exc)) from None
+        store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
             return

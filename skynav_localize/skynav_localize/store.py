@@ -593,3 +593,15 @@ class MapStore:
     def __repr__(self) -> str:
         return f'MapStore({str(self.path)!r}, name={self.name!r}, snapshots={len(self)}, L={self.max_degree})'
 
+
+
+def map_for_parameter(current: MapStore | None, path: str) -> MapStore | None:
+    """Return the map a node's `map` parameter names: `current` if it is that file, None for ''; ValueError if unusable."""
+    if path == (str(current.path) if current is not None else ''):
+        return current
+    if not path:
+        return None
+    try:
+        return MapStore.open(Path(path))
+    except MapError as exc:
+        raise ValueError(str(exc)) from None

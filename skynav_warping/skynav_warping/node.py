@@ -61,20 +61,13 @@ class WarpingNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Open the map and set the search up (ValueError if unusable)."""
-        from skynav_localize.store import MapError, MapStore
+        from skynav_localize.store import map_for_parameter
 
         if values['target'] not in TARGETS:
             raise ValueError(f'target must be one of {", ".join(TARGETS)}')
         if values['lookahead'] < 0 or values['index'] < 0 or not 4 <= values['max_degree'] <= 32:
             raise ValueError('lookahead and index must not be negative; max_degree must be within 4..32')
-        store = self.store
-        if values['map'] != (str(store.path) if store is not None else ''):
-            store = None
-            if values['map']:
-                try:
-                    store = MapStore.open(values['map'])
-                except MapError as exc:
-                    raise ValueError(str(exc)) from None
+        store = map_for_parameter(self.store, values['map'])
         self.values = values
         self.settings = WarpingSettings(degree=values['max_degree'])
         self.store = store
