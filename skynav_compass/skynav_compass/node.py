@@ -109,6 +109,11 @@ class CompassNode(SkynavNode):
         elif self.match is None:
             self.reject('no_reference', 'no accepted place match yet to choose the snapshot')
             return None
+        elif self.match.index >= len(self.store):
+            self.reject('match_beyond_map', f'the place match names snapshot {self.match.index} of map '
+                                            f'{self.match.map_name!r}; this node has {len(self.store)} snapshots '
+                                            f'of {self.store.name!r}')
+            return None
         else:
             index = int(self.match.index)
         return index, self.snapshot_view(index, field_of_view)
@@ -121,6 +126,9 @@ class CompassNode(SkynavNode):
         if coefficients.size != (message.max_degree + 1) ** 2 or message.max_degree < degree:
             self.reject('degree', f'coefficients of degree {message.max_degree} ({coefficients.size} values); '
                                   f'the compass needs degree {degree}')
+            return
+        if not np.all(np.isfinite(coefficients)):
+            self.reject('non_finite', f'view stamped {stamp} has NaN or infinite coefficients')
             return
         if stamp <= self.last_stamp:
             self.reject('out_of_order', f'view stamped {stamp} is not newer than the last one')

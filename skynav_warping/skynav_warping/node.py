@@ -108,13 +108,19 @@ class WarpingNode(SkynavNode):
             self.home(pair[1], pair[2])
 
     def target_index(self) -> int | None:
-        """Return the snapshot to home to, or None when there is none yet."""
+        """Return the snapshot to home to, or None when there is none (the reason is counted)."""
         count = len(self.store)
         if count == 1:
             return 0
         if self.values['target'] == 'index':
             return min(self.values['index'], count - 1)
         if self.match is None:
+            self.reject('no_target', 'no accepted place match yet to choose the snapshot to home to')
+            return None
+        if self.match.index >= count:
+            self.reject('match_beyond_map', f'the place match names snapshot {self.match.index} of map '
+                                            f'{self.match.map_name!r}; this node has {count} snapshots '
+                                            f'of {self.store.name!r}')
             return None
         if self.values['target'] == 'next':
             return min(self.match.index + self.values['lookahead'], count - 1)
@@ -131,12 +137,14 @@ class WarpingNode(SkynavNode):
             return
         index = self.target_index()
         if index is None:
-            self.reject('no_target', 'no accepted place match yet to choose the snapshot to home to')
             return
         coefficients = np.asarray(message.coefficients, np.float64)
         if coefficients.size != (message.max_degree + 1) ** 2 or message.max_degree < self.settings.degree:
             self.reject('degree', f'coefficients of degree {message.max_degree} ({coefficients.size} values); '
                                   f'the search needs degree {self.settings.degree}')
+            return
+        if not np.all(np.isfinite(coefficients)):
+            self.reject('non_finite', f'view stamped {stamp} has NaN or infinite coefficients')
             return
         self.last_stamp = stamp
         with self.processing(stamp):
