@@ -23,8 +23,6 @@ PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 @pytest.fixture(scope='module')
 def garden_views():
     """The garden compass set as the skyline and SH nodes see it (default node parameters)."""
-    if not GARDEN.exists():
-        pytest.skip(f'{GARDEN} not available')
     from skynav_bringup.cli.run import ros_arguments
     from skynav_sh.views import recording_views
 
@@ -85,8 +83,6 @@ def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
 
 
 def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
-    if not GARDEN.exists():
-        pytest.skip(f'{GARDEN} not available')
     result = run_skynav('eval', 'compass', str(GARDEN), '--methods', 'fft-masked', 'visual-compass-panorama',
                         '--plots', str(tmp_path / 'plots'))
     assert result.returncode == 0, result.stderr

@@ -55,8 +55,6 @@ def test_statistics_table_and_plot(tmp_path):
 
 def test_runner_on_a_few_frames_of_a_bundled_set():
     path = BAGS / 'synthetic_mineral_compass.mcap'
-    if not path.exists():
-        pytest.skip(f'{path} not available')
     data = load_compass_set(path)
     queries = [1, 2, 16]
     runs = run_methods(data, standard_methods(data.camera, 12, ['fft-masked', 'visual-compass-panorama']), queries)

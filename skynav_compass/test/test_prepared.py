@@ -87,8 +87,6 @@ def test_degree_first_rotation_matches_rotate_by_matrix():
 
 def test_runner_prepares_the_snapshot_once_for_prepared_methods():
     path = BAGS / 'synthetic_mineral_compass.mcap'
-    if not path.exists():
-        pytest.skip(f'{path} not available')
     data = load_compass_set(path)
     runs = run_methods(data, standard_methods(data.camera, 8, ['fft-masked', 'fft-masked+prepared']), [1, 16])
     cold, warm = runs
