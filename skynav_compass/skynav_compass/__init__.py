@@ -10,8 +10,9 @@ Public names are loaded on first use (PEP 562), so `import skynav_compass` stays
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from skynav_sh.lazy import lazy_exports
 
 _EXPORTS = {
     'compass': ('Compass', 'CompassConfig', 'estimate_rotation', 'rotation_angle', 'zyz_matrices'),
@@ -31,24 +32,7 @@ _EXPORTS = {
     'recording': ('ExternalSnapshot', 'EvaluationError', 'RecordingEvaluation', 'evaluate_recording',
                   'evaluate_views', 'format_report', 'recording_methods'),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-__all__ = sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines a public name on first access."""
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(import_module(f'{__name__}.{module}'), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """List the public names next to the module's own."""
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.compass import *  # noqa: F401,F403

@@ -12,8 +12,9 @@ Public names are loaded on first use (PEP 562), so `import skynav_localize` stay
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from skynav_sh.lazy import lazy_exports
 
 _EXPORTS = {
     'store': ('MapError', 'MapStore', 'Snapshot', 'SCHEMA_VERSION'),
@@ -28,24 +29,7 @@ _EXPORTS = {
                    'format_table', 'has_true_place', 'plot_matches_along_route', 'plot_pr_curves', 'pr_auc',
                    'precision_recall', 'recall_at_1', 'recall_at_full_precision', 'threshold_at_full_precision'),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-__all__ = sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines a public name on first access."""
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(import_module(f'{__name__}.{module}'), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """List the public names next to the module's own."""
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_localize.baselines import *  # noqa: F401,F403

@@ -9,8 +9,9 @@ compass's d_snapshot = R d_current. Translation: translate(c, t / rho) gives g w
 
 from __future__ import annotations
 
-from importlib import import_module
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from skynav_sh.lazy import lazy_exports
 
 _EXPORTS = {
     'basis': ('SPHERE_AREA', 'degree_from_size', 'degree_order', 'degree_slices', 'lm_index', 'n_coefficients',
@@ -29,24 +30,7 @@ _EXPORTS = {
     'translation': ('source_directions', 'translate', 'translate_z', 'translated_directions',
                     'z_translation_blocks'),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-__all__ = sorted(_MODULE_OF)
-
-
-def __getattr__(name: str) -> Any:
-    """Import the submodule that defines a public name on first access."""
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
-    value = getattr(import_module(f'{__name__}.{module}'), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    """List the public names next to the module's own."""
-    return sorted(set(globals()) | set(__all__))
-
+__getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_sh.basis import *  # noqa: F401,F403
