@@ -11,6 +11,8 @@ a fixed snapshot ('index'), or a live view stored by calling the ~/store_referen
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from skynav_msgs.msg import CompassEstimate, PlaceMatch, ShCoefficients
 from std_srvs.srv import Trigger
@@ -44,7 +46,6 @@ class CompassNode(SkynavNode):
         self.match: PlaceMatch | None = None
         self.latest: CompassView | None = None
         self.live: CompassView | None = None
-        self._snapshot_views: dict = {}
         self.last_stamp = -1
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.on_match)
@@ -65,7 +66,8 @@ class CompassNode(SkynavNode):
         self.values = values
         self.compass = Compass(values['max_degree'])
         self.store = store
-        self._snapshot_views.clear()
+        # the views of map snapshots, built once per map and setting (least recently used dropped first)
+        self.snapshot_view = lru_cache(SNAPSHOT_VIEWS_CACHED)(self.build_snapshot_view)
 
     def store_reference(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Service: keep the latest view as the live reference."""
@@ -81,15 +83,10 @@ class CompassNode(SkynavNode):
         if match.accepted and match.index >= 0:
             self.match = match
 
-    def snapshot_view(self, index: int, field_of_view: float) -> CompassView:
-        """Return the compass view of one map snapshot (kept for the next views)."""
-        key = (index, field_of_view)
-        if key not in self._snapshot_views:
-            if len(self._snapshot_views) >= SNAPSHOT_VIEWS_CACHED:
-                self._snapshot_views.pop(next(iter(self._snapshot_views)))
-            self._snapshot_views[key] = CompassView.from_sh_message(
-                self.store.snapshot(index).coefficients, field_of_view, 'zero', self.values['max_degree'])
-        return self._snapshot_views[key]
+    def build_snapshot_view(self, index: int, field_of_view: float) -> CompassView:
+        """Return the view of one map snapshot as this node compares it."""
+        return CompassView.from_sh_message(self.store.snapshot(index).coefficients, field_of_view, 'zero',
+                                           self.values['max_degree'])
 
     def reference_view(self, field_of_view: float) -> tuple[int, CompassView] | None:
         """Return (index, view) of the reference, None when there is none yet (the reason is counted)."""

@@ -15,6 +15,8 @@ the same stamp and the search starts from it.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
@@ -49,7 +51,6 @@ class WarpingNode(SkynavNode):
         self.parameter('use_compass', True, 'start from the compass estimate of the same view (wait for it)')
         self.parameter('max_degree', 16, 'SH degree of the search')
         self.store = None
-        self._snapshot_views: dict = {}
         self.match: PlaceMatch | None = None
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0)
         self.last_stamp = -1
@@ -71,17 +72,12 @@ class WarpingNode(SkynavNode):
         self.values = values
         self.settings = WarpingSettings(degree=values['max_degree'])
         self.store = store
-        self._snapshot_views.clear()
+        # the views of map snapshots, built once per map and setting (least recently used dropped first)
+        self.snapshot_view = lru_cache(SNAPSHOT_VIEWS_CACHED)(self.build_snapshot_view)
 
-    def snapshot_view(self, index: int, field_of_view: float):
-        """Return the warping view of one map snapshot (kept for the next views)."""
-        key = (index, field_of_view)
-        if key not in self._snapshot_views:
-            if len(self._snapshot_views) >= SNAPSHOT_VIEWS_CACHED:
-                self._snapshot_views.pop(next(iter(self._snapshot_views)))
-            self._snapshot_views[key] = view_from_coefficients(self.store.snapshot(index).coefficients,
-                                                               field_of_view, self.settings.degree)
-        return self._snapshot_views[key]
+    def build_snapshot_view(self, index: int, field_of_view: float):
+        """Return the view of one map snapshot as this node compares it."""
+        return view_from_coefficients(self.store.snapshot(index).coefficients, field_of_view, self.settings.degree)
 
     def on_match(self, match: PlaceMatch) -> None:
         """Remember the latest accepted place match."""
