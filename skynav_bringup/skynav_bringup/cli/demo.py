@@ -64,8 +64,9 @@ def run(args: argparse.Namespace) -> int:
          ['skynav', 'run', str(args.repeat), '--map', str(map_file), '--out', str(run_bag)])
     print('\n== 3. what the nodes did, against the ground truth of the recordings')
     rates = skyline_summary(args.repeat, run_bag, args.out / 'skyline_sheet.png')
-    localization_summary(args.repeat, run_bag, map_file, args.out / 'localization_matches.png')
-    navigation_summary(args.repeat, run_bag, map_file)
+    poses = ground_truth_poses(args.repeat)
+    localization_summary(args.repeat, poses, run_bag, map_file, args.out / 'localization_matches.png')
+    navigation_summary(poses, run_bag, map_file)
     step('4. closed loop: a simulated robot follows the taught route, steered by the nodes',
          ['skynav', 'sim', 'follow', str(args.teach), '--map', str(map_file), '--out', str(args.out)])
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
@@ -147,7 +148,24 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
     plt.close(figure)
 
 
-def localization_summary(recording: Path, run_bag: Path, map_file: Path, plot: Path) -> None:
+def ground_truth_poses(recording: Path) -> dict:
+    """Return {stamp (ns): (position (3,) m, orientation Rotation)} of camera_link in map from /ground_truth/pose."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from ..bag import open_bag
+    from ..images import stamp_ns
+
+    poses = {}
+    with open_bag(recording) as bag:
+        for raw in bag.messages(['/ground_truth/pose']):
+            message = bag.deserialize(raw)
+            p, q = message.pose.position, message.pose.orientation
+            poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), Rotation.from_quat([q.x, q.y, q.z, q.w]))
+    return poses
+
+
+def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: Path, plot: Path) -> None:
     """Print the place matches of the run against the true positions, and plot them along the route."""
     import numpy as np
 
@@ -157,18 +175,12 @@ def localization_summary(recording: Path, run_bag: Path, map_file: Path, plot: P
     from ..bag import open_bag
     from ..images import stamp_ns
 
-    positions = {}
-    with open_bag(recording) as bag:
-        for raw in bag.messages(['/ground_truth/pose']):
-            message = bag.deserialize(raw)
-            p = message.pose.position
-            positions[stamp_ns(message.header)] = np.array([p.x, p.y, p.z])
     with open_bag(run_bag) as bag:
         matches = [bag.deserialize(raw) for raw in bag.messages(['/localization/match'])]
     store = MapStore.open(map_file)
     snapshots = store.positions()
     stamps = [stamp_ns(m.header) for m in matches]
-    query = np.stack([positions[s] for s in stamps])
+    query = np.stack([poses[s][0] for s in stamps])
     matched = np.array([m.index for m in matches])
     accepted = np.array([m.accepted for m in matches])
     correct = correct_matches(matched, query, snapshots, TOLERANCE)
@@ -190,8 +202,8 @@ def localization_summary(recording: Path, run_bag: Path, map_file: Path, plot: P
     print(f'  plot: {plot}')
 
 
-def navigation_summary(recording: Path, run_bag: Path, map_file: Path) -> None:
-    """Print the compass's rotation errors and the home vectors' direction errors against ground truth."""
+def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
+    """Print the compass's rotation errors and the home vectors' direction errors against ground truth `poses`."""
     import numpy as np
     from scipy.spatial.transform import Rotation
 
@@ -200,12 +212,6 @@ def navigation_summary(recording: Path, run_bag: Path, map_file: Path) -> None:
     from ..bag import open_bag
     from ..images import stamp_ns
 
-    poses = {}
-    with open_bag(recording) as bag:
-        for raw in bag.messages(['/ground_truth/pose']):
-            message = bag.deserialize(raw)
-            p, q = message.pose.position, message.pose.orientation
-            poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), Rotation.from_quat([q.x, q.y, q.z, q.w]))
     with open_bag(run_bag) as bag:
         compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]
         homing = [bag.deserialize(raw) for raw in bag.messages(['/homing/home_vector'])]
