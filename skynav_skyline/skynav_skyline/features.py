@@ -115,9 +115,10 @@ def decode(image: np.ndarray, encoding: str, black_level: float = 0.0,
             floor = margin  # a dark pixel holds at most the margin
         else:
             # Without a margin, dark pixels (<= black level) are dimmer than the dimmest trusted one: clamp to it.
-            positive = linear[~invalid & ~dark]
-            floor = float(positive.min()) if positive.size else float(np.finfo(np.float32).tiny)
-        linear = np.where(invalid, np.float32(0), linear)
+            floor = float(np.min(linear, where=~(invalid | dark), initial=np.inf))
+            floor = floor if np.isfinite(floor) else float(np.finfo(np.float32).tiny)
+        if invalid.any():
+            linear[invalid] = 0  # `linear` is a fresh array
     counts = image if encoding in ENCODING_MAX_COUNTS else None
     return Channel(linear.astype(np.float32, copy=False), saturated, dark, invalid, float(floor), counts, black_level)
 
@@ -131,18 +132,24 @@ def reference_level(channel: Channel, circle: np.ndarray, percentile: float = RE
     if not 0 < percentile <= 100:
         raise ValueError(f'reference percentile must be in (0, 100], got {percentile}')
     every = (slice(None), slice(None, None, stride))
-    usable = circle[every] & ~channel.invalid[every]
+    usable = circle[every] if channel.counts is not None else circle[every] & ~channel.invalid[every]
     if not usable.any():
         raise ValueError('no finite pixel inside the image circle (all NaN/inf or empty circle)')
     if channel.counts is not None:
-        # Integer images: the same inverted-CDF percentile, found by partial sorting of the raw values.
+        # Integer images (never invalid): the same inverted-CDF percentile, counted in a histogram of raw values.
         counts = channel.counts[every]
         values = (counts if usable.all() else counts[usable]).ravel()
-        rank = max(int(np.ceil(percentile / 100 * values.size)), 1) - 1
-        raw = int(np.partition(values, rank)[rank])
+        rank = _inverted_cdf_rank(percentile, values.size)
+        raw = int(np.searchsorted(np.cumsum(np.bincount(values)), rank, side='right'))
         return float(max(np.float32(raw - channel.black_level), np.float32(channel.floor)))
     values = np.maximum(channel.linear[every][usable], np.float32(channel.floor))
-    return float(np.percentile(values, percentile, method='inverted_cdf'))
+    rank = _inverted_cdf_rank(percentile, values.size)
+    return float(np.partition(values, rank)[rank])
+
+
+def _inverted_cdf_rank(percentile: float, size: int) -> int:
+    """Return the 0-based rank of the inverted-CDF `percentile` (%) among `size` sorted values."""
+    return max(int(np.ceil(percentile / 100 * size)), 1) - 1
 
 
 def log_feature(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE,

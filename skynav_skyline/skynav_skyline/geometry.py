@@ -32,14 +32,17 @@ class SectorLayout:
         return SectorLayout(self.count, self.index[every], self.lower[every], self.upper[every],
                             self.weight[every], self.centres)
 
-    def interpolate(self, per_sector: np.ndarray) -> np.ndarray:
-        """Return a per-pixel map (H, W) linearly interpolated in azimuth from one value per sector."""
+    def interpolate(self, per_sector: np.ndarray, pixels: np.ndarray | None = None) -> np.ndarray:
+        """Return values linearly interpolated in azimuth from one value per sector: a map (H, W), or at flat `pixels`."""
         values = np.asarray(per_sector, np.float64)
         if values.shape != (self.count,):
             raise ValueError(f'expected {self.count} sector values, got shape {values.shape}')
         low = values.astype(np.float32)
         step = (np.roll(values, -1) - values).astype(np.float32)  # from each centre to the next
-        return low.take(self.lower) + step.take(self.lower) * self.weight
+        lower, weight = self.lower, self.weight
+        if pixels is not None:
+            lower, weight = lower.reshape(-1)[pixels], weight.reshape(-1)[pixels]
+        return low.take(lower) + step.take(lower) * weight
 
 
 @dataclass

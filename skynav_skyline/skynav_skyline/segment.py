@@ -144,6 +144,30 @@ def is_bimodal(split: HistogramSplit, min_separability: float = MIN_SEPARABILITY
     return np.asarray(ok, bool)
 
 
+def sector_histograms(values: np.ndarray, sector: np.ndarray, count: int, bins: int,
+                      value_range: tuple[float, float]) -> np.ndarray:
+    """Return float64 histograms (count, bins) of `values`, one per sector index in `sector` (same shape)."""
+    cells = sector * bins + bin_index(values, bins, value_range)
+    return np.bincount(cells, minlength=count * bins).reshape(count, bins).astype(np.float64)
+
+
+def fall_back(own: HistogramSplit, reference: float, min_separability: float = MIN_SEPARABILITY,
+              min_pixels: int = MIN_SECTOR_PIXELS, test_reference: bool = True) -> SectorThresholds:
+    """Return the sector thresholds (contrast unit) of the sectors' own splits after the bimodality test and fallback.
+
+    A sector that fails the test takes the threshold interpolated (circularly in azimuth)
+    between the nearest bimodal sectors; with none, every sector takes `reference`.
+    """
+    count = np.size(own.threshold)
+    bimodal = is_bimodal(own, min_separability, reference if test_reference else None, min_pixels)
+    if bimodal.any():
+        good = np.flatnonzero(bimodal)
+        thresholds = np.interp(np.arange(count), good, own.threshold[good], period=count)
+    else:
+        thresholds = np.full(count, float(reference))
+    return SectorThresholds(thresholds, own, bimodal, float(reference))
+
+
 def sector_thresholds(contrast: np.ndarray, trusted: np.ndarray, layout: SectorLayout, reference: float,
                       method: str = 'otsu', bins: int = DEFAULT_BINS,
                       value_range: tuple[float, float] | None = None,
@@ -160,16 +184,30 @@ def sector_thresholds(contrast: np.ndarray, trusted: np.ndarray, layout: SectorL
     if values.size == 0:
         raise ValueError('no trusted pixel to threshold')
     value_range = histogram_range(values) if value_range is None else value_range
-    cells = layout.index[trusted] * bins + bin_index(values, bins, value_range)
-    counts = np.bincount(cells, minlength=layout.count * bins).reshape(layout.count, bins).astype(np.float64)
+    counts = sector_histograms(values, layout.index[trusted], layout.count, bins, value_range)
     own = HISTOGRAM_METHODS[method](counts, bin_edges(bins, value_range))
-    bimodal = is_bimodal(own, min_separability, reference if test_reference else None, min_pixels)
-    if bimodal.any():
-        good = np.flatnonzero(bimodal)
-        thresholds = np.interp(np.arange(layout.count), good, own.threshold[good], period=layout.count)
-    else:
-        thresholds = np.full(layout.count, float(reference))
-    return SectorThresholds(thresholds, own, bimodal, float(reference))
+    return fall_back(own, reference, min_separability, min_pixels, test_reference)
+
+
+def above_sector_thresholds(contrast: np.ndarray, layout: SectorLayout, thresholds: np.ndarray) -> np.ndarray:
+    """Return contrast > the sector thresholds interpolated in azimuth, pixel by pixel (bool, contrast's shape).
+
+    The interpolated threshold of a pixel lies between the least and the greatest
+    sector threshold, so only pixels whose contrast falls in that band need it.
+    """
+    thresholds = np.asarray(thresholds, np.float64)
+    low, high = float(thresholds.min()), float(thresholds.max())
+    margin = _INTERPOLATION_ROUNDING * (1.0 + max(abs(low), abs(high)))  # float32 rounding of the interpolation
+    above = contrast > high + margin
+    band = np.flatnonzero((contrast > low - margin) & ~above)
+    if band.size:
+        flat = above.reshape(-1)
+        flat[band] = contrast.reshape(-1)[band] > layout.interpolate(thresholds, band)
+    return above
+
+
+#: Relative margin (dimensionless) around the sector thresholds' span that covers float32 rounding.
+_INTERPOLATION_ROUNDING = 1e-5
 
 
 class SkylineSegmenter:
@@ -216,20 +254,21 @@ class SkylineSegmenter:
             image = image[:, :, 0]
         if image.shape != self.geometry.shape:
             raise ValueError(f'{encoding} image {image.shape} and image circle {self.geometry.shape} differ in shape')
-        return image.reshape(-1).take(self._pixels)[None]
+        return image[self.geometry.circle][None]
 
     def _scatter(self, row: np.ndarray, outside: float | int) -> np.ndarray:
         """Return an image with `row` at the image-circle pixels and `outside` elsewhere."""
-        image = np.full(self.geometry.circle.size, outside, row.dtype)
-        image[self._pixels] = row.ravel()
-        return image.reshape(self.geometry.shape)
+        image = np.full(self.geometry.shape, outside, row.dtype)
+        image[self.geometry.circle] = row.ravel()
+        return image
 
     def run(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
             encoding_green: str | None = None) -> Segmentation:
         """Return the skyline segmentation of one UV/green image pair (raw arrays and their encodings)."""
         row = self._run_row(uv, green, encoding_uv, encoding_green)
-        threshold = row.threshold if np.isscalar(row.threshold) else self._scatter(
-            np.asarray(row.threshold, np.float64), np.nan)
+        threshold = row.threshold
+        if row.sectors is not None:
+            threshold = self._scatter(self._row.sectors(self.params.sectors).interpolate(row.threshold), np.nan)
         return Segmentation(self._scatter(row.mask, GROUND), self._scatter(row.contrast, np.nan), threshold,
                             row.image_split, row.sectors)
 
@@ -240,7 +279,10 @@ class SkylineSegmenter:
 
     def _run_row(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
                  encoding_green: str | None = None) -> Segmentation:
-        """Return the segmentation of the image-circle pixels of an image pair, as one row."""
+        """Return the segmentation of the image-circle pixels of an image pair, as one row.
+
+        The row's `threshold` is a scalar, or for the sector methods the (bounded) threshold of each sector.
+        """
         p = self.params
         if p.uses_green and green is None:
             raise ValueError("channel mode 'uv-green' needs the green image")
@@ -262,27 +304,37 @@ class SkylineSegmenter:
             threshold: np.ndarray | float = float(p.threshold)
         else:
             sample = (slice(None), slice(None, None, stride))  # the statistics' pixels of the row
-            values = contrast[sample][trusted[sample]]
+            in_sample = trusted[sample]
+            values = contrast[sample][in_sample]
             value_range = histogram_range(values)
-            split_method = p.method.removeprefix('sector-')
+            split_method = HISTOGRAM_METHODS[p.method.removeprefix('sector-')]
             edges = bin_edges(p.bins, value_range)
-            counts = np.bincount(bin_index(values, p.bins, value_range), minlength=p.bins).astype(np.float64)
-            image_split = HISTOGRAM_METHODS[split_method](counts, edges)
+            if p.method.startswith('sector-'):
+                # The whole image's histogram is the sum of its sectors': both split in one call.
+                sector = self._row.sectors(p.sectors).sampled(stride).index[in_sample]
+                counts = sector_histograms(values, sector, p.sectors, p.bins, value_range)
+                splits = split_method(np.vstack([counts, counts.sum(axis=0)]), edges)
+                image_split, own = splits.take(-1), splits.take(slice(0, -1))
+            else:
+                counts = np.bincount(bin_index(values, p.bins, value_range), minlength=p.bins).astype(np.float64)
+                image_split = split_method(counts, edges)
             whole = float(image_split.threshold)
             image_bimodal = bool(is_bimodal(image_split, p.min_separability, None, MIN_TRUSTED_PIXELS))
             reference = whole if image_bimodal or p.threshold is None else float(p.threshold)
             trusted_reference = image_bimodal or p.threshold is not None
             if p.method.startswith('sector-'):
-                layout = self._row.sectors(p.sectors)
-                sectors = sector_thresholds(contrast[sample], trusted[sample], layout.sampled(stride), reference,
-                                            split_method, p.bins, value_range, p.min_separability,
-                                            MIN_SECTOR_PIXELS // stride, trusted_reference)
-                threshold = layout.interpolate(self._bounded(sectors.thresholds))
+                sectors = fall_back(own, reference, p.min_separability, MIN_SECTOR_PIXELS // stride,
+                                    trusted_reference)
+                threshold = self._bounded(sectors.thresholds)
             else:
                 threshold = float(self._bounded(np.array([reference]))[0])
         decided = features.by_threshold(circle, p.uses_green)
-        sky = features.sky_by_rule(circle) | (decided & (contrast > threshold))
-        mask = np.where(sky, np.uint8(SKY), np.uint8(GROUND))
+        if sectors is None:
+            above = contrast > threshold
+        else:
+            above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
+        sky = features.sky_by_rule(circle) | (decided & above)
+        mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
 
 

@@ -11,7 +11,7 @@ is the middle of that gap; among different partitions that tie, the first wins.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -34,6 +34,10 @@ class HistogramSplit:
     weight_low: np.ndarray  # share of the counts in the low class, in [0, 1]
     count: np.ndarray  # total counts of the histogram
 
+    def take(self, index: int | slice | np.ndarray) -> HistogramSplit:
+        """Return the splits of the histograms at `index` of a stack."""
+        return HistogramSplit(*(np.asarray(getattr(self, f.name))[index] for f in fields(self)))
+
 
 def histogram_range(values: np.ndarray) -> tuple[float, float]:
     """Return a robust (low, high) span (value unit) of `values` for a histogram; never empty."""
@@ -42,14 +46,23 @@ def histogram_range(values: np.ndarray) -> tuple[float, float]:
         raise ValueError('cannot build a histogram of no values')
     # The span only places the bins: percentiles of an evenly spread sample are as good and much cheaper.
     sample = values.ravel()[:: max(1, values.size // RANGE_SAMPLE)]
-    low, high = np.percentile(sample, HISTOGRAM_RANGE_PERCENTILES)
-    low, high = float(low), float(high)
+    low, high = (float(v) for v in _percentiles(sample, HISTOGRAM_RANGE_PERCENTILES))
     if not high > low:
         low, high = float(values.min()), float(values.max())
     if not high > low:
         pad = max(abs(low) * 1e-6, 1e-6)
         low, high = low - pad, high + pad
     return low, high
+
+
+def _percentiles(values: np.ndarray, percentiles: tuple[float, ...]) -> np.ndarray:
+    """Return percentiles (float64) of a 1-D array, interpolated linearly as np.percentile does, by one partial sort."""
+    position = np.asarray(percentiles, np.float64) / 100 * (values.size - 1)
+    below = np.floor(position).astype(np.intp)
+    above = np.minimum(below + 1, values.size - 1)
+    ordered = np.partition(values, np.union1d(below, above))
+    low, high = ordered[below].astype(np.float64), ordered[above].astype(np.float64)
+    return low + (position - below) * (high - low)
 
 
 def bin_index(values: np.ndarray, bins: int, value_range: tuple[float, float]) -> np.ndarray:
@@ -73,28 +86,58 @@ def histogram(values: np.ndarray, bins: int = DEFAULT_BINS,
     return counts, bin_edges(bins, value_range)
 
 
-def _cumulative(counts: np.ndarray, edges: np.ndarray):
-    """Return per-cut class weights, means and second moments of histograms `counts` (..., bins)."""
+@dataclass(frozen=True)
+class _Moments:
+    """Class counts, sums and sums of squares (histogram unit) of every cut k = 1..bins-1 of histograms (..., bins)."""
+
+    n0: np.ndarray  # counts below each cut (..., bins - 1)
+    s0: np.ndarray  # sum of bin centres below each cut
+    q0: np.ndarray  # sum of squared bin centres below each cut
+    n1: np.ndarray  # the same above each cut
+    s1: np.ndarray
+    q1: np.ndarray
+    total: np.ndarray  # (..., 1) totals over the whole histogram
+    s_total: np.ndarray
+    q_total: np.ndarray
+
+
+def _moments(counts: np.ndarray, edges: np.ndarray) -> _Moments:
+    """Return the per-cut class moments of histograms `counts` (..., bins) on `edges`."""
     counts = np.asarray(counts, np.float64)
     centres = (edges[:-1] + edges[1:]) / 2
-    n0 = np.cumsum(counts, axis=-1)[..., :-1]  # counts below cut k = 1..bins-1
-    s0 = np.cumsum(counts * centres, axis=-1)[..., :-1]
-    q0 = np.cumsum(counts * centres**2, axis=-1)[..., :-1]
-    total = counts.sum(axis=-1, keepdims=True)
-    s_total = (counts * centres).sum(axis=-1, keepdims=True)
-    q_total = (counts * centres**2).sum(axis=-1, keepdims=True)
-    n1, s1, q1 = total - n0, s_total - s0, q_total - q0
-    return n0, s0, q0, n1, s1, q1, total, s_total, q_total
+    weighted = counts * centres
+    squared = weighted * centres
+    n0 = np.cumsum(counts, axis=-1)
+    s0 = np.cumsum(weighted, axis=-1)
+    q0 = np.cumsum(squared, axis=-1)
+    total, s_total, q_total = n0[..., -1:], s0[..., -1:], q0[..., -1:]
+    n0, s0, q0 = n0[..., :-1], s0[..., :-1], q0[..., :-1]
+    return _Moments(n0, s0, q0, total - n0, s_total - s0, q_total - q0, total, s_total, q_total)
+
+
+def _otsu_score(m: _Moments) -> np.ndarray:
+    """Return Otsu's between-class variance (unit squared) of every cut; -inf where a class is empty."""
+    with np.errstate(divide='ignore', invalid='ignore'):
+        w0, w1 = m.n0 / m.total, m.n1 / m.total
+        mu0, mu1 = m.s0 / m.n0, m.s1 / m.n1
+        variance = w0 * w1 * (mu1 - mu0) ** 2
+    return np.where((m.n0 > 0) & (m.n1 > 0), variance, -np.inf)
+
+
+def _minimum_error_criterion(m: _Moments, edges: np.ndarray) -> np.ndarray:
+    """Return Kittler-Illingworth's criterion (lower better) of every cut; inf where a class is empty."""
+    floor = (edges[1] - edges[0]) ** 2 / 12
+    with np.errstate(divide='ignore', invalid='ignore'):
+        p0, p1 = m.n0 / m.total, m.n1 / m.total
+        var0 = np.maximum(m.q0 / m.n0 - (m.s0 / m.n0) ** 2, floor)
+        var1 = np.maximum(m.q1 / m.n1 - (m.s1 / m.n1) ** 2, floor)
+        criterion = p0 * np.log(var0) + p1 * np.log(var1) - 2 * (p0 * np.log(p0) + p1 * np.log(p1))
+    return np.where((m.n0 > 0) & (m.n1 > 0), criterion, np.inf)
 
 
 def between_class_variance(counts: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """Return Otsu's between-class variance (unit squared) of every cut k = 1..bins-1; -inf where a class is empty."""
-    n0, s0, _, n1, s1, _, total, _, _ = _cumulative(counts, edges)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        w0, w1 = n0 / total, n1 / total
-        mu0, mu1 = s0 / n0, s1 / n1
-        variance = w0 * w1 * (mu1 - mu0) ** 2
-    return np.where((n0 > 0) & (n1 > 0), variance, -np.inf)
+    return _otsu_score(_moments(counts, edges))
 
 
 def minimum_error_criterion(counts: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -103,14 +146,7 @@ def minimum_error_criterion(counts: np.ndarray, edges: np.ndarray) -> np.ndarray
     J(k) = P0 ln(var0) + P1 ln(var1) - 2 (P0 ln P0 + P1 ln P1), the class
     variances floored at the variance of one bin (width^2 / 12).
     """
-    n0, s0, q0, n1, s1, q1, total, _, _ = _cumulative(counts, edges)
-    floor = (edges[1] - edges[0]) ** 2 / 12
-    with np.errstate(divide='ignore', invalid='ignore'):
-        p0, p1 = n0 / total, n1 / total
-        var0 = np.maximum(q0 / n0 - (s0 / n0) ** 2, floor)
-        var1 = np.maximum(q1 / n1 - (s1 / n1) ** 2, floor)
-        criterion = p0 * np.log(var0) + p1 * np.log(var1) - 2 * (p0 * np.log(p0) + p1 * np.log(p1))
-    return np.where((n0 > 0) & (n1 > 0), criterion, np.inf)
+    return _minimum_error_criterion(_moments(counts, edges), edges)
 
 
 def _best_cut(score: np.ndarray, below: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -129,15 +165,19 @@ def _best_cut(score: np.ndarray, below: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 def split_at(counts: np.ndarray, edges: np.ndarray, cut: np.ndarray, threshold: np.ndarray) -> HistogramSplit:
     """Return the class statistics of histograms `counts` (..., bins) split at cut index `cut` (1..bins-1)."""
-    n0, s0, _, n1, s1, _, total, s_total, q_total = _cumulative(counts, edges)
+    return _split_at(_moments(counts, edges), cut, threshold)
+
+
+def _split_at(m: _Moments, cut: np.ndarray, threshold: np.ndarray) -> HistogramSplit:
+    """Return the class statistics of the histograms with moments `m` split at cut index `cut` (1..bins-1)."""
     pick = np.asarray(cut)[..., None] - 1
 
     def at(a: np.ndarray) -> np.ndarray:
         """Return the per-cut array `a` at the chosen cut."""
         return np.take_along_axis(a, pick, -1)[..., 0]
 
-    total, s_total, q_total = total[..., 0], s_total[..., 0], q_total[..., 0]
-    a0, b0, a1, b1 = at(n0), at(s0), at(n1), at(s1)
+    total, s_total, q_total = m.total[..., 0], m.s_total[..., 0], m.q_total[..., 0]
+    a0, b0, a1, b1 = at(m.n0), at(m.s0), at(m.n1), at(m.s1)
     with np.errstate(divide='ignore', invalid='ignore'):
         mu0, mu1 = b0 / a0, b1 / a1
         w0 = a0 / total
@@ -148,14 +188,14 @@ def split_at(counts: np.ndarray, edges: np.ndarray, cut: np.ndarray, threshold: 
                           np.nan_to_num(w0), total)
 
 
-def _split_by_score(counts: np.ndarray, edges: np.ndarray, score: np.ndarray) -> HistogramSplit:
+def _split_by_score(m: _Moments, edges: np.ndarray, score: np.ndarray) -> HistogramSplit:
     """Return the split at the best cut of `score` (higher better), threshold in the middle of a tied gap."""
     edges = np.asarray(edges, np.float64)
-    first, last, valid = _best_cut(score, np.cumsum(np.asarray(counts, np.float64), axis=-1)[..., :-1])
+    first, last, valid = _best_cut(score, m.n0)
     threshold = (edges[first] + edges[last]) / 2
     centre = (edges[0] + edges[-1]) / 2
     threshold = np.where(valid, threshold, centre)
-    split = split_at(counts, edges, first, threshold)
+    split = _split_at(m, first, threshold)
     if not np.all(valid):
         split = HistogramSplit(split.threshold, np.where(valid, split.separability, 0.0), split.mean_low,
                                split.mean_high, split.weight_low, split.count)
@@ -164,12 +204,14 @@ def _split_by_score(counts: np.ndarray, edges: np.ndarray, score: np.ndarray) ->
 
 def otsu_split(counts: np.ndarray, edges: np.ndarray) -> HistogramSplit:
     """Return Otsu's split (maximal between-class variance) of histograms `counts` (..., bins) on `edges`."""
-    return _split_by_score(counts, edges, between_class_variance(counts, edges))
+    moments = _moments(counts, edges)
+    return _split_by_score(moments, edges, _otsu_score(moments))
 
 
 def minimum_error_split(counts: np.ndarray, edges: np.ndarray) -> HistogramSplit:
     """Return Kittler-Illingworth's minimum error split of histograms `counts` (..., bins) on `edges`."""
-    return _split_by_score(counts, edges, -minimum_error_criterion(counts, edges))
+    moments = _moments(counts, edges)
+    return _split_by_score(moments, edges, -_minimum_error_criterion(moments, edges))
 
 
 #: Histogram threshold methods by name.

@@ -111,3 +111,19 @@ def test_dark_pixels_are_clamped_not_infinite():
     feature = log_feature(channel, np.ones_like(image, bool), 100)
     assert np.all(np.isfinite(feature))
     assert feature[0, 0] == feature[0, 1] == feature[0, 2] == pytest.approx(np.log(2 / 200))
+
+
+@pytest.mark.parametrize('encoding, dtype', [('mono8', np.uint8), ('mono16', np.uint16), ('32FC1', np.float32)])
+@pytest.mark.parametrize('percentile', [0.5, 50.0, 90.0, 100.0])
+def test_reference_level_equals_numpy_inverted_cdf_percentile_for_every_encoding(encoding, dtype, percentile):
+    rng = np.random.default_rng(7)
+    top = 255 if dtype is np.uint8 else 65535
+    image = rng.integers(3 * (top // 255), top, size=(40, 50)).astype(dtype)
+    circle = rng.random((40, 50)) < 0.7
+    channel = decode(image, encoding)
+    expected = np.percentile(channel.linear[circle], percentile, method='inverted_cdf')
+    assert reference_level(channel, circle, percentile) == expected
+    every_third = circle.copy()
+    every_third[:, np.arange(50) % 3 != 0] = False
+    expected = np.percentile(channel.linear[every_third], percentile, method='inverted_cdf')
+    assert reference_level(channel, circle, percentile, stride=3) == expected

@@ -6,10 +6,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from skynav_skyline.classify import classification_rate
 from skynav_skyline.geometry import SkylineGeometry
-from skynav_skyline.segment import METHODS, SkylineParams, SkylineSegmenter, segment
+from skynav_skyline.segment import (METHODS, SkylineParams, SkylineSegmenter, above_sector_thresholds, is_bimodal,
+                                    sector_thresholds, segment)
 
 LOCAL_METHODS = [m for m in METHODS if m != 'global']
 
@@ -277,3 +280,46 @@ def test_black_level_is_removed_per_channel(scene_factory, encoder):
     np.testing.assert_allclose(removed.contrast[trusted], plain.contrast[trusted], atol=1e-4)
     assert np.max(np.abs(kept.contrast - plain.contrast)[trusted]) > 0.3  # the offset dims the ground's contrast
     assert _agreement(plain.mask, removed.mask, scene.circle) >= 0.999
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-3, 3), min_size=16, max_size=16), st.integers(0, 2**32 - 1))
+def test_sky_by_sector_thresholds_equals_comparing_with_the_interpolated_map(thresholds, seed):
+    geometry = SkylineGeometry(np.ones((40, 60), bool), (29.5, 19.5))
+    layout = geometry.sectors(16)
+    thresholds = np.array(thresholds)
+    interpolated = layout.interpolate(thresholds)
+    rng = np.random.default_rng(seed)
+    contrast = rng.uniform(-4, 4, geometry.shape).astype(np.float32)
+    # Values at and one float32 step either side of every pixel's own threshold: the band's edge cases.
+    pick = rng.random(geometry.shape)
+    contrast = np.where(pick < 0.2, interpolated, contrast)
+    contrast = np.where((pick >= 0.2) & (pick < 0.3), np.nextafter(interpolated, np.float32(np.inf)), contrast)
+    contrast = np.where((pick >= 0.3) & (pick < 0.4), np.nextafter(interpolated, np.float32(-np.inf)), contrast)
+    np.testing.assert_array_equal(above_sector_thresholds(contrast, layout, thresholds), contrast > interpolated)
+
+
+@pytest.mark.parametrize('histogram_method', ['otsu', 'min-error'])
+def test_sector_mask_is_the_contrast_above_the_returned_threshold_map(uneven_scene, encoder, histogram_method):
+    uv, green = _images(uneven_scene, encoder, 'mono16')
+    params = SkylineParams(method=f'sector-{histogram_method}', channels='uv-green', threshold=-0.8, max_deviation=0.3)
+    segmenter = SkylineSegmenter(SkylineGeometry.from_camera(uneven_scene.camera), params)
+    result = segmenter.run(uv, green, 'mono16', 'mono16')
+    features = segmenter.features(uv, green, 'mono16', 'mono16')
+    circle = uneven_scene.circle
+    expected = features.sky_by_rule(circle) | (features.by_threshold(circle, True) & (result.contrast > result.threshold))
+    np.testing.assert_array_equal(result.mask == 255, expected)
+    np.testing.assert_array_equal(segmenter.segment(uv, green, 'mono16', 'mono16'), result.mask)
+
+
+def test_sector_thresholds_alone_equal_the_segmenters(uneven_scene, encoder):
+    uv, _ = _images(uneven_scene, encoder, 'mono16')
+    geometry = SkylineGeometry.from_camera(uneven_scene.camera)
+    segmenter = SkylineSegmenter(geometry, SkylineParams(method='sector-min-error', sectors=12))
+    result = segmenter.run(uv, None, 'mono16')
+    trusted = segmenter.features(uv, None, 'mono16').trusted(uneven_scene.circle, False)
+    whole_bimodal = bool(is_bimodal(result.image_split, min_pixels=100))  # else the reference is not trusted
+    alone = sector_thresholds(result.contrast, trusted, geometry.sectors(12), result.sectors.reference, 'min-error',
+                              test_reference=whole_bimodal)
+    np.testing.assert_array_equal(alone.bimodal, result.sectors.bimodal)
+    np.testing.assert_allclose(alone.thresholds, result.sectors.thresholds, rtol=1e-12)

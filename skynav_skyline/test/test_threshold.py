@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import norm
 
-from skynav_skyline.threshold import (histogram, minimum_error_criterion, minimum_error_split,
-                                      minimum_error_threshold, otsu_split, otsu_threshold)
+from skynav_skyline.threshold import (HISTOGRAM_RANGE_PERCENTILES, _percentiles, histogram,
+                                      minimum_error_criterion, minimum_error_split, minimum_error_threshold,
+                                      otsu_split, otsu_threshold)
 
 
 def brute_force_between_class_variance(counts, centres):
@@ -123,3 +124,23 @@ def test_histogram_of_constant_values_is_usable():
     assert counts.sum() == 10
     assert edges[0] < 3.0 < edges[-1]
     assert float(otsu_split(counts, edges).separability) == 0.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3, width=32), min_size=1, max_size=300))
+def test_histogram_range_percentiles_equal_numpys(values):
+    values = np.array(values, np.float32)
+    np.testing.assert_allclose(_percentiles(values, HISTOGRAM_RANGE_PERCENTILES),
+                               np.percentile(values, HISTOGRAM_RANGE_PERCENTILES), rtol=1e-6, atol=1e-9)
+
+
+def test_split_of_a_stack_takes_rows_like_splitting_each():
+    rng = np.random.default_rng(3)
+    counts = rng.integers(0, 40, size=(5, 32)).astype(float)
+    edges = np.linspace(-2.0, 1.0, 33)
+    stacked = minimum_error_split(counts, edges)
+    for row in range(5):
+        single, taken = minimum_error_split(counts[row], edges), stacked.take(row)
+        for name in ('threshold', 'separability', 'mean_low', 'mean_high', 'weight_low', 'count'):
+            np.testing.assert_allclose(getattr(taken, name), getattr(single, name))
+    np.testing.assert_array_equal(stacked.take(slice(1, 3)).threshold, stacked.threshold[1:3])
