@@ -19,9 +19,12 @@ sim teach   --world mineral --seed 2 --length 6 --speed 1.0 --time noon "${commo
 sim repeat  --world mineral --seed 2 --length 6 --speed 0.9 --time sunrise \
     --offset -0.2 --shake 3 --wobble 25 "${common[@]}" --out "$out/synthetic_mineral_repeat.mcap"
 
-# A snapshot place and a 7 x 7 grid of places 0.75 m apart around it.
+# A snapshot place and a 7 x 7 grid of places 0.75 m apart around it; then the same on bumpy ground, every
+# place (the snapshot's too) on a bump that tilts the camera up to 20 degrees more.
 sim homing  --world park    --seed 3 --spacing 0.75 --grid-radius 2.25 --time forenoon "${common[@]}" \
     --out "$out/synthetic_park_homing.mcap"
+sim homing  --world park    --seed 3 --spacing 0.75 --grid-radius 2.25 --time forenoon --bump-tilt 20 \
+    "${common[@]}" --out "$out/synthetic_park_bumpy_homing.mcap"
 
 # One place: a reference view, 15 rotations (tilt up to 30 degrees), 15 views up to 0.5 m away.
 sim compass --world garden  --seed 1 --count 15 --max-tilt 30 --max-translation 0.5 --time forenoon \

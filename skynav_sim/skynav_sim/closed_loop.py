@@ -31,7 +31,7 @@ from skynav_sh.camera import EquidistantCamera
 
 from .recording import CAMERA_FRAME, start_stamp
 from .render import Renderer
-from .robot import camera_pose
+from .robot import bump, camera_pose
 from .scenarios import FRAME_RATE
 from .sensor import Sensor
 from .sky import Sky
@@ -113,8 +113,10 @@ class Simulation:
     """A world, a camera and the light of one moment, rendered for a moving robot."""
 
     def __init__(self, world: World, camera: EquidistantCamera, hours: float, seed: int,
-                 encoding: str = 'mono8') -> None:
+                 encoding: str = 'mono8', bump_tilt: float = 0.0) -> None:
+        """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump)."""
         self.world, self.camera, self.encoding, self.seed = world, camera, encoding, seed
+        self.bump_tilt = bump_tilt
         self.renderer = Renderer(world, camera)
         self.sky = Sky(hours, 0.0, cloud_seed=seed)
         self.sensor = Sensor()
@@ -123,9 +125,9 @@ class Simulation:
 
     def capture(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray, object]:
         """Render the robot's view at (x, y) facing `heading`; return UV, green and the camera pose."""
-        pose = camera_pose(self.world.terrain, x, y, heading)
-        view = self.renderer.render(pose, self.sky)
         rng = np.random.default_rng([self.seed, self.frames, 97])
+        pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt))
+        view = self.renderer.render(pose, self.sky)
         self.frames += 1
         return (self.sensor.capture(view.uv, view.inside, self.encoding, rng),
                 self.sensor.capture(view.green, view.inside, self.encoding, rng), pose)
@@ -205,12 +207,12 @@ def drive(simulation: Simulation, robot: SimRobotNode, start: np.ndarray, headin
 
 def home_runs(world: World, camera: EquidistantCamera, goal: np.ndarray, starts: list[tuple[np.ndarray, float]],
               map_path, hours: float, seed: int, max_steps: int, progress: Callable[[Run], None] | None = None,
-              ros_args: list[str] | None = None) -> list[Run]:
-    """Home from each start to the one snapshot of the map at `goal`; return the runs."""
+              ros_args: list[str] | None = None, bump_tilt: float = 0.0) -> list[Run]:
+    """Home from each start to the one snapshot of the map at `goal` (views bumped up to bump_tilt degrees)."""
     runs = []
     arguments = ['-p', f'map:={map_path}', '-p', 'reference:=index', '-p', 'target:=index', *(ros_args or [])]
     for start, heading in starts:
-        simulation = Simulation(world, camera, hours, seed)
+        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
         with in_process([s for s in graph_specs() if s.name != 'localize'], arguments) as graph:
             robot = graph.nodes[-1]
             run = drive(simulation, robot, start, heading, goal, max_steps)
@@ -221,12 +223,12 @@ def home_runs(world: World, camera: EquidistantCamera, goal: np.ndarray, starts:
 
 
 def snapshot_map(world: World, camera: EquidistantCamera, place: np.ndarray, heading: float, hours: float,
-                 seed: int, path, name: str = 'home', ros_args: list[str] | None = None):
+                 seed: int, path, name: str = 'home', ros_args: list[str] | None = None, bump_tilt: float = 0.0):
     """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
     from skynav_localize.mapping import build_map
     from skynav_localize.store import Snapshot
 
-    simulation = Simulation(world, camera, hours, seed)
+    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
     specs.append(NodeSpec('sim_robot', 'skynav_sim', 'skynav_sim.closed_loop:SimRobotNode'))
     with in_process(specs, ros_args) as graph:

@@ -99,7 +99,7 @@ def _looping_captures(world, camera, frames, encoding, seed):
 def _namespace(values: dict) -> argparse.Namespace:
     """Return scenario options as `skynav sim bag` would parse them, from node parameters."""
     defaults = {'route_seed': 0, 'offset': 0.0, 'shake': 0.0, 'wobble': 0.0, 'spacing': 0.5, 'grid_radius': 3.0, 'count': 40,
-                'max_tilt': 30.0, 'max_translation': 0.5}
+                'max_tilt': 30.0, 'max_translation': 0.5, 'bump_tilt': 0.0}
     return argparse.Namespace(**{**defaults, **values})
 
 

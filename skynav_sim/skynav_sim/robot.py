@@ -47,6 +47,16 @@ def camera_pose(terrain: Terrain, x: float, y: float, heading: float,
     return CameraPose(position + rotation.apply([0.0, 0.0, CAMERA_HEIGHT]), rotation)
 
 
+def bump(rng: np.random.Generator, most: float) -> Rotation | None:
+    """Return the extra tilt of a bump under the wheels: up to `most` degrees about a random horizontal axis of
+    base_link, uniform over that cap of up directions; None (and no random draw) for 0."""
+    if most <= 0:
+        return None
+    axis_angle = rng.uniform(0, 2 * np.pi)
+    angle = np.radians(most) * np.sqrt(rng.uniform())
+    return Rotation.from_rotvec(angle * np.array([np.cos(axis_angle), np.sin(axis_angle), 0.0]))
+
+
 def tilt(rotation: Rotation) -> float:
     """Return the angle (rad) between a frame's z axis and the world's vertical."""
     return float(np.arccos(np.clip(rotation.apply([0.0, 0.0, 1.0])[2], -1.0, 1.0)))

@@ -20,7 +20,7 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from .render import CameraPose
-from .robot import camera_pose
+from .robot import bump, camera_pose
 from .sky import TIMES_OF_DAY
 from .world import YARD_RADIUS, World
 
@@ -55,6 +55,7 @@ class ScenarioParameters:
     count: int = 40  # rotations and translated views each (compass); places per condition (skyline)
     max_tilt: float = 30.0  # degrees (compass rotations)
     max_translation: float = 0.5  # m (compass translated views)
+    bump_tilt: float = 0.0  # degrees: each homing place (snapshot too) sits on a bump tilting the camera up to this
     extra: dict = field(default_factory=dict)
 
 
@@ -167,15 +168,15 @@ def snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
 
 def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
     home = snapshot_place(world, params)
-    frames = [Frame(camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi)), params.hours,
-                    params.cloud_cover, 'snapshot')]
+    frames = [Frame(camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt)),
+                    params.hours, params.cloud_cover, 'snapshot')]
     steps = np.arange(-params.grid_radius, params.grid_radius + 1e-9, params.spacing)
     for dy in steps:
         for dx in steps:
             p = home + np.array([dx, dy])
             if (dx == 0 and dy == 0) or not world.is_free(*p):
                 continue
-            pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+            pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt))
             frames.append(Frame(pose, params.hours, params.cloud_cover, 'grid'))
     return frames
 
@@ -215,6 +216,10 @@ def _skyline(world: World, params: ScenarioParameters, rng: np.random.Generator)
     return frames
 
 
+#: Scenario parameters added after recordings were bundled, with the default that leaves those recordings as they were.
+_LATER_PARAMETERS = {'wobble': 0.0, 'bump_tilt': 0.0}
+
+
 def describe(name: str, world: World, params: ScenarioParameters, seed: int, frames: list[Frame]) -> dict:
     """Return what a recording should say about how it was made (stored in its metadata)."""
     return {
@@ -222,7 +227,9 @@ def describe(name: str, world: World, params: ScenarioParameters, seed: int, fra
         'world': world.style,
         'seed': seed,
         'world_seed': world.seed,
-        'parameters': {k: v for k, v in asdict(params).items() if k != 'extra'},
+        # Parameters added later are recorded only where used, so that older recordings regenerate byte for byte.
+        'parameters': {k: v for k, v in asdict(params).items()
+                       if k != 'extra' and not (k in _LATER_PARAMETERS and v == _LATER_PARAMETERS[k])},
         'frames': [{'label': f.label, 'hours': round(f.hours, 4), 'cloud_cover': f.cloud_cover} for f in frames],
         'synthetic': True,
     }

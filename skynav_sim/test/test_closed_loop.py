@@ -106,3 +106,11 @@ def test_follow_command_refuses_bad_input_in_one_line(case, code, garden_map, tm
     result = run_skynav('sim', 'follow', str(teach), '--map', str(map_file), '--out', str(tmp_path), *extra)
     assert result.returncode == code, result.stderr
     assert one_line_error(result.stderr), result.stderr
+
+
+@pytest.mark.parametrize('extra', [['--bump-tilt', '95'], ['--bump-tilt', '-1'], ['--starts', '0']])
+def test_home_command_refuses_bad_input_in_one_line(extra, tmp_path):
+    result = run_skynav('sim', 'home', '--out', str(tmp_path), *extra)
+    assert result.returncode == 2, result.stderr
+    assert one_line_error(result.stderr), result.stderr
+    assert not (tmp_path / 'home.db').exists()  # refused before anything was rendered

@@ -6,7 +6,8 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE, Surface
 from skynav_sim.primitives import ConvexPolytope, Cylinder, Ellipsoid
-from skynav_sim.robot import camera_pose, tilt
+from skynav_sim.robot import bump, camera_pose, tilt
+from skynav_sim.scenarios import ScenarioParameters, build, describe
 from skynav_sim.sensor import Sensor
 from skynav_sim.sky import TIMES_OF_DAY, Sky
 from skynav_sim.world import STYLES, generate
@@ -177,3 +178,30 @@ def test_material_ranges_put_minerals_above_vegetation_in_ultraviolet():
     assert UV_RANGE[Surface.LIMESTONE, 0] > 3 * UV_RANGE[Surface.GRASS, 1]
     assert np.all(UV_RANGE[:, 0] <= UV_RANGE[:, 1]) and np.all(GREEN_RANGE[:, 0] <= GREEN_RANGE[:, 1])
     assert np.all((UV_RANGE > 0) & (UV_RANGE < 1) & (GREEN_RANGE > 0) & (GREEN_RANGE < 1))
+
+
+def test_bumps_tilt_up_to_their_limit_and_no_bump_draws_nothing():
+    rng = np.random.default_rng(5)
+    assert bump(rng, 0.0) is None
+    assert rng.uniform() == np.random.default_rng(5).uniform()  # nothing was drawn
+    angles = np.degrees([bump(rng, 20.0).magnitude() for _ in range(2000)])
+    assert angles.max() <= 20.0 + 1e-9
+    # uniform over the cap of up directions: the share within half the limit is about a quarter
+    assert 0.2 < np.mean(angles < 10.0) < 0.3
+    axes = np.array([bump(rng, 20.0).as_rotvec() for _ in range(200)])
+    assert np.allclose(axes[:, 2], 0.0)  # about horizontal axes of base_link
+
+
+def test_a_bumpy_homing_grid_tilts_the_same_places_more(worlds):
+    world = worlds['park']
+    params = ScenarioParameters(spacing=0.75, grid_radius=2.25)
+    level = build('homing', world, params, 3)
+    bumpy = build('homing', world, ScenarioParameters(spacing=0.75, grid_radius=2.25, bump_tilt=20.0), 3)
+    assert [f.label for f in level] == [f.label for f in bumpy]
+    level_tilt = np.degrees([tilt(f.pose.rotation) for f in level])
+    bumpy_tilt = np.degrees([tilt(f.pose.rotation) for f in bumpy])
+    assert np.median(bumpy_tilt) > np.median(level_tilt) + 5.0
+    assert bumpy_tilt.max() <= level_tilt.max() + 20.0 + 1e-6
+    # a recording without bumps describes itself as before bumps existed (its bytes do not change)
+    assert 'bump_tilt' not in describe('homing', world, params, 3, level)['parameters']
+    assert describe('homing', world, ScenarioParameters(bump_tilt=20.0), 3, bumpy)['parameters']['bump_tilt'] == 20.0

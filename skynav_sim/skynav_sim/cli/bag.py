@@ -7,7 +7,7 @@ the same command reproduces it byte for byte. Scenarios:
 
   teach    a drive along a route through the yard
   repeat   the same route (same --seed and --route-seed) at another --time, --offset, --shake
-  homing   a snapshot place and a grid of places around it (--spacing, --grid-radius)
+  homing   a snapshot place and a grid of places around it (--spacing, --grid-radius, --bump-tilt)
   compass  one place under many rotations (--max-tilt), then nearby places (--max-translation)
   skyline  places across the yard at every named time of day, clear and cloudy (--count each)
 

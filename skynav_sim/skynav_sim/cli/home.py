@@ -29,6 +29,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--max-distance', type=float, default=4.0, metavar='M', help='farthest start (4 m)')
     parser.add_argument('--max-steps', type=int, default=60, help='steps before a run is given up (60)')
     parser.add_argument('--time', default='forenoon', help='time of day (default forenoon)')
+    parser.add_argument('--bump-tilt', type=float, default=0.0, metavar='DEG',
+                        help='bumpy ground: every view (the snapshot too) tilted up to DEG more (default 0)')
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (200)')
     parser.add_argument('--out', type=Path, default=Path('sim_home'), metavar='DIR',
@@ -50,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.starts < 1 or args.max_steps < 1 or not 0 < args.min_distance < args.max_distance:
         raise CliError('need --starts >= 1, --max-steps >= 1 and 0 < --min-distance < --max-distance', exit_code=2)
+    if not 0 <= args.bump_tilt <= 90:
+        raise CliError('--bump-tilt must be between 0 and 90 degrees', exit_code=2)
     try:
         hours = parse_time(args.time)
         camera = options.camera(argparse.Namespace(size=args.size, fov=args.fov,
@@ -60,17 +64,18 @@ def run(args: argparse.Namespace) -> int:
     world = generate(args.world, args.seed)
     goal = snapshot_place(world, ScenarioParameters())
     map_path = args.out / 'home.db'
-    snapshot_map(world, camera, goal, 0.0, hours, args.seed, map_path)
+    snapshot_map(world, camera, goal, 0.0, hours, args.seed, map_path, bump_tilt=args.bump_tilt)
     starts = random_starts(world, goal, args.starts, args.min_distance, args.max_distance,
                            np.random.default_rng(args.seed))
     if len(starts) < args.starts:
         print(f'skynav sim home: only {len(starts)} free start places found', file=sys.stderr)
     with tqdm(total=len(starts), unit='run', desc='homing (synthetic)', file=sys.stderr, disable=None) as bar:
         runs = home_runs(world, camera, goal, starts, map_path, hours, args.seed, args.max_steps,
-                         progress=lambda _: bar.update())
+                         progress=lambda _: bar.update(), bump_tilt=args.bump_tilt)
     print(report(runs, args))
     plot = args.out / 'homing_paths.png'
-    draw_paths(plot, world, runs, f'SYNTHETIC closed-loop homing: {args.world} world, seed {args.seed}')
+    ground = f', bumps up to {args.bump_tilt:g} deg' if args.bump_tilt else ''
+    draw_paths(plot, world, runs, f'SYNTHETIC closed-loop homing: {args.world} world, seed {args.seed}{ground}')
     print(f'plot: {plot}')
     return 0
 

@@ -44,6 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     grid.add_argument('--max-tilt', type=float, default=30.0, metavar='DEG', help='compass tilt limit (30)')
     grid.add_argument('--max-translation', type=float, default=0.5, metavar='M',
                       help='compass translation limit (0.5)')
+    grid.add_argument('--bump-tilt', type=float, default=0.0, metavar='DEG',
+                      help='homing: each place sits on a bump that tilts the camera up to DEG more (default 0)')
 
 
 def camera(args: argparse.Namespace):
@@ -89,12 +91,13 @@ def scenario(args: argparse.Namespace):
             raise ValueError(f'--{name.replace("_", "-")} must be positive')
     if args.count < 1:
         raise ValueError('--count must be at least 1')
-    if not 0 <= args.max_tilt <= 90:
-        raise ValueError('--max-tilt must be between 0 and 90 degrees')
+    for name in ('max_tilt', 'bump_tilt'):
+        if not 0 <= getattr(args, name) <= 90:
+            raise ValueError(f'--{name.replace("_", "-")} must be between 0 and 90 degrees')
     params = ScenarioParameters(
         hours=parse_time(args.time), cloud_cover=args.clouds, route_seed=args.route_seed, route_length=args.length,
         speed=args.speed, offset=args.offset, shake=args.shake, wobble=args.wobble, spacing=args.spacing, grid_radius=args.grid_radius,
-        count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation,
+        count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation, bump_tilt=args.bump_tilt,
     )
     world = generate(args.world, args.seed)
     frames = build(args.scenario, world, params, args.seed)
