@@ -8,6 +8,8 @@ thread), the median and 90th-percentile angular error against the true direction
 ratios to 3D-warping. 3D-warping runs with a simulated compass (the true rotation turned by a seeded error of
 1, 1, 3 degrees rms about x, y, z) and without any rotation (its own pre-alignment); the planar baselines search
 their own turn. Preparation (mask -> SH view, mask -> panoramic band) is timed apart. The data is synthetic.
+Pin it to one core (`taskset -c 0`) for the one-core figure; `--bag bags/synthetic_park_bumpy_homing.mcap` runs
+the same on bumpy ground.
 """
 
 from __future__ import annotations

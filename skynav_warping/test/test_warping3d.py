@@ -114,3 +114,14 @@ def test_coarse_grid_costs_equal_single_hypothesis_costs(scene, snapshot):
         assert single[0] == pytest.approx(costs[slot, ring, j, q], rel=1e-9)
         no_step = hypothesis_costs(tables.coarse, x, s, direction[None], np.array([0]), rotation[None])
         assert no_step[0] == pytest.approx(still[q], rel=1e-9)
+
+
+def test_hypotheses_that_hardly_overlap_the_snapshot_are_refused(scene, snapshot):
+    # turned upside down, a 200-degree view overlaps the snapshot only in a thin band at the horizon, where the
+    # band-limited terms ring; such a hypothesis must not win (its cost could even come out negative)
+    tables = warping_tables(SETTINGS).fine
+    current = render_equal_distance_view(scene, np.array([0.2, 0.0, 0.0]), np.eye(3), degree=SETTINGS.degree)
+    upside_down = Rotation.from_euler('x', 180, degrees=True).as_matrix()
+    costs = hypothesis_costs(tables, current.terms, snapshot.terms, np.array([[1.0, 0, 0], [-1.0, 0, 0]]),
+                             np.array([6, 6]), np.stack([upside_down, np.eye(3)]))
+    assert costs[0] == np.inf and 0.0 <= costs[1] < np.inf
