@@ -53,6 +53,8 @@ MIN_TRUSTED_PIXELS = 100
 #: Most pixels the per-image statistics (reference levels, histograms) use: larger images are sampled evenly.
 #: Every pixel is still classified; 320x240 fish-eye images (about 45,000 pixels in the circle) use them all.
 STATISTICS_SAMPLE = 60000
+#: Relative margin (dimensionless) around the sector thresholds' span that covers float32 rounding.
+_INTERPOLATION_ROUNDING = 1e-5
 
 
 @dataclass(frozen=True)
@@ -206,10 +208,6 @@ def above_sector_thresholds(contrast: np.ndarray, layout: SectorLayout, threshol
     return above
 
 
-#: Relative margin (dimensionless) around the sector thresholds' span that covers float32 rounding.
-_INTERPOLATION_ROUNDING = 1e-5
-
-
 class SkylineSegmenter:
     """Sky/ground segmentation for one camera geometry; build once, call per frame."""
 
@@ -223,7 +221,8 @@ class SkylineSegmenter:
             self.geometry = SkylineGeometry.from_camera(geometry)
         self.params = SkylineParams() if params is None else params
         # Work on the pixels inside the image circle only: one row of them, scattered back at the end.
-        self._row, self._pixels = self.geometry.packed()
+        self._row, pixels = self.geometry.packed()
+        self._stride = max(1, -(-pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
         if self.params.method.startswith('sector-'):
             self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
 
@@ -289,7 +288,7 @@ class SkylineSegmenter:
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
             raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
         circle = self._row.circle
-        stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))
+        stride = self._stride
         features = extract_features(self._pack(uv, encoding_uv),
                                     self._pack(green, encoding_green) if p.uses_green else None,
                                     encoding_uv, encoding_green, circle, p.black_level, p.reference_percentile,

@@ -163,11 +163,6 @@ def _best_cut(score: np.ndarray, below: np.ndarray) -> tuple[np.ndarray, np.ndar
     return first + 1, np.maximum(last, first) + 1, valid
 
 
-def split_at(counts: np.ndarray, edges: np.ndarray, cut: np.ndarray, threshold: np.ndarray) -> HistogramSplit:
-    """Return the class statistics of histograms `counts` (..., bins) split at cut index `cut` (1..bins-1)."""
-    return _split_at(_moments(counts, edges), cut, threshold)
-
-
 def _split_at(m: _Moments, cut: np.ndarray, threshold: np.ndarray) -> HistogramSplit:
     """Return the class statistics of the histograms with moments `m` split at cut index `cut` (1..bins-1)."""
     pick = np.asarray(cut)[..., None] - 1
