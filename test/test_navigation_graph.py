@@ -52,9 +52,14 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
         node.create_subscription(message_type, topic, lambda m, r=received: r.__setitem__(stamp_ns(m.header), m), 100)
     launch = start_skynav('launch', '--map', str(map_file))
     try:
+        # Wait until the graph is connected inside too (a late DDS joiner can take seconds, and whatever an
+        # unmatched subscription misses is lost): the outputs published, and every inner topic taken up by all
+        # its readers (sh; localize, compass, warping; compass, warping and this test; warping and this test).
         deadline = time.monotonic() + 60
         outputs = ('/localization/match', '/compass/orientation', '/homing/home_vector')
-        while min(node.count_publishers(t) for t in outputs) == 0 and time.monotonic() < deadline:
+        readers = {'/skyline/mask': 1, '/skyline/sh': 3, '/localization/match': 3, '/compass/orientation': 2}
+        while time.monotonic() < deadline and (min(node.count_publishers(t) for t in outputs) == 0 or any(
+                node.count_subscribers(t) < n for t, n in readers.items())):
             executor.spin_once(timeout_sec=0.1)
         replay = start_skynav('replay', str(repeat), '--rate', '1', '--wait-for-subscribers', '30',
                               '--topics', '/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
