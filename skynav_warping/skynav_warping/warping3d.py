@@ -442,6 +442,8 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     rotational pre-alignment over tilt and a whole turn of yaw. full_turn: coarse yaw corrections over the whole
     turn instead of +- settings.yaw_window.
     """
+    from skynav_compass import rotation_angle
+
     tables = warping_tables(settings)
     L, Lc = settings.degree, settings.coarse_degree
     if min(current.degree, snapshot.degree) < L:
@@ -452,7 +454,7 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     starts = [] if rotation is None else [np.asarray(rotation, dtype=float)]
     if not starts or settings.check_compass:
         aligned, _ = align_rotation(tables, x[:, :nc], s[:, :nc], np.eye(3))
-        if not starts or _turn_angle(aligned, starts[0]) > settings.yaw_window:
+        if not starts or rotation_angle(aligned, starts[0]) > settings.yaw_window:
             starts.append(aligned)
     hypotheses: list[Hypothesis] = []
     reference = None
@@ -498,15 +500,10 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
                       evaluations=int(evaluations), start_rotation=best.start)
 
 
-def _turn_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Return the angle (rad) of the rotation between two rotation matrices."""
-    return float(np.arccos(np.clip((np.trace(a @ b.T) - 1.0) / 2.0, -1.0, 1.0)))
-
-
 def _coarse_hypotheses(tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, r0: np.ndarray,
                        full: bool) -> tuple[list[Hypothesis], Hypothesis, int]:
-    """Return the best coarse hypotheses from start rotation r0 (their cost: the coarse one), the best pure rotation
-    (cost not yet known) and the number of costs spent; current, snapshot: terms (3, n) at the coarse degree."""
+    """Return the best coarse hypotheses from start rotation r0 and the best pure rotation, both with their coarse
+    cost, and the number of costs spent; current, snapshot: terms (3, n) at the coarse degree."""
     from skynav_sh.rotation import rotate
 
     settings = tables.settings
