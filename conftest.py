@@ -49,3 +49,14 @@ def ros_context():
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     yield context
     rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(scope='session')
+def stellarium():
+    """The folder of the real Stellarium landscapes (fetched once); the test skips with one line without them."""
+    from skynav_sim.landscape import LandscapeUnavailable, fetch
+
+    try:
+        return fetch()
+    except LandscapeUnavailable as exc:
+        pytest.skip(f'real landscapes (stellarium-data) unavailable: {exc}')

@@ -11,6 +11,7 @@ the area average. Surfaces are Lambertian, lit by the sun
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -20,7 +21,9 @@ from skynav_sh.camera import EquidistantCamera
 from .materials import GREEN_RANGE, TEXTURE_SCALE, UV_RANGE, Surface
 from .noise import FractalNoise
 from .sky import BANDS, Sky
-from .world import World
+
+if TYPE_CHECKING:  # world.py builds on the robot, which builds on this module
+    from .world import World
 
 MAX_DISTANCE = 250.0  # m: rays that have hit nothing by then are sky, or far ground if they point down
 PRIMITIVE_BLOCK = 48  # primitives culled per matrix product
@@ -102,7 +105,7 @@ class Renderer:
 
     def shadow_map(self, sky: Sky) -> ShadowMap | None:
         """Return the cached map of cast shadows on the ground for the sun of `sky` (None without sun)."""
-        if sky.elevation <= 0:
+        if sky.elevation <= 0 or self.world.backdrop is not None:
             return None
         key = tuple(np.round(sky.sun, 6))
         if key not in self._shadow_maps:
@@ -112,6 +115,8 @@ class Renderer:
     def _shade(self, origin: np.ndarray, directions: np.ndarray, sky: Sky,
                shadows: ShadowMap | None) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Return radiance per band, whether each ray sees sky, and the distance to what it sees."""
+        if self.world.backdrop is not None:
+            return self.world.backdrop.shade(origin, directions, sky)
         distance, primitive = trace(self.world, origin, directions)
         downward_escape = ~np.isfinite(distance) & (directions[:, 2] < 0)
         distance = np.where(downward_escape, MAX_DISTANCE, distance)

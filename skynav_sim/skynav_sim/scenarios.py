@@ -232,4 +232,5 @@ def describe(name: str, world: World, params: ScenarioParameters, seed: int, fra
                        if k != 'extra' and not (k in _LATER_PARAMETERS and v == _LATER_PARAMETERS[k])},
         'frames': [{'label': f.label, 'hours': round(f.hours, 4), 'cloud_cover': f.cloud_cover} for f in frames],
         'synthetic': True,
+        **({'real_skyline': world.backdrop.source} if world.backdrop is not None else {}),
     }

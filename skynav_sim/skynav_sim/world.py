@@ -1,9 +1,14 @@
-"""Synthetic outdoor worlds generated from a seed: terrain, vegetation, buildings, walls, fences, rocks.
+"""Outdoor worlds generated from a seed: terrain, vegetation, buildings, walls, fences, rocks; or a real landscape.
 
 Frame `map`: x east, y north, z up, metres. Every world has a drivable yard
 around the origin (radius YARD_RADIUS) where routes and homing grids are laid
 out; objects stand inside it sparsely and around it densely, so the skyline
 seen from the yard has near and far structure.
+
+A landscape world (LANDSCAPES: a photographed Stellarium panorama, see
+landscape.py) has no objects: a lawn with bumps to drive on, and the real
+landscape on a backdrop around the yard, which the renderer shows instead of
+terrain and objects.
 """
 
 from __future__ import annotations
@@ -12,12 +17,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .landscape import LANDSCAPES, Backdrop, load
 from .materials import Surface
 from .noise import FractalNoise
 from .primitives import ConvexPolytope, Cylinder, Ellipsoid, Primitive
 from .terrain import Terrain
 
 STYLES = ('garden', 'park', 'mineral')
+WORLDS = STYLES + LANDSCAPES  # every name `generate` takes
 YARD_RADIUS = 10.0  # m: where the robot drives
 TERRAIN_EXTENT = 120.0  # m: half side of the terrain grid
 TERRAIN_CELL = 0.25  # m
@@ -79,6 +86,14 @@ STYLE_PARAMETERS = {
     ),
 }
 
+#: The ground of a landscape world: a lawn with the garden's bumps and no relief (the landscape shows the rest).
+LAWN = StyleParameters(
+    hill_amplitude=0.0, hill_scale=40.0, bumps=60, bump_amplitude=(0.08, 0.30), bump_radius=(0.6, 1.4),
+    ground=Surface.GRASS, patches=(), trees=0, far_trees=0, bushes=0, buildings=0, walls=0, fences=0, hedges=0,
+    rocks=0, rock_materials=(), wall_materials=(), trunk_height=(0.0, 0.0), crown_radius=(0.0, 0.0),
+    building_distance=(0.0, 0.0), building_height=(0.0, 0.0),
+)
+
 
 @dataclass
 class Footprint:
@@ -104,6 +119,7 @@ class World:
     groups: list[np.ndarray]  # primitive indices of each object (a tree: trunk and crown lumps)
     free: np.ndarray = field(repr=False)  # (n, n) bool, drivable grid over [-YARD_RADIUS, YARD_RADIUS]^2
     free_cell: float = TERRAIN_CELL
+    backdrop: Backdrop | None = None  # a real landscape seen instead of terrain and objects (landscape worlds)
 
     def __post_init__(self) -> None:
         self.centers = np.array([p.bounding_center for p in self.primitives]).reshape(-1, 3)
@@ -125,9 +141,15 @@ class World:
 
 
 def generate(style: str, seed: int) -> World:
-    """Return the world of a style ('garden', 'park', 'mineral') for a seed; equal inputs give equal worlds."""
+    """Return the world of a style or landscape (WORLDS) for a seed; equal inputs give equal worlds.
+
+    A landscape is fetched on first use (landscape.LandscapeUnavailable says why it could not be).
+    """
+    if style in LANDSCAPES:
+        rng = np.random.default_rng([seed, len(STYLES) + LANDSCAPES.index(style)])
+        return World(style, seed, _terrain(LAWN, rng), [], [], [], _free_space([]), backdrop=Backdrop(load(style)))
     if style not in STYLE_PARAMETERS:
-        raise ValueError(f'unknown world style {style!r} (known: {", ".join(STYLES)})')
+        raise ValueError(f'unknown world style {style!r} (known: {", ".join(WORLDS)})')
     params = STYLE_PARAMETERS[style]
     rng = np.random.default_rng([seed, STYLES.index(style)])
     terrain = _terrain(params, rng)

@@ -11,10 +11,12 @@ MAX_FOV = 220.0  # degrees (CONTRACT.md)
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the scenario, world, camera and daylight options."""
     from ..scenarios import SCENARIOS
-    from ..world import STYLES
+    from ..world import WORLDS
 
     parser.add_argument('scenario', metavar='SCENARIO', choices=SCENARIOS, help=f'one of {", ".join(SCENARIOS)}')
-    parser.add_argument('--world', choices=STYLES, default='garden', help='world style (default garden)')
+    parser.add_argument('--world', choices=WORLDS, default='garden',
+                        help='synthetic world style, or a real Stellarium landscape (fetched on first use) under the '
+                             'synthetic sky (default garden)')
     parser.add_argument('--seed', type=int, default=0, help='world and scenario seed (default 0)')
     camera = parser.add_argument_group('camera')
     camera.add_argument('--size', default='640x480', metavar='WxH', help='image size in pixels (default 640x480)')
