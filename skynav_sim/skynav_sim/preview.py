@@ -86,7 +86,9 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
     top.set_xlim(-extent, extent)
     top.set_ylim(-extent, extent)
     top.set_aspect('equal')
-    top.set_title('top view (synthetic world); red: frames shown, arrow = robot forward')
+    ground = ('synthetic world' if world is None or world.backdrop is None
+              else f'synthetic lawn, real {world.style} skyline {world.backdrop.distance:g} m away')
+    top.set_title(f'top view ({ground}); red: frames shown, arrow = robot forward')
     for row, frame in enumerate(frames):
         for column, (image, name) in enumerate(((frame.uv, 'UV'), (frame.green, 'green'),
                                                 (frame.mask, 'ground-truth mask'))):
