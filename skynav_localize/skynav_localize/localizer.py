@@ -78,7 +78,7 @@ BASELINES_HINT = 'build the map with `skynav map build --baselines`'
 
 
 def missing_descriptors(store: MapStore, method_name: str) -> str:
-    """Return what a map lacks for a method ('' if nothing): skynav's derive theirs, the baselines need theirs stored."""
+    """Return what a map lacks for a method ('' if nothing): skynav's derive theirs, baselines need theirs stored."""
     wanted = method(method_name)
     if not wanted.baseline or len(store) == 0:
         return ''

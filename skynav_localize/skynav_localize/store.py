@@ -596,7 +596,7 @@ class MapStore:
         return self._descriptor_cache[name]
 
     def derived(self, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
-        """Return a matrix derived from the map's data by make(), made once and kept until the map changes (read-only)."""
+        """Return a matrix derived from the map's data by make(), made once, kept until the map changes (read-only)."""
         cached = f'derived:{key}'
         with self._lock:
             if cached not in self._descriptor_cache:

@@ -136,7 +136,7 @@ def test_stored_and_derived_descriptors_match_alike(store, route, tmp_path):
 
 
 def featureless_route(route: np.ndarray, blank: np.ndarray, share: float = 1.0) -> np.ndarray:
-    """Return the route with the views at `blank` given the sky share `share` of a hemisphere (0: all ground, 1: all sky).
+    """Return the route with the views at `blank` given sky share `share` of a hemisphere (0: all ground, 1: all sky).
 
     Only c_00 changes, which no descriptor uses: the rule that such views hold nothing is all that can tell them apart.
     """
