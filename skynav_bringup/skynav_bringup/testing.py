@@ -13,6 +13,7 @@ from typing import IO
 
 # Fast DDS maps domain ids up to 232 to UDP ports; tests take theirs from the upper part.
 TEST_DOMAINS = range(100, 232)
+BAGS = Path(__file__).resolve().parents[2] / 'bags'  # the bundled (synthetic) recordings
 
 
 def claim_domain_id() -> tuple[int, IO]:
@@ -146,3 +147,69 @@ def messages_equal(a: object, b: object) -> bool:
     if isinstance(a, float) and isinstance(b, float) and np.isnan(a) and np.isnan(b):
         return True
     return a == b
+
+
+#: Kinds of featureless recording: everything sky, everything ground, an open field (sky above a level horizon).
+FEATURELESS_KINDS = ('sky', 'ground', 'open-field')
+OPEN_FIELD_HORIZON = 1.5  # deg: elevation of the open field's horizon in map (level ground, no relief)
+SKY_LEVELS = (80, 43)  # mono8 (UV, green) of the uniform sky: the bundled garden drive's medians
+GROUND_LEVELS = (5, 20)  # mono8 (UV, green) of the uniform ground: the same drive's medians
+
+
+def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int = 30,
+                                source: str = 'synthetic_garden_teach.mcap') -> Path:
+    """Write the first frames of a bundled synthetic drive (camera, poses, stamps) with uniform, noise-free images.
+
+    kind 'sky': every pixel sky; 'ground': every pixel ground; 'open-field': sky above a level horizon at
+    OPEN_FIELD_HORIZON in map (the camera's own tilt included), ground below. No texture anywhere, so ORB finds
+    nothing to describe. The ground-truth mask matches the images; the recording stays marked synthetic.
+    """
+    import dataclasses
+
+    import numpy as np
+    import yaml
+    from scipy.spatial.transform import Rotation
+
+    from skynav_sh.camera import EquidistantCamera
+
+    from .bag import BagWriter, open_bag
+    from .typestore import typestore
+
+    if kind not in FEATURELESS_KINDS:
+        raise ValueError(f'unknown kind {kind!r}; expected one of {", ".join(FEATURELESS_KINDS)}')
+    store = typestore()
+    poses, kept = {}, []
+    with open_bag(BAGS / source) as bag:
+        description = yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {}
+        description.update(featureless=kind, frames=description.get('frames', [])[:frames])
+        messages = [(raw.topic, raw.msgtype, raw.log_time, bag.deserialize(raw)) for raw in bag.messages()]
+    info = next(message for topic, _, _, message in messages if topic == '/camera/uv/camera_info')
+    camera = EquidistantCamera.from_camera_info(info)
+    directions, circle = camera.pixel_directions(), camera.image_circle()
+    for topic, _, _, message in messages:
+        if topic == '/ground_truth/pose':
+            q = message.pose.orientation
+            poses[message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec] = (q.x, q.y, q.z, q.w)
+    with BagWriter(path) as writer:
+        writer.set_custom_data('skynav_sim', yaml.safe_dump(description, sort_keys=False))
+        for topic, msgtype, log_time, message in messages:
+            stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+            if stamp not in kept:
+                if len(kept) == frames:
+                    continue
+                kept.append(stamp)
+            if topic in ('/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask'):
+                if kind == 'open-field':
+                    up = Rotation.from_quat(poses[stamp]).apply(directions.reshape(-1, 3))[:, 2]
+                    sky = up.reshape(circle.shape) > np.sin(np.radians(OPEN_FIELD_HORIZON))
+                else:
+                    sky = np.full(circle.shape, kind == 'sky')
+                channel = {'/camera/uv/image_raw': 0, '/camera/green/image_raw': 1}.get(topic)
+                pixels = (sky * np.uint8(255) if channel is None
+                          else np.where(sky, SKY_LEVELS[channel], GROUND_LEVELS[channel]) * circle)
+                message = dataclasses.replace(message, encoding='mono8', step=message.width,
+                                              data=np.ascontiguousarray(pixels, np.uint8).ravel())
+            if topic not in writer.topics:
+                writer.add_topic(topic, msgtype)
+            writer.write(topic, log_time, store.serialize_cdr(message, msgtype))
+    return Path(path)

@@ -7,6 +7,8 @@ difference over the part of the sphere both views see).
 
 The reference (`reference` parameter): the snapshot of the latest accepted place match ('match'),
 a fixed snapshot ('index'), or a live view stored by calling the ~/store_reference service ('live').
+A view or snapshot without a skyline (all sky or all ground in its field of view) fits every rotation
+alike: it gets no estimate, and is counted ('featureless', 'featureless_snapshot') instead.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from std_srvs.srv import Trigger
 from skynav_bringup.images import stamp_ns
 from skynav_bringup.node import SkynavNode
 from skynav_bringup.ros import run_node
+from skynav_sh.product import seen_mean, shows_skyline
 
 from .compass import Compass
 from .views import CompassView
@@ -136,11 +139,21 @@ class CompassNode(SkynavNode):
         except ValueError as exc:
             self.reject('fill', f'view stamped {stamp}: {exc}')
             return
+        share = float(seen_mean(current.weighted, current.visibility))
+        if not shows_skyline(share):
+            self.reject('featureless', f'view stamped {stamp} shows no skyline (sky on {100 * share:.0f} % of '
+                                       'what it sees): every rotation fits it alike')
+            return
         self.latest = current
         reference = self.reference_view(float(message.field_of_view))
         if reference is None:
             return
         index, snapshot = reference
+        share = float(seen_mean(snapshot.weighted, snapshot.visibility))
+        if not shows_skyline(share):
+            self.reject('featureless_snapshot', f'snapshot {index} shows no skyline (sky on {100 * share:.0f} % '
+                                                'of what it sees): every rotation fits it alike')
+            return
         with self.processing(stamp):
             estimate = self.compass.estimate(snapshot, current)
             result = CompassEstimate(snapshot_index=index, residual=float(estimate.residual))

@@ -251,3 +251,29 @@ def test_a_match_beyond_the_map_is_rejected(recording, tmp_path):
         deliver(graph, '/localization/match', match)
         assert feed(graph, sh_message(current, recording.camera.field_of_view)) == []
         assert node.errors == 0 and node.rejected == {'match_beyond_map': 1}
+
+
+def test_views_and_snapshots_without_a_skyline_get_no_estimate_and_are_counted(recording, reference, tmp_path):
+    from skynav_compass.views import cap_visibility
+
+    fov = recording.camera.field_of_view
+    all_sky = cap_visibility(16, fov / 2)  # the mask is 1 wherever the camera sees: v f = v
+    all_ground = np.zeros_like(all_sky)
+    view = next(v for v in recording.views if v.label == 'rotation')
+    stamps = iter(view.stamp + k * 10**8 for k in range(100))
+    blank_map = tmp_path / 'blank.db'
+    build_map(blank_map, 'blank', 16, [Snapshot(0, reference.stamp, all_sky, reference.pose)], created_from='test')
+    reference_map = tmp_path / 'reference.db'
+    build_map(reference_map, 'reference', 16, [Snapshot(0, reference.stamp, reference.coefficients, reference.pose)],
+              created_from='test')
+    with in_process([SPEC], ['-p', f'map:={reference_map}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        for blank in (all_sky, all_ground):
+            assert feed(graph, sh_message(view, fov, next(stamps), blank)) == []
+        assert node.rejected == {'featureless': 2}
+        [estimate] = feed(graph, sh_message(view, fov, next(stamps)))  # and the node keeps serving
+        assert np.isfinite(estimate.residual)
+        assert node.set_parameters([Parameter('map', value=str(blank_map))])[0].successful
+        assert feed(graph, sh_message(view, fov, next(stamps))) == []
+        assert node.rejected == {'featureless': 2, 'featureless_snapshot': 1} and node.errors == 0

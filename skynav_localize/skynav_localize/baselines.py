@@ -116,6 +116,10 @@ def kmeans(points: np.ndarray, count: int, rng: np.random.Generator,
     return centres
 
 
+class NoFeatures(ValueError):
+    """No ORB feature in any snapshot (a featureless teach drive: all sky, an open field, all ground): no vocabulary."""
+
+
 @dataclass(frozen=True)
 class BowVocabulary:
     """Visual words (K centres in ORB bit space) and the inverse document frequencies of a map's snapshots."""
@@ -129,7 +133,7 @@ class BowVocabulary:
         """Return a vocabulary by k-means on (a sample of) the snapshots' ORB descriptors and their idf."""
         pool = np.concatenate([np.asarray(d, np.uint8).reshape(-1, 32) for d in descriptor_sets])
         if len(pool) == 0:
-            raise ValueError('no ORB descriptors to train a vocabulary on')
+            raise NoFeatures('no ORB features in any snapshot to train a vocabulary on')
         rng = np.random.default_rng(seed)
         if len(pool) > max_samples:
             pool = pool[rng.choice(len(pool), max_samples, replace=False)]
@@ -184,7 +188,10 @@ class BowVocabulary:
 
 
 def train_bow(store, size: int = BOW_WORDS, seed: int = 0) -> BowVocabulary:
-    """Train the ORB vocabulary of a writable map from its snapshots' 'orb' descriptors and store it (after a build)."""
+    """Train the ORB vocabulary of a writable map from its snapshots' 'orb' descriptors and store it (after a build).
+
+    NoFeatures when no snapshot has a single ORB feature.
+    """
     vocabulary = BowVocabulary.train(store.descriptor_list('orb'), size, seed)
     vocabulary.save(store)
     return vocabulary

@@ -4,6 +4,8 @@ Methods (METHODS): skynav's rotation-invariant SH descriptors, single frame and 
 ('amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'), and the baselines, named for what they are
 ('raw-uv' and 'seqslam-raw-uv': SeqSLAM's patch-normalised down-sampled UV image without and with sequences;
 'bow-orb': bag of ORB words with tf-idf). All of them go through the same distances -> matching -> acceptance path.
+skynav's descriptors are derived from the map's coefficients when a Localizer loads it (unless the map stores
+current ones); the baselines' must be stored in the map (`skynav map build --baselines`).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from skynav_localize.mapping import stored_settings
 from skynav_localize.matching import (DEFAULT_CANDIDATES, Acceptance, Match, SequenceBuffer, SequenceParams,
                                       best_candidates, sequence_match, sequence_scores, single_frame)
 from skynav_localize.store import MapError, MapStore
+from skynav_sh.product import message_sky_share, shows_skyline
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,23 @@ def method(name: str) -> Method:
         raise ValueError(f'unknown localization method {name!r}; expected one of {", ".join(METHODS)}') from None
 
 
+BASELINES_HINT = 'build the map with `skynav map build --baselines`'
+
+
+def missing_descriptors(store: MapStore, method_name: str) -> str:
+    """Return what a map lacks for a method ('' if nothing): skynav's derive theirs, baselines need theirs stored."""
+    wanted = method(method_name)
+    if not wanted.baseline or len(store) == 0:
+        return ''
+    stored = set(store.descriptor_names())
+    if wanted.descriptor == 'raw_uv' and 'raw_uv' not in stored:
+        return "raw UV descriptors ('raw_uv')"
+    if wanted.descriptor == 'bow-orb' and 'orb' not in stored and not (
+            'bow-orb' in stored and baselines.BowVocabulary.load(store) is not None):
+        return "ORB descriptors ('orb') or their vocabulary"
+    return ''
+
+
 @dataclass(frozen=True)
 class Matches:
     """Matches of a whole query sequence (offline), one entry per query in order."""
@@ -109,6 +129,7 @@ class Localizer:
         self.circle = circle
         self.settings = stored_settings(store.meta)
         self.vocabulary: baselines.BowVocabulary | None = None
+        self._featureless_snapshots: dict[tuple[float | None, str], np.ndarray] = {}
         self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)
         self._buffer = SequenceBuffer(self.sequence) if self.method.sequence else None
 
@@ -124,23 +145,26 @@ class Localizer:
                 return store.descriptor_matrix(name)
             if len(store) == 0:
                 return np.zeros((0, describe(name, np.zeros((store.max_degree + 1) ** 2)).size))
-            return describe(name, store.coefficients(), store.max_degree)
+            # derived once per map and shared by its Localizers (the bispectrum: ~0.5 ms per snapshot at L = 16)
+            return store.derived(f'{name}-v{DESCRIPTOR_VERSION}',
+                                 lambda: describe(name, store.coefficients(), store.max_degree))
         if len(store) == 0:
             return np.zeros((0, 1))
+        if missing := missing_descriptors(store, self.method.name):
+            raise MapError(f'{store.path}: method {self.method.name!r} needs {missing}, which this map does not '
+                           f'hold ({BASELINES_HINT})')
         if name == 'raw_uv':
-            if not stored:
-                raise MapError(f'{store.path}: method {self.method.name!r} needs raw UV descriptors '
-                               "('raw_uv'), which this map does not hold (build it with the UV images)")
             return store.descriptor_matrix('raw_uv')
         # bow-orb: the stored vocabulary and vectors, or a vocabulary trained now from the stored ORB features
         self.vocabulary = baselines.BowVocabulary.load(store)
         if self.vocabulary is not None and stored:
             return store.descriptor_matrix('bow-orb')
-        if 'orb' not in store.descriptor_names():
-            raise MapError(f'{store.path}: method bow-orb needs ORB descriptors (\'orb\'), which this map does not '
-                           'hold (build it with the UV images)')
         orb = store.descriptor_list('orb')
-        self.vocabulary = baselines.BowVocabulary.train(orb)
+        try:
+            self.vocabulary = baselines.BowVocabulary.train(orb)
+        except baselines.NoFeatures:
+            raise MapError(f'{store.path}: method bow-orb needs ORB features, and no snapshot of this map has '
+                           'any') from None
         return self.vocabulary.vectors(orb)
 
     def describe(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> np.ndarray:
@@ -179,8 +203,31 @@ class Localizer:
         if self._buffer is not None:
             self._buffer.clear()
 
-    def query(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> Match:
-        """Return the match of the newest query (coefficients or UV image), using the history for sequences."""
+    def featureless(self, coefficients: np.ndarray, field_of_view: float | None, fill: str = 'zero') -> np.ndarray:
+        """Return which views (coefficients (..., n), as /skyline/sh gives them) show no skyline.
+
+        All False for the baselines (they judge images their own way) and without a field of view.
+        """
+        coefficients = np.asarray(coefficients, dtype=float)
+        if field_of_view is None or self.method.baseline:
+            return np.zeros(coefficients.shape[:-1], dtype=bool)
+        return ~np.asarray(shows_skyline(message_sky_share(coefficients, float(field_of_view), fill)), dtype=bool)
+
+    def featureless_snapshots(self, field_of_view: float | None, fill: str = 'zero') -> np.ndarray:
+        """Return which snapshots (N,) show no skyline, seen by the camera of the queries (fov in rad, fill)."""
+        key = (field_of_view, fill)
+        if key not in self._featureless_snapshots:
+            self._featureless_snapshots[key] = self.featureless(self.store.coefficients(), field_of_view, fill)
+        return self._featureless_snapshots[key]
+
+    def query(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None,
+              field_of_view: float | None = None, fill: str = 'zero') -> Match:
+        """Return the match of the newest query (coefficients or UV image), using the history for sequences.
+
+        With the view's field of view (rad) and fill, a featureless view (no skyline: all sky or all ground in what
+        it sees) is matched, and enters the history, but never accepted; nor is a match on a featureless snapshot.
+        Nothing in either tells places apart.
+        """
         if len(self.index) == 0:
             return Match.empty()
         distances = self.index.distances(self.describe(coefficients, uv))
@@ -192,18 +239,30 @@ class Localizer:
             best, best_distance, score = (value[0] for value in
                                           sequence_match(values, choice, self._sequence_exclusion))
         indices, candidate_values = best_candidates(values, self.candidates)
-        return Match(int(best), float(best_distance), float(score),
-                     bool(self.acceptance.accepts(score, best_distance)), indices, candidate_values)
+        blank = coefficients is not None and bool(self.featureless(coefficients, field_of_view, fill))
+        blank = blank or bool(self.featureless_snapshots(field_of_view, fill)[best])
+        accepted = bool(self.acceptance.accepts(score, best_distance)) and not blank
+        return Match(int(best), float(best_distance), float(score), accepted, indices, candidate_values)
 
-    def match_sequence(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None) -> Matches:
+    def match_sequence(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None,
+                       field_of_view: float | None = None, fill: str = 'zero') -> Matches:
         """Return the matches of a whole query sequence in one go (as query() would give them from a reset)."""
+        featureless = None if coefficients is None else self.featureless(coefficients, field_of_view, fill)
         if len(self.index) == 0:
             queries = len(coefficients if self.method.source == 'sh' else uvs)
             return self.match_descriptors(np.zeros((queries, self.index.dimension)))
-        return self.match_descriptors(self.describe_all(coefficients, uvs))
+        matches = self.match_descriptors(self.describe_all(coefficients, uvs), featureless)
+        if field_of_view is not None:
+            blank = self.featureless_snapshots(field_of_view, fill)[matches.index]
+            matches = Matches(matches.index, matches.distance, matches.score, matches.accepted & ~blank,
+                              matches.values)
+        return matches
 
-    def match_descriptors(self, descriptors: np.ndarray) -> Matches:
-        """Return the matches of a sequence of query descriptors (Q, D) (offline form of query())."""
+    def match_descriptors(self, descriptors: np.ndarray, featureless: np.ndarray | None = None) -> Matches:
+        """Return the matches of a sequence of query descriptors (Q, D) (offline form of query()).
+
+        featureless (Q,) bool: views without a skyline, matched but never accepted (see query()).
+        """
         queries = len(descriptors)
         if len(self.index) == 0:
             empty = np.zeros((queries, 0))
@@ -216,4 +275,7 @@ class Localizer:
         else:
             values = distances
             best, best_distance, score = single_frame(distances, self.acceptance.exclusion)
-        return Matches(best, best_distance, score, np.asarray(self.acceptance.accepts(score, best_distance)), values)
+        accepted = np.asarray(self.acceptance.accepts(score, best_distance))
+        if featureless is not None:
+            accepted = accepted & ~np.asarray(featureless, dtype=bool)
+        return Matches(best, best_distance, score, accepted, values)

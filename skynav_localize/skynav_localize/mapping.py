@@ -1,18 +1,22 @@
 """Building a map: which frames become snapshots, the descriptors stored with each, and the map's creation.
 
-A map build (`skynav map build`) goes:
+A map holds what the product uses: each snapshot's SH coefficients (and pose). skynav's descriptors (amplitude
+spectrum, bispectrum) are derived from them when a Localizer loads the map. The baselines' descriptors (down-sampled
+UV image, ORB features and their vocabulary) are stored only on request (`skynav map build --baselines`, for the
+evaluations); nothing in building a map depends on them. A map build goes:
 
     store = create_map(path, name, L, created_from=bag)           # or build_map(...) for one atomic write
     selector = SnapshotSelector()
-    for each frame: coefficients (skyline -> SH), UV image, pose (if the recording has one)
-        descriptors = snapshot_descriptors(coefficients, L, uv, circle)
-        if selector.keep(descriptors['amplitude'], position):
+    for each frame: coefficients (skyline -> SH), pose (if the recording has one), UV image (with baselines)
+        if selector.keep(describe('amplitude', coefficients, L), position):
+            descriptors = baseline_descriptors(uv, circle) if baselines else {}
             store.add_snapshot(coefficients, stamp_ns, pose, descriptors)   # one transaction each
-    train_bow(store)                                               # the ORB vocabulary, when 'orb' was stored
+    left_out = finish_baselines(store)                             # with baselines: the ORB vocabulary, if it can be
     store.close()
 
-create_map/build_map record descriptor_settings() in the map, so a Localizer knows the stored SH descriptors are
-current (else it derives them from the coefficients again) and describes baseline queries the same way.
+create_map/build_map record descriptor_settings() in the map, so a Localizer knows whether stored SH descriptors
+(a map may still hold them) are current (else it derives them from the coefficients) and describes baseline queries
+the same way.
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, describe
 from skynav_localize.store import MapStore, Snapshot
 
-#: Descriptors stored per snapshot by default: the SH ones always, the baselines' when the UV image is given.
+#: skynav's descriptors: derived from the coefficients (stored only if a caller asks snapshot_descriptors for them).
 SH_DESCRIPTOR_NAMES = ('amplitude', 'bispectrum')
+#: The baselines' descriptors of a UV image, stored per snapshot by `skynav map build --baselines`.
 IMAGE_DESCRIPTOR_NAMES = ('raw_uv', 'orb')
 SETTINGS_KEY = 'descriptor_settings'  # map meta key: JSON of the settings the stored descriptors were made with
 DEFAULT_MIN_TRAVEL = 0.1  # m of travel between snapshots
@@ -63,12 +68,34 @@ def snapshot_descriptors(coefficients: np.ndarray, max_degree: int, uv: np.ndarr
         elif name in IMAGE_DESCRIPTOR_NAMES:
             if uv is None:
                 raise ValueError(f'descriptor {name!r} needs the UV image')
-            out[name] = (baselines.raw_uv_descriptor(uv) if name == 'raw_uv'
-                         else baselines.orb_descriptors(uv, circle))
+            out.update(baseline_descriptors(uv, circle, (name,)))
         else:
             raise ValueError(f'unknown descriptor {name!r}; expected one of '
                              f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}')
     return out
+
+
+def baseline_descriptors(uv: np.ndarray, circle: np.ndarray | None = None,
+                         names: Iterable[str] = IMAGE_DESCRIPTOR_NAMES) -> dict[str, np.ndarray]:
+    """Return the baselines' descriptors of one snapshot's UV image: 'raw_uv' and 'orb' (inside the image circle)."""
+    return {name: baselines.raw_uv_descriptor(uv) if name == 'raw_uv' else baselines.orb_descriptors(uv, circle)
+            for name in names}
+
+
+def finish_baselines(store: MapStore) -> list[str]:
+    """Train what the baselines need once every snapshot is stored (the ORB vocabulary); return a line per one left out.
+
+    A teach drive without a single ORB feature (all sky, an open field, all ground) has no vocabulary: the bag of
+    words is left out (its 'orb' rows removed) and says so in one line; the map is complete without it.
+    """
+    if 'orb' not in store.descriptor_names():
+        return []
+    try:
+        baselines.train_bow(store)
+    except baselines.NoFeatures:
+        store.remove_descriptors('orb')
+        return ['bow-orb: no ORB features in the teach drive; its descriptors are left out']
+    return []
 
 
 class SnapshotSelector:

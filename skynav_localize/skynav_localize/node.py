@@ -4,6 +4,8 @@ Subscribes /skyline/sh; publishes /localization/match (skynav_msgs/PlaceMatch) f
 best snapshot of the map given by the `map` parameter, its descriptor distance, whether it passed
 the acceptance test, and the runners-up. Setting `map` at run time switches maps; a map that cannot
 be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
+A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
+nor is a match on a snapshot without one.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from skynav_bringup.images import stamp_ns
 from skynav_bringup.node import SkynavNode
 from skynav_bringup.ros import run_node
 
-from .localizer import OUR_METHODS, Localizer
+from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .store import MapStore, map_for_parameter
 
@@ -60,7 +62,7 @@ class LocalizeNode(SkynavNode):
         if store is None:
             self.store, self.localizer = None, None
             return
-        method_acceptance = Localizer(store, values['method']).acceptance
+        method_acceptance = METHODS[values['method']].acceptance
         ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
         acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion)
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
@@ -96,7 +98,8 @@ class LocalizeNode(SkynavNode):
                     self.reject('degree', f'coefficients of degree {degree} cannot match a map of degree '
                                           f'{self.store.max_degree}')
                     return
-                match = self.localizer.query(coefficients=coefficients[: (self.store.max_degree + 1) ** 2])
+                match = self.localizer.query(coefficients=coefficients[: (self.store.max_degree + 1) ** 2],
+                                             field_of_view=float(message.field_of_view), fill=message.fill)
                 result.map_name = self.store.name
                 result.index, result.distance, result.accepted = int(match.index), float(match.distance), \
                     bool(match.accepted)

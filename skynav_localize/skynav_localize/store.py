@@ -9,8 +9,19 @@ Schema (version SCHEMA_VERSION; `PRAGMA application_id` = APPLICATION_ID marks t
               coefficients BLOB,                 (L+1)^2 little-endian float64, real SH of the skyline mask
               checksum INTEGER,                  CRC-32 of the coefficient bytes
               x, y, z, qx, qy, qz, qw REAL)      ground-truth pose of camera_link in map (m, quaternion), or all NULL
-    descriptors(snapshot_idx, name, dtype, shape, data BLOB, checksum)   per-snapshot arrays ('amplitude', 'orb')
-    artifacts(name, dtype, shape, data BLOB, checksum)                   map-level arrays (e.g. the BoW vocabulary)
+    descriptors(snapshot_idx, name, dtype, shape, data BLOB, checksum)   per-snapshot arrays (e.g. the baselines'
+                                                                         'raw_uv', 'orb'); created with the first
+    artifacts(name, dtype, shape, data BLOB, checksum)                   map-level arrays (e.g. the BoW vocabulary);
+                                                                         created with the first
+
+What the product uses is the coefficients: its descriptors (amplitude spectrum, bispectrum) are derived from them
+when a map is loaded, so a map of skynav's own is the meta and snapshots tables only. The tables descriptors and
+artifacts exist only in maps that hold more (the baselines' descriptors of `skynav map build --baselines`).
+Pages are PAGE_SIZE bytes: three snapshot rows of degree 16 (about 2.4 kB each) fill one page, where 4 kB pages
+would hold one each.
+
+Versions: 1 (all four tables always, 4 kB pages; still read) and 2 (descriptors and artifacts optional, meta
+without rowid, PAGE_SIZE pages). A map of a newer version is refused in one line.
 
 Writing: the file is in WAL mode and every snapshot is one transaction, so a process killed while building leaves
 a readable map holding every committed snapshot. close() checkpoints and returns the file to rollback-journal mode
@@ -35,7 +46,8 @@ from urllib.parse import quote
 
 import numpy as np
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+PAGE_SIZE = 8192  # bytes per SQLite page of a new map
 MAP_FORMAT = 'skynav-map'
 APPLICATION_ID = 0x736B6E76  # 'sknv'
 SQLITE_MAGIC = b'SQLite format 3\x00'
@@ -44,7 +56,7 @@ RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc'
 CHECKS = ('none', 'quick', 'full')
 
 _SCHEMA = """
-CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL) WITHOUT ROWID;
 CREATE TABLE snapshots (
     idx INTEGER PRIMARY KEY CHECK (idx >= 0),
     stamp_ns INTEGER NOT NULL,
@@ -53,6 +65,10 @@ CREATE TABLE snapshots (
     x REAL, y REAL, z REAL, qx REAL, qy REAL, qz REAL, qw REAL,
     CHECK ((x IS NULL) = (qw IS NULL))
 );
+"""
+#: The optional tables, each created in the transaction that first writes to it.
+_OPTIONAL_TABLES = {
+    'descriptors': """
 CREATE TABLE descriptors (
     snapshot_idx INTEGER NOT NULL REFERENCES snapshots(idx),
     name TEXT NOT NULL,
@@ -61,19 +77,21 @@ CREATE TABLE descriptors (
     data BLOB NOT NULL,
     checksum INTEGER NOT NULL,
     PRIMARY KEY (snapshot_idx, name)
-) WITHOUT ROWID;
-CREATE INDEX descriptors_by_name ON descriptors(name, snapshot_idx);
+)""",
+    'artifacts': """
 CREATE TABLE artifacts (
     name TEXT PRIMARY KEY,
     dtype TEXT NOT NULL,
     shape TEXT NOT NULL,
     data BLOB NOT NULL,
     checksum INTEGER NOT NULL
-);
-"""
+)""",
+}
 _REQUIRED_COLUMNS = {
     'meta': {'key', 'value'},
     'snapshots': {'idx', 'stamp_ns', 'coefficients', 'checksum', *POSE_COLUMNS},
+}
+_OPTIONAL_COLUMNS = {
     'descriptors': {'snapshot_idx', 'name', 'dtype', 'shape', 'data', 'checksum'},
     'artifacts': {'name', 'dtype', 'shape', 'data', 'checksum'},
 }
@@ -162,6 +180,7 @@ class MapStore:
         db = None
         try:
             db = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
+            db.execute(f'PRAGMA page_size={PAGE_SIZE}')  # before the first table; WAL mode fixes it
             db.execute('PRAGMA journal_mode=WAL')
             db.execute('PRAGMA synchronous=FULL')  # a commit is on disk before add_snapshot returns
             db.execute(f'PRAGMA application_id={APPLICATION_ID}')
@@ -245,6 +264,7 @@ class MapStore:
                 store.add_snapshot(snapshot.coefficients, snapshot.stamp_ns, snapshot.pose, snapshot.descriptors)
             if finish is not None:
                 finish(store)
+            store._compact()
             store.close()
             with partial.open('rb') as stream:
                 os.fsync(stream.fileno())
@@ -279,7 +299,8 @@ class MapStore:
                            f'({SCHEMA_VERSION}); update skynav')
         if version < 1:
             raise MapError(f'{self.path}: damaged map (schema version {version})')
-        for table, columns in _REQUIRED_COLUMNS.items():
+        optional = {table: columns for table, columns in _OPTIONAL_COLUMNS.items() if table in tables}
+        for table, columns in {**_REQUIRED_COLUMNS, **optional}.items():
             present = {row[1] for row in self._db.execute(f'PRAGMA table_info({table})')}
             if missing := columns - present:
                 raise MapError(f'{self.path}: damaged map (table {table} lacks {", ".join(sorted(missing))})')
@@ -354,8 +375,10 @@ class MapStore:
                 with self._transaction():
                     self._db.execute('INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
                                      (index, int(stamp_ns), blob, _crc(blob), *pose_values))
-                    self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
-                                         [(index, *row) for row in packed])
+                    if packed:
+                        self._create_table('descriptors')
+                        self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
+                                             [(index, *row) for row in packed])
             except sqlite3.Error as exc:
                 raise MapError(f'{self.path}: cannot write snapshot {index}: {exc}') from None
             self._append(int(stamp_ns), coefficients, np.asarray(pose_values, dtype=float))
@@ -385,10 +408,22 @@ class MapStore:
             raise ValueError(f'{self.path}: {len(rows)} descriptors for {len(self)} snapshots')
         try:
             with self._transaction():
+                self._create_table('descriptors')
                 self._db.execute('DELETE FROM descriptors WHERE name = ?', (str(name),))
                 self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)', rows)
         except sqlite3.Error as exc:
             raise MapError(f'{self.path}: cannot write descriptors {name!r}: {exc}') from None
+        self._descriptor_cache.pop(name, None)
+
+    def remove_descriptors(self, name: str) -> None:
+        """Delete descriptor `name` of every snapshot (if stored), in one transaction."""
+        self._require_writable()
+        try:
+            with self._transaction():
+                if self._has_table('descriptors'):
+                    self._db.execute('DELETE FROM descriptors WHERE name = ?', (str(name),))
+        except sqlite3.Error as exc:
+            raise MapError(f'{self.path}: cannot remove descriptors {name!r}: {exc}') from None
         self._descriptor_cache.pop(name, None)
 
     def put_artifact(self, name: str, array: np.ndarray) -> None:
@@ -396,6 +431,7 @@ class MapStore:
         self._require_writable()
         try:
             with self._transaction():
+                self._create_table('artifacts')
                 self._db.execute('INSERT OR REPLACE INTO artifacts VALUES (?, ?, ?, ?, ?)',
                                  (str(name), *_pack(array)))
         except sqlite3.Error as exc:
@@ -414,6 +450,16 @@ class MapStore:
             raise MapError(f'{self.path}: cannot write metadata {key!r}: {exc}') from None
         self._meta[str(key)] = text
 
+    def _has_table(self, table: str) -> bool:
+        """Return whether the file holds table `table` (the optional tables appear with their first rows)."""
+        return self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?",
+                                (table,)).fetchone() is not None
+
+    def _create_table(self, table: str) -> None:
+        """Create optional table `table` unless it exists (inside the caller's transaction)."""
+        if not self._has_table(table):
+            self._db.execute(_OPTIONAL_TABLES[table])
+
     @contextmanager
     def _transaction(self) -> Iterator[None]:
         """Run the block as one IMMEDIATE transaction under the store's lock: committed, or rolled back on error."""
@@ -425,6 +471,13 @@ class MapStore:
                 self._db.execute('ROLLBACK')
                 raise
             self._db.execute('COMMIT')
+
+    def _compact(self) -> None:
+        """Give the pages that removed rows left free back to the file system (VACUUM), if there are any."""
+        self._require_writable()
+        with self._lock:
+            if self._db.execute('PRAGMA freelist_count').fetchone()[0]:
+                self._db.execute('VACUUM')
 
     def close(self) -> None:
         """Close the file; a writable map is checkpointed into one self-contained file first."""
@@ -499,8 +552,8 @@ class MapStore:
         """Return one snapshot with all its descriptors."""
         if not 0 <= index < len(self):
             raise IndexError(f'{self.path}: no snapshot {index} (the map has {len(self)})')
-        rows = self._read('SELECT name, dtype, shape, data, checksum FROM descriptors WHERE snapshot_idx = ?',
-                          (int(index),))
+        rows = self._read_optional('descriptors', 'SELECT name, dtype, shape, data, checksum FROM descriptors '
+                                   'WHERE snapshot_idx = ?', (int(index),))
         descriptors = {row[0]: self._checked(row[1:], f'descriptor {row[0]!r} of snapshot {index}') for row in rows}
         pose = self._poses[index]
         return Snapshot(index, int(self._stamps[index]), self._coefficients[index].copy(),
@@ -512,11 +565,13 @@ class MapStore:
 
     def descriptor_names(self) -> list[str]:
         """Return the names of the stored per-snapshot descriptors."""
-        return [row[0] for row in self._read('SELECT DISTINCT name FROM descriptors ORDER BY name')]
+        return [row[0] for row in self._read_optional('descriptors',
+                                                      'SELECT DISTINCT name FROM descriptors ORDER BY name')]
 
     def descriptor_list(self, name: str) -> list[np.ndarray]:
         """Return descriptor `name` of every snapshot as a list (for variable-size ones such as ORB)."""
-        rows = self._read('SELECT snapshot_idx, dtype, shape, data, checksum FROM descriptors WHERE name = ? '
+        rows = self._read_optional('descriptors', 'SELECT snapshot_idx, dtype, shape, data, checksum FROM descriptors '
+                                   'WHERE name = ? '
                           'ORDER BY snapshot_idx', (str(name),))
         if not rows:
             raise KeyError(f'{self.path}: no descriptor {name!r} in this map '
@@ -540,9 +595,20 @@ class MapStore:
             self._descriptor_cache[name] = matrix
         return self._descriptor_cache[name]
 
+    def derived(self, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
+        """Return a matrix derived from the map's data by make(), made once, kept until the map changes (read-only)."""
+        cached = f'derived:{key}'
+        with self._lock:
+            if cached not in self._descriptor_cache:
+                matrix = np.asarray(make())
+                matrix.flags.writeable = False
+                self._descriptor_cache[cached] = matrix
+            return self._descriptor_cache[cached]
+
     def artifact(self, name: str) -> np.ndarray | None:
         """Return the map-level array stored under `name`, None if there is none."""
-        rows = self._read('SELECT dtype, shape, data, checksum FROM artifacts WHERE name = ?', (str(name),))
+        rows = self._read_optional('artifacts', 'SELECT dtype, shape, data, checksum FROM artifacts WHERE name = ?',
+                                   (str(name),))
         return self._checked(rows[0], f'artifact {name!r}') if rows else None
 
     def _read(self, sql: str, parameters: tuple = ()) -> list[tuple]:
@@ -554,6 +620,12 @@ class MapStore:
                 return self._db.execute(sql, parameters).fetchall()
         except sqlite3.DatabaseError as exc:
             raise MapError(f'{self.path}: corrupt or truncated map file ({exc})') from None
+
+    def _read_optional(self, table: str, sql: str, parameters: tuple = ()) -> list[tuple]:
+        """Run a query on optional table `table`: no rows when the map does not hold that table."""
+        with self._lock:
+            present = self._read("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,))
+            return self._read(sql, parameters) if present else []
 
     def _checked(self, row: tuple, what: str) -> np.ndarray:
         """Return the array of a (dtype, shape, data, checksum) row; MapError if it is damaged."""
@@ -578,7 +650,8 @@ class MapStore:
         info['file_bytes'] = self.path.stat().st_size if self.path.exists() else 0
         info['snapshots'] = len(self)
         info['descriptors'] = self.descriptor_names()
-        info['artifacts'] = [row[0] for row in self._read('SELECT name FROM artifacts ORDER BY name')]
+        info['artifacts'] = [row[0] for row in self._read_optional('artifacts',
+                                                                   'SELECT name FROM artifacts ORDER BY name')]
         info['has_poses'] = self.has_poses
         if len(self):
             info['first_stamp_ns'] = int(self._stamps[0])

@@ -89,3 +89,14 @@ def make_route():
 def make_view():
     """The random_view function: (degree, rng) -> coefficients of an unrelated view (off any route)."""
     return random_view
+
+
+
+@pytest.fixture
+def featureless_recording(tmp_path):
+    """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_bringup.testing)."""
+    from skynav_bringup.testing import write_featureless_recording
+
+    def write(kind: str, frames: int = 30) -> Path:
+        return write_featureless_recording(tmp_path / f'synthetic_featureless_{kind}.mcap', kind, frames)
+    return write

@@ -1,4 +1,4 @@
-"""The bundled teach/repeat pairs end to end: `skynav map build`, then every method on the repeat drive.
+"""The bundled teach/repeat pairs end to end: `skynav map build --baselines`, then every method on the repeat drive.
 
 Bounds from `skynav eval localization` on these recordings (synthetic; repeat drives at another time
 of day, beside the route, with the heading wandering 25 degrees): amplitude-seq reaches recall 1.0
@@ -24,7 +24,8 @@ TARGET_RECALL = 0.9
 @pytest.mark.parametrize('world', ['garden', 'mineral'])
 def test_amplitude_sequences_beat_the_baselines(tmp_path, world):
     map_file = tmp_path / f'{world}.db'
-    result = run_skynav('map', 'build', str(BAGS / f'synthetic_{world}_teach.mcap'), '--out', str(map_file))
+    result = run_skynav('map', 'build', str(BAGS / f'synthetic_{world}_teach.mcap'), '--out', str(map_file),
+                        '--baselines')
     assert result.returncode == 0, result.stderr
     store = MapStore.open(map_file)
     assert 30 < len(store) < 80 and store.has_poses

@@ -89,9 +89,9 @@ def test_empty_map_and_missing_baseline_data(tmp_path, route):
     with MapStore.create(tmp_path / 'sh.db', 'sh', DEGREE) as writer:
         writer.add_snapshot(route[0], 0)
     sh_only = MapStore.open(writer.path)
-    with pytest.raises(MapError, match="needs raw UV descriptors"):
+    with pytest.raises(MapError, match="needs raw UV descriptors .* --baselines"):
         Localizer(sh_only, 'seqslam-raw-uv')
-    with pytest.raises(MapError, match='needs ORB descriptors'):
+    with pytest.raises(MapError, match='needs ORB descriptors .* --baselines'):
         Localizer(sh_only, 'bow-orb')
     # SH descriptors are derived from the coefficients when the map does not store them
     one = Localizer(sh_only, 'amplitude').query(route[0])
@@ -118,3 +118,61 @@ def test_snapshot_selector_by_travel_and_by_view_change():
     assert selector.keep(a, np.array([0.6, 0, 0]))  # 0.6 m from the last snapshot
     assert selector.keep(b, np.array([0.7, 0, 0]))  # the view changed
     assert not selector.keep(b, None)  # no position, same view
+
+
+def test_stored_and_derived_descriptors_match_alike(store, route, tmp_path):
+    with MapStore.create(tmp_path / 'coefficients.db', 'route', DEGREE) as writer:
+        for i, coefficients in enumerate(route):
+            writer.add_snapshot(coefficients, i)  # as `skynav map build` writes them: no descriptors
+    derived = MapStore.open(writer.path)
+    assert derived.descriptor_names() == [] and set(store.descriptor_names()) == {'amplitude', 'bispectrum'}
+    views, _ = repeat_drive(route, seed=3)
+    for name in OUR_METHODS:
+        ours, theirs = Localizer(derived, name), Localizer(store, name)
+        np.testing.assert_allclose(ours.index.matrix, theirs.index.matrix, atol=1e-12)
+        a, b = ours.match_sequence(views), theirs.match_sequence(views)
+        np.testing.assert_array_equal(a.index, b.index)
+        np.testing.assert_array_equal(a.accepted, b.accepted)
+
+
+def featureless_route(route: np.ndarray, blank: np.ndarray, share: float = 1.0) -> np.ndarray:
+    """Return the route with the views at `blank` given sky share `share` of a hemisphere (0: all ground, 1: all sky).
+
+    Only c_00 changes, which no descriptor uses: the rule that such views hold nothing is all that can tell them apart.
+    """
+    out = route.copy()
+    out[blank, 0] = share * 2 * np.pi / np.sqrt(4 * np.pi)  # c_00 of that much sky seen up to 90 degrees
+    return out
+
+
+@pytest.mark.parametrize('name', OUR_METHODS)
+def test_views_and_snapshots_without_a_skyline_are_never_accepted(route, name, tmp_path):
+    fov = np.pi  # the views' field of view (rad): a hemisphere
+    route = featureless_route(route, np.ones(SNAPSHOTS, bool), 0.5)  # half sky: every view shows a skyline
+    with create_map(tmp_path / 'route.db', 'route', DEGREE) as writer:
+        for i, coefficients in enumerate(route):
+            writer.add_snapshot(coefficients, i)
+    store = MapStore.open(writer.path)
+    normal, _ = repeat_drive(route, seed=2)
+    blank = np.zeros(QUERIES, bool)
+    blank[[20, 21, 40]] = True
+    reference = Localizer(store, name).match_sequence(normal, field_of_view=fov)
+    assert np.all(reference.accepted[blank])
+    for share in (0.0, 1.0):  # all ground, all sky
+        queries = featureless_route(normal, blank, share)
+        judged = Localizer(store, name).match_sequence(queries, field_of_view=fov)
+        assert not np.any(judged.accepted[blank])
+        np.testing.assert_array_equal(judged.accepted[~blank], reference.accepted[~blank])
+        np.testing.assert_array_equal(judged.index, reference.index)  # matched all the same
+        online = Localizer(store, name)
+        matches = [online.query(q, field_of_view=fov) for q in queries]
+        np.testing.assert_array_equal([m.accepted for m in matches], judged.accepted)
+        assert not np.any(Localizer(store, name).match_sequence(queries).accepted != reference.accepted)  # no fov
+    # snapshots without a skyline: a match on one is not accepted either
+    with create_map(tmp_path / 'blank.db', 'blank', DEGREE) as writer:
+        for i, coefficients in enumerate(featureless_route(route, np.arange(SNAPSHOTS) % 10 == 0)):
+            writer.add_snapshot(coefficients, i)
+    matches = Localizer(MapStore.open(writer.path), name).match_sequence(normal, field_of_view=fov)
+    on_blank = matches.index % 10 == 0
+    assert np.any(on_blank) and not np.any(matches.accepted[on_blank])
+    np.testing.assert_array_equal(matches.accepted[~on_blank], reference.accepted[~on_blank])

@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from skynav_localize.store import SCHEMA_VERSION, MapError, MapStore, Snapshot
+from skynav_localize.store import PAGE_SIZE, SCHEMA_VERSION, MapError, MapStore, Snapshot, _crc
 
 DEGREE = 4
 SIZE = (DEGREE + 1) ** 2
@@ -100,6 +100,84 @@ def test_appending_artifacts_and_descriptors(tmp_path):
         store.descriptor_matrix('bow-orb')
     np.testing.assert_array_equal(store.snapshot(2).descriptors['orb'], np.full((3, 32), 2, np.uint8))
     assert store.snapshot(3).descriptors == {}
+
+
+def tables_of(path) -> set[str]:
+    with sqlite3.connect(path) as db:
+        names = {row[0] for row in db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    db.close()
+    return names
+
+
+def test_a_map_of_coefficients_holds_meta_and_snapshots_only(tmp_path):
+    path = tmp_path / 'product.db'
+    with MapStore.create(path, 'product', DEGREE) as store:
+        for i in range(3):
+            store.add_snapshot(coefficients_of(i), i, pose_of(i))
+    assert tables_of(path) == {'meta', 'snapshots'}
+    with sqlite3.connect(path) as db:
+        assert db.execute('PRAGMA page_size').fetchone()[0] == PAGE_SIZE
+    db.close()
+    store = MapStore.open(path)
+    assert store.descriptor_names() == [] and store.artifact('bow-orb.words') is None
+    assert store.snapshot(1).descriptors == {} and store.info()['artifacts'] == []
+    with pytest.raises(KeyError, match='no descriptor .raw_uv. in this map .it has: none.'):
+        store.descriptor_list('raw_uv')
+    store.close()
+    with MapStore.open(path, writable=True) as store:  # the optional tables come with their first rows
+        store.put_descriptors('raw_uv', [np.full(4, i, np.float32) for i in range(3)])
+        store.put_artifact('words', np.eye(2))
+    assert tables_of(path) == {'meta', 'snapshots', 'descriptors', 'artifacts'}
+    store = MapStore.open(path)
+    np.testing.assert_array_equal(store.descriptor_matrix('raw_uv')[:, 0], [0, 1, 2])
+    np.testing.assert_array_equal(store.artifact('words'), np.eye(2))
+
+
+def test_removed_descriptors_leave_no_free_pages_in_a_built_map(tmp_path):
+    path = tmp_path / 'built.db'
+    snapshots = [Snapshot(i, i, coefficients_of(i), pose_of(i), {'orb': np.full((200, 32), i, np.uint8),
+                                                                 'raw_uv': np.full(768, i, np.float32)})
+                 for i in range(6)]
+    store = MapStore.build(path, 'built', DEGREE, snapshots, finish=lambda s: s.remove_descriptors('orb'))
+    assert store.descriptor_names() == ['raw_uv'] and len(store) == 6
+    with sqlite3.connect(path) as db:
+        assert db.execute('PRAGMA freelist_count').fetchone()[0] == 0
+    db.close()
+
+
+V1_SCHEMA = """
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE snapshots (idx INTEGER PRIMARY KEY CHECK (idx >= 0), stamp_ns INTEGER NOT NULL,
+    coefficients BLOB NOT NULL, checksum INTEGER NOT NULL,
+    x REAL, y REAL, z REAL, qx REAL, qy REAL, qz REAL, qw REAL, CHECK ((x IS NULL) = (qw IS NULL)));
+CREATE TABLE descriptors (snapshot_idx INTEGER NOT NULL REFERENCES snapshots(idx), name TEXT NOT NULL,
+    dtype TEXT NOT NULL, shape TEXT NOT NULL, data BLOB NOT NULL, checksum INTEGER NOT NULL,
+    PRIMARY KEY (snapshot_idx, name)) WITHOUT ROWID;
+CREATE INDEX descriptors_by_name ON descriptors(name, snapshot_idx);
+CREATE TABLE artifacts (name TEXT PRIMARY KEY, dtype TEXT NOT NULL, shape TEXT NOT NULL, data BLOB NOT NULL,
+    checksum INTEGER NOT NULL);
+"""
+
+
+def test_a_version_1_map_still_opens(tmp_path):
+    # as skynav wrote maps before schema version 2: every table, 4 kB pages, SH descriptors stored
+    path = tmp_path / 'old.db'
+    with sqlite3.connect(path) as db:
+        db.executescript(V1_SCHEMA)
+        db.executemany('INSERT INTO meta VALUES (?, ?)', [('format', 'skynav-map'), ('schema_version', '1'),
+                                                         ('name', 'old'), ('max_degree', str(DEGREE))])
+        for i in range(3):
+            blob = coefficients_of(i).astype('<f8').tobytes()
+            db.execute('INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
+                       (i, 100 + i, blob, _crc(blob), *pose_of(i)))
+            amplitude = np.full(DEGREE, float(i)).astype('<f8').tobytes()
+            db.execute('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
+                       (i, 'amplitude', '<f8', str(DEGREE), amplitude, _crc(amplitude)))
+    db.close()
+    store = MapStore.open(path)
+    assert len(store) == 3 and store.info()['schema_version'] == 1 and store.name == 'old'
+    np.testing.assert_array_equal(store.coefficients()[2], coefficients_of(2))
+    np.testing.assert_array_equal(store.descriptor_matrix('amplitude')[:, 0], [0.0, 1.0, 2.0])
 
 
 def test_build_is_atomic(tmp_path):
@@ -194,11 +272,18 @@ def test_missing_table_or_snapshot(tmp_path):
         MapStore.open(path)
     assert_one_line_map_error(excinfo, path, 'index 1 is missing')
     with sqlite3.connect(path) as db:
-        db.execute('DROP TABLE artifacts')
+        db.execute('ALTER TABLE descriptors RENAME COLUMN checksum TO crc')  # an optional table, but damaged
     db.close()
     with pytest.raises(MapError) as excinfo:
         MapStore.open(path)
-    assert_one_line_map_error(excinfo, path, 'damaged map', 'artifacts')
+    assert_one_line_map_error(excinfo, path, 'damaged map', 'descriptors', 'checksum')
+    with sqlite3.connect(path) as db:
+        db.execute('DROP TABLE descriptors')
+        db.execute('DROP TABLE snapshots')
+    db.close()
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, 'damaged map', 'snapshots')
 
 
 def test_truncated_file(tmp_path):

@@ -26,7 +26,8 @@ _EXPORTS = {
     'coupling': ('RealGaunt', 'real_gaunt'),
     'spectra': ('amplitude_distance', 'amplitude_spectrum', 'bispectrum', 'bispectrum_distance', 'bispectrum_size',
                 'bispectrum_triples', 'coefficient_distance', 'illumination_invariant', 'squared_distance'),
-    'product': ('MaskedView', 'inner', 'masked_distance', 'masked_distance_views', 'overlap_area', 'product'),
+    'product': ('MIN_CLASS_SHARE', 'MaskedView', 'cap_area', 'inner', 'masked_distance', 'masked_distance_views',
+                'message_sky_share', 'overlap_area', 'product', 'seen_mean', 'shows_skyline'),
     'translation': ('source_directions', 'translate', 'translate_z', 'translated_directions',
                     'z_translation_blocks'),
 }

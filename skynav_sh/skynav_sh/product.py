@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skynav_sh.basis import degree_from_size, n_coefficients
+from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
 from skynav_sh.coupling import real_gaunt
 from skynav_sh.rotation import RotationLike, rotate
 
@@ -98,3 +98,40 @@ def masked_distance(f: np.ndarray, g: np.ndarray, visibility_f: np.ndarray, visi
 def overlap_area(visibility_f: np.ndarray, visibility_g: np.ndarray) -> np.ndarray:
     """Return the integral of v_f v_g (sr): the solid angle both views see."""
     return inner(visibility_f, visibility_g)
+
+
+#: Least share (dimensionless) of what a view sees that sky and ground must each cover for the view to show a
+#: skyline. Below it (all sky, all ground) nothing in the view tells places or rotations apart: it is featureless.
+MIN_CLASS_SHARE = 0.01
+
+
+def cap_area(theta_max: float) -> float:
+    """Return the solid angle (sr) of the cap theta <= theta_max (rad) about +z."""
+    return float(2 * np.pi * (1 - np.cos(np.clip(theta_max, 0.0, np.pi))))
+
+
+def seen_mean(weighted: np.ndarray, visibility: np.ndarray) -> np.ndarray:
+    """Return the mean of f over what a view sees, c_00(v f) / c_00(v) (a mask: its sky share); 0 if it sees nothing."""
+    weighted, visibility = np.asarray(weighted, dtype=float), np.asarray(visibility, dtype=float)
+    seen = visibility[..., 0]
+    return np.divide(weighted[..., 0], seen, out=np.zeros_like(seen), where=seen > 0)
+
+
+def message_sky_share(coefficients: np.ndarray, field_of_view: float, fill: str = 'zero') -> np.ndarray | float:
+    """Return the sky share of what views see from their masks' SH (..., n) as /skyline/sh carries them (rad, fill).
+
+    zero fill: c_00 over that of the seen cap; mean fill carries the seen part's mean onto the whole sphere (exactly),
+    mirror fill about so. A field of view that is not known (not in (0, 2 pi]) counts as the whole sphere.
+    """
+    c00 = np.asarray(coefficients, dtype=float)[..., 0]
+    known = fill == 'zero' and 0 < field_of_view <= 2 * np.pi
+    area = cap_area(0.5 * field_of_view) if known else SPHERE_AREA
+    share = c00 * (np.sqrt(SPHERE_AREA) / area)
+    return float(share) if share.ndim == 0 else share
+
+
+def shows_skyline(sky_share: np.ndarray | float, min_share: float = MIN_CLASS_SHARE) -> np.ndarray | bool:
+    """Return whether a mask view whose sky covers `sky_share` of what it sees shows a skyline (both classes >= min)."""
+    share = np.asarray(sky_share, dtype=float)
+    result = (share >= min_share) & (share <= 1.0 - min_share)
+    return bool(result) if result.ndim == 0 else result

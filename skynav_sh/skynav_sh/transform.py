@@ -124,6 +124,34 @@ class GaussLegendreGrid:
         samples = np.fft.irfft(spectrum, n=self.n_phi, axis=-1) * self.n_phi
         return samples.reshape(*batch, *self.shape)
 
+    def degree_parts(self, coefficients: np.ndarray, rings: int | None = None) -> np.ndarray:
+        """Return samples (..., L'+1, rings, n_phi) of each degree's part f_l of coefficients (..., (L'+1)^2), L' <= L.
+
+        Only the first `rings` rings from the zenith are sampled (default all). Each part has one degree, so its
+        per-order values are a product with the Legendre table, not a sum over degrees.
+        """
+        coefficients = np.asarray(coefficients, dtype=float)
+        batch = coefficients.shape[:-1]
+        source_degree = int(round(np.sqrt(coefficients.shape[-1]))) - 1
+        if n_coefficients(source_degree) != coefficients.shape[-1] or source_degree > self.max_degree:
+            raise ValueError(f'{coefficients.shape[-1]} coefficients do not fit a grid of degree {self.max_degree}')
+        rings = self.n_theta if rings is None else int(rings)
+        flat = coefficients.reshape(-1, coefficients.shape[-1])
+        n = flat.shape[1]
+        size = source_degree + 1
+        part, order, degree = (index[:n] for index in self._flat_index)
+        # c_l,m - i c_l,-m per (batch, l, m): G_m - i H_m of the part of degree l
+        packed = np.zeros((flat.shape[0], size, size), dtype=complex)
+        cosine, sine = part == 0, part == 1
+        packed.real[:, degree[cosine], order[cosine]] = flat[:, cosine]
+        packed.imag[:, degree[sine], order[sine]] = -flat[:, sine]
+        legendre = self._legendre[:size, :size, :rings].transpose(1, 2, 0)  # (l, k, m)
+        spectrum = np.zeros((flat.shape[0], size, rings, self.n_phi // 2 + 1), dtype=complex)
+        spectrum[..., :size] = legendre[None] * packed[:, :, None, :]
+        spectrum[..., 1:] *= 0.5
+        samples = np.fft.irfft(spectrum, n=self.n_phi, axis=-1) * self.n_phi
+        return samples.reshape(*batch, size, rings, self.n_phi)
+
     def synthesis_at(self, coefficients: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Return the function of coefficients (..., (L'+1)^2) at unit directions (*D, 3): shape (..., *D)."""
         return synthesis_at(coefficients, directions)

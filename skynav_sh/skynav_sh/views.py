@@ -26,6 +26,8 @@ class View:
     pose: np.ndarray | None  # (x, y, z, qx, qy, qz, qw) of camera_link in map, when the recording has one
     label: str  # the frame's label in a synthetic recording ('' otherwise)
     mask: np.ndarray | None = None  # the skyline node's mask (uint8, 255 sky), when asked for
+    field_of_view: float = 0.0  # rad, full opening angle the coefficients describe (as /skyline/sh carries it)
+    fill: str = 'zero'  # how the SH node filled what the camera does not see
 
 
 @dataclass
@@ -60,7 +62,7 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
     if len(specs) != 2:
         raise RuntimeError('the skyline and sh nodes are not installed')
     path = Path(path)
-    coefficients: dict[int, tuple[np.ndarray, int]] = {}
+    coefficients: dict[int, tuple[np.ndarray, int, float, str]] = {}
     node_masks: dict[int, np.ndarray] = {}
     with open_bag(path) as bag:
         needed = ['/camera/uv/image_raw', '/camera/uv/camera_info']
@@ -75,7 +77,8 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
                 if output.topic == '/skyline/sh':
                     message = output.message
                     coefficients[stamp_ns(message.header)] = (np.asarray(message.coefficients, np.float64),
-                                                              int(message.max_degree))
+                                                              int(message.max_degree),
+                                                              float(message.field_of_view), str(message.fill))
         description = yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {}
         labels = [f.get('label', '') for f in description.get('frames', [])]
         topics = ['/camera/uv/camera_info'] + [t for t in ('/ground_truth/pose',) if t in bag.topics]
@@ -95,6 +98,7 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
                 uvs[stamp] = image_to_array(message)
     frame_index = {stamp: k for k, stamp in enumerate(sorted(set(order) | set(coefficients)))}
     views = [View(stamp, c, degree, uvs.get(stamp), poses.get(stamp),
-                  labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '', node_masks.get(stamp))
-             for stamp, (c, degree) in sorted(coefficients.items())]
+                  labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '', node_masks.get(stamp),
+                  field_of_view, fill)
+             for stamp, (c, degree, field_of_view, fill) in sorted(coefficients.items())]
     return RecordingViews(path, views, camera, description)

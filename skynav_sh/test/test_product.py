@@ -8,7 +8,8 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sh.basis import degree_order, n_coefficients, real_sh_directions
 from skynav_sh.coupling import real_gaunt
-from skynav_sh.product import MaskedView, masked_distance, masked_distance_views, overlap_area, product
+from skynav_sh.product import (MIN_CLASS_SHARE, MaskedView, cap_area, masked_distance, masked_distance_views,
+                               message_sky_share, overlap_area, product, seen_mean, shows_skyline)
 from skynav_sh.rotation import rotate
 from skynav_sh.spectra import coefficient_distance
 from skynav_sh.transform import grid
@@ -108,3 +109,50 @@ def test_masked_distance_ignores_what_only_one_view_sees():
     masked = masked_distance(common, common + extra, v, v)
     full = coefficient_distance(common, common + extra) / (4 * np.pi)
     assert masked < 1e-4 * full
+
+
+FEATURELESS_FOV = np.radians(200.0)  # rad: the bundled recordings' fish-eye
+
+
+def featureless_masks(camera) -> dict[str, np.ndarray]:
+    """Return fish-eye masks (uint8, 255 sky) of views with little or nothing to see, and one with a skyline."""
+    up = camera.pixel_directions()[..., 2]
+    circle = camera.image_circle()
+    azimuth = np.arctan2(*camera.pixel_directions()[..., 1::-1].transpose(2, 0, 1))
+    return {name: (sky & circle).astype(np.uint8) * 255 for name, sky in {
+        'sky': np.ones_like(circle), 'ground': np.zeros_like(circle),
+        'open field': up > np.sin(np.radians(1.5)),  # a level horizon, nothing on it
+        'skyline': up > np.sin(np.radians(20 + 15 * np.sin(3 * azimuth)))}.items()}
+
+
+@pytest.mark.parametrize('fill', ['zero', 'mean', 'mirror'])
+def test_sky_share_tells_views_without_a_skyline_from_views_with_one(fill):
+    from skynav_sh.camera import EquidistantCamera
+    from skynav_sh.fisheye import FisheyeTransform
+
+    camera = EquidistantCamera.for_field_of_view(160, 120, FEATURELESS_FOV)
+    transform = FisheyeTransform(camera, 16, fill=fill)
+    masks = featureless_masks(camera)
+    # sky shares of solid angle (not of pixels: a fish-eye's pixels are not of equal area)
+    expected = {'sky': 1.0, 'ground': 0.0, 'open field': cap_area(np.radians(88.5)) / cap_area(np.radians(100))}
+    for name, mask in masks.items():
+        share = message_sky_share(transform(mask), camera.field_of_view, fill)
+        if name in expected:
+            assert share == pytest.approx(expected[name], abs=0.03 if fill == 'mirror' else 0.005), name
+        assert shows_skyline(share) == (name in ('open field', 'skyline')), (name, share)
+    assert message_sky_share(transform(masks['ground']), camera.field_of_view, fill) == pytest.approx(0, abs=1e-9)
+
+
+def test_seen_mean_of_masked_terms_and_the_edges_of_the_test():
+    g = grid(16)
+    seen = g.analysis((g.directions()[..., 2] > -0.2).astype(float))  # a cap, as band-limited coefficients
+    for value in (0.0, 1.0, 0.4):
+        assert seen_mean(value * seen, seen) == pytest.approx(value, abs=1e-12)
+    np.testing.assert_allclose(seen_mean(np.stack([seen, 0.5 * seen]), np.stack([seen, seen])), [1.0, 0.5])
+    assert seen_mean(seen, np.zeros_like(seen)) == 0.0  # sees nothing: no division by zero
+    assert not shows_skyline(MIN_CLASS_SHARE / 2) and not shows_skyline(1 - MIN_CLASS_SHARE / 2)
+    assert shows_skyline(MIN_CLASS_SHARE) and shows_skyline(0.5)
+    np.testing.assert_array_equal(shows_skyline(np.array([0.0, 0.5, 1.0])), [False, True, False])
+    assert cap_area(np.pi) == pytest.approx(4 * np.pi) and cap_area(np.pi / 2) == pytest.approx(2 * np.pi)
+    # an unknown field of view (0 in a message) counts as the whole sphere: c_00 = share sqrt(4 pi)
+    assert message_sky_share(np.array([0.5 * np.sqrt(4 * np.pi)]), 0.0) == pytest.approx(0.5)

@@ -10,8 +10,9 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sh.basis import n_coefficients
 from skynav_sh.rotation import rotate
-from skynav_sh.spectra import (amplitude_distance, amplitude_spectrum, bispectrum, bispectrum_distance,
-                               bispectrum_size, bispectrum_triples, coefficient_distance, illumination_invariant)
+from skynav_sh.spectra import (BISPECTRUM_BATCH, amplitude_distance, amplitude_spectrum, bispectrum,
+                               bispectrum_distance, bispectrum_size, bispectrum_triples, coefficient_distance,
+                               illumination_invariant)
 from skynav_sh.transform import grid
 
 quaternions = st.tuples(*(st.floats(-1, 1, allow_nan=False) for _ in range(4))).map(np.array)
@@ -106,6 +107,14 @@ def test_batched_descriptors():
     assert b.shape == (2, 3, bispectrum_size(5))
     np.testing.assert_allclose(b[1, 2], bispectrum(coefficients[1, 2]), atol=1e-14)
     np.testing.assert_allclose(bispectrum(coefficients, method='gaunt'), b, atol=1e-12)
+
+
+def test_bispectra_of_many_views_go_in_batches_with_the_same_numbers():
+    coefficients = np.random.default_rng(17).standard_normal((2 * BISPECTRUM_BATCH + 3, n_coefficients(6)))
+    b = bispectrum(coefficients)
+    np.testing.assert_allclose(b, bispectrum(coefficients, method='gaunt'), atol=1e-12)
+    np.testing.assert_allclose(b[-1], bispectrum(coefficients[-1]), atol=1e-14)
+    assert bispectrum(coefficients[:0]).shape == (0, bispectrum_size(6))
 
 
 def test_coefficient_distance_is_the_integral_squared_error():

@@ -88,3 +88,18 @@ def test_grids_that_are_too_small_are_refused():
         grid(4).analysis(np.zeros((4, 10)))
     with pytest.raises(ValueError):
         grid(4).synthesis(np.zeros(n_coefficients(5)))
+
+
+@pytest.mark.parametrize('degree', [0, 1, 7, 16])
+def test_degree_parts_are_the_syntheses_of_each_degree_alone_and_sum_to_the_function(degree):
+    rng = np.random.default_rng(degree + 40)
+    coefficients = rng.standard_normal((3, n_coefficients(degree)))
+    g = grid(degree + 3)  # a larger grid than the coefficients need
+    parts = g.degree_parts(coefficients)
+    assert parts.shape == (3, degree + 1, *g.shape)
+    for l in range(degree + 1):
+        alone = np.zeros_like(coefficients)
+        alone[:, l * l : (l + 1) ** 2] = coefficients[:, l * l : (l + 1) ** 2]
+        np.testing.assert_allclose(parts[:, l], g.synthesis(alone), atol=1e-12)
+    np.testing.assert_allclose(parts.sum(axis=1), g.synthesis(coefficients), atol=1e-11)
+    np.testing.assert_array_equal(g.degree_parts(coefficients, rings=2), parts[..., :2, :])

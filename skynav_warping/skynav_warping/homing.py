@@ -5,15 +5,17 @@ place in the current camera_link, the rotation R with d_snapshot = R d_current (
 residual (the masked mean squared difference of the warped current view and the snapshot, view units^2).
 When no translation explains the views better than a pure rotation (confidence below the threshold) the
 direction is the zero vector: there is no confident home vector, which also means "at the snapshot's place or
-too close to tell".
+too close to tell". A view or snapshot without a skyline (all sky or all ground in its field of view) holds nothing
+a step could explain: its confidence is 0, whatever the search found.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from skynav_sh.product import seen_mean, shows_skyline
 from skynav_warping.views import WarpView
 from skynav_warping.warping3d import WarpingSettings, WarpResult, warp_home_vector
 
@@ -40,6 +42,11 @@ class HomeEstimate:
         return Rotation.from_matrix(self.rotation).as_quat()
 
 
+def sky_share(view: WarpView) -> float:
+    """Return the share of what a mask view sees that is sky (the rim taper weighting its edge)."""
+    return float(seen_mean(view.terms[1], view.terms[0]))
+
+
 def rotation_matrix(rotation) -> np.ndarray:
     """Return a 3x3 matrix from a 3x3 matrix, a quaternion (x, y, z, w) or a scipy Rotation."""
     from skynav_sh.rotation import as_matrix
@@ -57,6 +64,8 @@ def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
     """
     start = None if compass is None else rotation_matrix(compass)
     result = warp_home_vector(current, snapshot, start, settings)
+    if not (shows_skyline(sky_share(current)) and shows_skyline(sky_share(snapshot))):
+        result = replace(result, direction=np.zeros(3), confidence=0.0, confident=False)
     return HomeEstimate(direction=result.direction, rotation=result.rotation, residual=result.residual,
                         confidence=result.confidence, confident=result.confident,
                         distance_ratio=result.distance_ratio, best_direction=result.best_direction,

@@ -10,7 +10,9 @@ cost at the optimum relative to the best pure rotation's: near 0 the views agree
 The target snapshot: the one the latest accepted place match names (`target: match`), a fixed
 index (`target: index`), or the match's successor `lookahead` snapshots along the route
 (`target: next`, route following). With `use_compass` a view waits for the compass estimate of
-the same stamp and the search starts from it.
+the same stamp and the search starts from it. A view or target snapshot without a skyline (all sky
+or all ground in its field of view) gets no compass estimate and waits for none: its home vector
+has residual 1 (nothing to home on; the direction is the search's best, as for any residual).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from skynav_bringup.images import stamp_ns
 from skynav_bringup.node import SkynavNode
 from skynav_bringup.pairing import StampPairer
 from skynav_bringup.ros import run_node
+from skynav_sh.product import message_sky_share, shows_skyline
 
 from .homing import estimate_home_vector
 from .views import view_from_coefficients
@@ -96,30 +99,43 @@ class WarpingNode(SkynavNode):
         if message.fill != 'zero':
             self.reject('fill', f"coefficients filled with {message.fill!r}; warping needs fill 'zero'")
             return
-        if not self.values['use_compass']:
-            self.home(message, None)
+        if not self.values['use_compass'] or not self.shows_skylines(message):
+            self.home(message, None)  # the compass estimates no featureless view or snapshot: nothing to wait for
             return
         pair = self.pairer.add('sh', stamp_ns(message.header), message)
         if pair is not None:
             self.home(pair[1], pair[2])
 
-    def target_index(self) -> int | None:
-        """Return the snapshot to home to, or None when there is none (the reason is counted)."""
-        count = len(self.store)
-        if count == 1:
+    def shows_skylines(self, message: ShCoefficients) -> bool:
+        """Return whether a view and, when it is known already, the snapshot it would home to both show a skyline."""
+        fov = float(message.field_of_view)
+        coefficients = np.asarray(message.coefficients, np.float64)
+        if coefficients.size == 0 or not np.isfinite(coefficients[0]):
+            return True  # malformed: home() counts it
+        if not shows_skyline(message_sky_share(coefficients, fov, message.fill)):
+            return False
+        index = self.target_index(count=False) if self.store is not None and len(self.store) else None
+        return index is None or bool(shows_skyline(message_sky_share(self.store.coefficients()[index], fov)))
+
+    def target_index(self, count: bool = True) -> int | None:
+        """Return the snapshot to home to, or None when there is none (the reason counted unless count is False)."""
+        n_snapshots = len(self.store)
+        if n_snapshots == 1:
             return 0
         if self.values['target'] == 'index':
-            return min(self.values['index'], count - 1)
+            return min(self.values['index'], n_snapshots - 1)
         if self.match is None:
-            self.reject('no_target', 'no accepted place match yet to choose the snapshot to home to')
+            if count:
+                self.reject('no_target', 'no accepted place match yet to choose the snapshot to home to')
             return None
-        if self.match.index >= count:
-            self.reject('match_beyond_map', f'the place match names snapshot {self.match.index} of map '
-                                            f'{self.match.map_name!r}; this node has {count} snapshots '
-                                            f'of {self.store.name!r}')
+        if self.match.index >= n_snapshots:
+            if count:
+                self.reject('match_beyond_map', f'the place match names snapshot {self.match.index} of map '
+                                                f'{self.match.map_name!r}; this node has {n_snapshots} snapshots '
+                                                f'of {self.store.name!r}')
             return None
         if self.values['target'] == 'next':
-            return min(self.match.index + self.values['lookahead'], count - 1)
+            return min(self.match.index + self.values['lookahead'], n_snapshots - 1)
         return int(self.match.index)
 
     def home(self, message: ShCoefficients, compass: CompassEstimate | None) -> None:

@@ -304,3 +304,31 @@ def test_a_match_beyond_the_map_is_rejected(recording, route_map):
         deliver(graph, '/localization/match', place_match(7, True, view.stamp - 1))
         assert feed(graph, sh_message(view, fov)) == []
         assert node.errors == 0 and node.rejected == {'match_beyond_map': 1}
+
+
+def test_views_and_snapshots_without_a_skyline_home_with_residual_1_without_waiting(recording, snapshot, home_map,
+                                                                                    tmp_path):
+    from skynav_compass.views import cap_visibility
+
+    fov = recording.camera.field_of_view
+    all_sky = cap_visibility(16, fov / 2)  # the mask is 1 wherever the camera sees
+    view = next(v for v in recording.views if v.label == 'grid')
+    stamps = iter(view.stamp + k * 10**8 for k in range(100))
+    blank_map = tmp_path / 'blank.db'
+    build_map(blank_map, 'blank', 16, [Snapshot(0, snapshot.stamp, all_sky, snapshot.pose)], created_from='test')
+    with in_process([COMPASS, WARPING], ['-p', f'map:={home_map}']) as graph:  # with the compass: use_compass
+        graph.keep_outputs = True
+        compass, warping = graph.nodes
+        for blank in (all_sky, np.zeros_like(all_sky)):
+            [home] = feed(graph, sh_message(view, fov, next(stamps), blank))  # no compass estimate to wait for
+            assert home.residual == 1.0 and np.all(np.isfinite(direction(home)))
+        assert compass.rejected == {'featureless': 2}
+        [home] = feed(graph, sh_message(view, fov, next(stamps)))  # a view with a skyline: as before
+        assert home.residual < 1.0
+        for node in graph.nodes:
+            assert node.set_parameters([Parameter('map', value=str(blank_map))])[0].successful
+        [home] = feed(graph, sh_message(view, fov, next(stamps)))
+        assert home.residual == 1.0 and home.snapshot_index == 0
+        assert compass.rejected == {'featureless': 2, 'featureless_snapshot': 1}
+        assert not warping.rejected and warping.errors == compass.errors == 0
+        assert warping.pairer.unpaired == 0

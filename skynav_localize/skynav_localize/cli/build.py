@@ -3,10 +3,12 @@
 The skyline and SH nodes run over the recording in this process (the same code and parameters as
 `skynav run`). A frame becomes a snapshot after --min-travel metres of travel (ground-truth pose,
 when the recording has one) or when its amplitude spectrum changed by --min-change. Each snapshot
-stores its SH coefficients, descriptors for skynav's methods and for the baselines (down-sampled
-UV image, ORB features), and its ground-truth pose. The file is written under a temporary name
-and renamed when complete; if the build is killed, that partial file still holds every snapshot
-written so far.
+stores what the product uses: its SH coefficients (skynav's descriptors are derived from them when
+the map is loaded) and its ground-truth pose. With --baselines it also stores the baselines'
+descriptors (down-sampled UV image, ORB features and their vocabulary), which the evaluations
+compare against; a baseline that cannot be trained on the drive (no ORB feature anywhere) says so
+in one line and is left out. The file is written under a temporary name and renamed when complete;
+if the build is killed, that partial file still holds every snapshot written so far.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--min-change', type=float, default=0.05, metavar='D',
                         help='amplitude-spectrum change that also makes a snapshot (0.05)')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
+    parser.add_argument('--baselines', action='store_true',
+                        help="also store the baselines' descriptors (raw UV, ORB), for `skynav eval localization`")
     parser.add_argument('--overwrite', action='store_true', help='replace an existing map')
 
 
@@ -42,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
     from skynav_bringup.cli.run import ros_arguments
     from skynav_sh.views import recording_views
 
-    from ..baselines import train_bow
-    from ..mapping import SnapshotSelector, build_map, snapshot_descriptors
+    from ..descriptors import describe
+    from ..mapping import SnapshotSelector, baseline_descriptors, build_map, finish_baselines
     from ..store import MapError, Snapshot
 
     if args.out.exists() and not args.overwrite:
@@ -55,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
     with open_bag(args.bag) as bag:
         inputs = sum(bag.topics[t].count for t in CAMERA_TOPICS if t in bag.topics)
     with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
-        recording = recording_views(args.bag, ros_arguments(args.params, None), progress=bar.update)
+        recording = recording_views(args.bag, ros_arguments(args.params, None), images=args.baselines,
+                                    progress=bar.update)
     if not recording.views:
         raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')
     degree = recording.views[0].max_degree
@@ -65,23 +70,32 @@ def run(args: argparse.Namespace) -> int:
     def snapshots():
         index = 0
         for view in tqdm(recording.views, unit='frame', desc='snapshots', file=sys.stderr, disable=None):
-            descriptors = snapshot_descriptors(view.coefficients, degree, view.uv, circle)
             position = None if view.pose is None else view.pose[:3]
-            if selector.keep(descriptors['amplitude'], position):
+            if selector.keep(describe('amplitude', view.coefficients, degree), position):
+                descriptors = baseline_descriptors(view.uv, circle) if args.baselines else {}
                 yield Snapshot(index, view.stamp, view.coefficients, view.pose, descriptors)
                 index += 1
+
+    left_out: list[str] = []
+
+    def finish(store) -> None:
+        left_out.extend(finish_baselines(store))
 
     camera_info = {name: getattr(recording.camera, name) for name in ('width', 'height', 'fx', 'fy', 'cx', 'cy')}
     camera_info['k'] = list(recording.camera.k)
     try:
         store = build_map(args.out, args.name or args.out.stem, degree, snapshots(), created_from=str(args.bag),
                           metadata={'camera': json.dumps(camera_info), 'synthetic': str(recording.synthetic)},
-                          overwrite=args.overwrite, finish=train_bow)
+                          overwrite=args.overwrite, finish=finish if args.baselines else None)
     except MapError as exc:
         raise CliError(str(exc)) from None
+    for line in left_out:
+        print(f'skynav map build: {line}', file=sys.stderr)
     info = store.info()
     route = f', route {info["route_length_m"]:.1f} m' if 'route_length_m' in info else ''
+    held = ', with baseline descriptors' if args.baselines else ''
     print(f'skynav map build: {len(store)} snapshots of {len(recording.views)} frames (degree {degree}{route}) '
-          f'-> {args.out} ({info["file_bytes"] / 2**20:.1f} MiB)', file=sys.stderr)
+          f'-> {args.out} ({info["file_bytes"] / 1e3:.0f} kB, {info["file_bytes"] / len(store):.0f} bytes per '
+          f'snapshot{held})', file=sys.stderr)
     store.close()
     return 0

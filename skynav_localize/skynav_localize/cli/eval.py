@@ -4,7 +4,9 @@ Every query frame of each recording goes through the skyline and SH nodes (as in
 then every method matches it against the map. A match is correct when the matched snapshot lies
 within --tolerance metres of the query's true position (ground truth of both). Prints, per method,
 recall at 100 % precision, the area under the precision-recall curve and recall@1, and saves the
-precision-recall curves and the matches along the route as plots in --plots.
+precision-recall curves and the matches along the route as plots in --plots. The baselines need
+their descriptors in the map (`skynav map build --baselines`); on a map without them their rows
+are left out, which one line says.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from ..localizer import METHODS
 
     parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
-    parser.add_argument('--map', required=True, type=Path, metavar='MAP.db', help='map of the teach drive')
+    parser.add_argument('--map', required=True, type=Path, metavar='MAP.db',
+                        help='map of the teach drive (built with --baselines to compare with the baselines)')
     parser.add_argument('--methods', nargs='+', default=list(METHODS), metavar='METHOD',
                         help=f'methods to compare (default all: {", ".join(METHODS)})')
     parser.add_argument('--tolerance', type=float, default=1.0, metavar='M',
@@ -40,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_sh.views import recording_views
 
     from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
-    from ..localizer import METHODS, Localizer
+    from ..localizer import BASELINES_HINT, METHODS, Localizer, missing_descriptors
     from ..store import MapError, MapStore
 
     if unknown := [m for m in args.methods if m not in METHODS]:
@@ -51,20 +54,35 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if not store.has_poses:
         raise CliError(f'{args.map}: the map has no ground-truth poses; evaluation needs them')
+    try:
+        lacking = {name: missing_descriptors(store, name) for name in args.methods}
+    except MapError as exc:
+        raise CliError(str(exc)) from None
+    methods = [name for name in args.methods if not lacking[name]]
+    if not methods:
+        raise CliError(f'{args.map} holds no descriptors of {", ".join(args.methods)} ({BASELINES_HINT})')
+    if skipped := [name for name in args.methods if lacking[name]]:
+        print(f'skynav eval localization: {args.map} holds no descriptors of {", ".join(skipped)}: their rows are '
+              f'left out ({BASELINES_HINT})', file=sys.stderr)
+    needs_images = any(METHODS[name].source == 'uv' for name in methods)
     args.plots.mkdir(parents=True, exist_ok=True)
     for bag in args.bags:
-        recording = recording_views(bag, ros_arguments(args.params, None))
+        recording = recording_views(bag, ros_arguments(args.params, None), images=needs_images)
         views = [v for v in recording.views if v.pose is not None]
         if not views:
             raise CliError(f'{bag}: no ground-truth poses to evaluate against')
         coefficients = np.stack([v.coefficients[: (store.max_degree + 1) ** 2] for v in views])
-        uvs = np.stack([v.uv for v in views])
+        uvs = np.stack([v.uv for v in views]) if needs_images else None
         positions = np.stack([v.pose[:3] for v in views])
         circle = recording.camera.image_circle()
         results, all_matches = [], {}
-        for name in args.methods:
-            localizer = Localizer(store, name, circle=circle)
-            matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs)
+        for name in methods:
+            try:
+                localizer = Localizer(store, name, circle=circle)
+            except MapError as exc:
+                raise CliError(str(exc)) from None
+            matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs,
+                                               field_of_view=views[0].field_of_view, fill=views[0].fill)
             all_matches[name] = matches
             results.append(evaluate(METHODS[name].label, matches.index, matches.score, positions,
                                     store.positions(), args.tolerance, accepted=matches.accepted))
@@ -75,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         stem = Path(bag).stem
         title = f'{stem} against map {store.name}'
         plot_pr_curves(results, title, recording.synthetic, args.plots / f'{stem}_pr.png')
-        shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else args.methods[0]
+        shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else methods[0]
         matches = all_matches[shown]
         plot_matches_along_route(store.positions(), positions, matches.index,
                                  correct_matches(matches.index, positions, store.positions(), args.tolerance),

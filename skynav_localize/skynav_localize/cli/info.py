@@ -25,9 +25,13 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     info = store.info()
     store.close()
-    rows = [('Map', info.get('name', '')), ('File', f'{info["path"]} ({info["file_bytes"] / 2**20:.2f} MiB)'),
+    per_snapshot = f', {info["file_bytes"] / info["snapshots"]:.0f} bytes per snapshot' if info['snapshots'] else ''
+    rows = [('Map', info.get('name', '')),
+            ('File', f'{info["path"]} ({info["file_bytes"] / 2**20:.2f} MiB{per_snapshot})'),
             ('Schema version', info['schema_version']), ('Snapshots', info['snapshots']),
-            ('SH degree', info['max_degree']), ('Descriptors', ', '.join(info['descriptors']) or 'none'),
+            ('SH degree', info['max_degree']),
+            ('Descriptors', ', '.join(info['descriptors'])
+             or "none (skynav's methods derive theirs from the coefficients)"),
             ('Map-level data', ', '.join(info['artifacts']) or 'none'),
             ('Ground-truth poses', 'yes' if info['has_poses'] else 'no')]
     if 'route_length_m' in info:
