@@ -1,7 +1,8 @@
 """Scenarios: the sequence of camera poses and daylight conditions a synthetic recording is made of.
 
 - teach: a drive along a route through the yard;
-- repeat: the same route at another time of day, shifted sideways, optionally shaken (extra tilt);
+- repeat: the same route at another time of day, shifted sideways, optionally shaken (extra tilt), and
+  optionally with a detour: in the route's middle it leaves the route for a loop into the yard and comes back;
 - homing: a snapshot place and a grid of places around it;
 - compass: one place seen with many camera rotations (tilt up to a limit), then from places up to
   a given distance away;
@@ -56,6 +57,7 @@ class ScenarioParameters:
     max_tilt: float = 30.0  # degrees (compass rotations)
     max_translation: float = 0.5  # m (compass translated views)
     bump_tilt: float = 0.0  # degrees: each homing place (snapshot too) sits on a bump tilting the camera up to this
+    detour: float = 0.0  # m: a repeat drive leaves its route in the middle for a loop reaching this far (0: none)
     extra: dict = field(default_factory=dict)
 
 
@@ -110,10 +112,16 @@ def _segment_free(world: World, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(world.is_free(points[:, 0], points[:, 1]).all())
 
 
-def _arc_length_spline(points: np.ndarray) -> tuple[CubicSpline, float]:
-    """Return a spline through `points` parametrised by (approximate) arc length, and that length."""
+def _arc_length_spline(points: np.ndarray,
+                       ends: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[CubicSpline, float]:
+    """Return a spline through `points` parametrised by (approximate) arc length, and that length; `ends`: the
+    directions it starts and ends in (natural ends when None)."""
     chord = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    rough = CubicSpline(chord, points, bc_type='natural')
+    if ends is None:
+        bc_type = 'natural'
+    else:
+        bc_type = tuple((1, np.asarray(d, float) / np.linalg.norm(d)) for d in ends)
+    rough = CubicSpline(chord, points, bc_type=bc_type)
     fine = np.linspace(0, chord[-1], 2000)
     xy = rough(fine)
     arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))])
@@ -121,27 +129,91 @@ def _arc_length_spline(points: np.ndarray) -> tuple[CubicSpline, float]:
 
 
 def _drive(world: World, params: ScenarioParameters, rng: np.random.Generator, offset: float,
-           shake: float, label: str, wobble: float = 0.0) -> list[Frame]:
+           shake: float, label: str, wobble: float = 0.0, detour: float = 0.0) -> list[Frame]:
     spline, total = route(world, params.route_seed, params.route_length)
     length = min(params.route_length, total)
     start = (total - length) / 2
-    arc = start + np.arange(0.0, length, params.speed / FRAME_RATE)
-    xy = spline(arc)
-    tangent = spline(arc, 1)
-    heading = np.arctan2(tangent[:, 1], tangent[:, 0])
-    normal = np.column_stack([-np.sin(heading), np.cos(heading)])
-    xy = xy + offset * normal
+    if detour > 0:
+        xy, heading, labels = _detour_drive(world, spline, start, length, detour, params.speed / FRAME_RATE, offset,
+                                            label)
+    else:
+        arc = start + np.arange(0.0, length, params.speed / FRAME_RATE)
+        xy, heading = _beside(spline, arc, offset)
+        labels = [label] * len(arc)
     if not world.is_free(xy[:, 0], xy[:, 1]).all():
         raise ValueError(f'a sideways offset of {offset} m leaves the free space of this route')
-    jitter = _smooth_noise(rng, len(arc), 2, np.radians(shake)) if shake > 0 else None
+    jitter = _smooth_noise(rng, len(xy), 2, np.radians(shake)) if shake > 0 else None
     if wobble > 0:
-        heading = heading + _smooth_noise(rng, len(arc), 1, np.radians(wobble))[:, 0]
+        heading = heading + _smooth_noise(rng, len(xy), 1, np.radians(wobble))[:, 0]
     frames = []
-    for k in range(len(arc)):
+    for k in range(len(xy)):
         extra = Rotation.from_rotvec([jitter[k, 0], jitter[k, 1], 0.0]) if jitter is not None else None
         pose = camera_pose(world.terrain, xy[k, 0], xy[k, 1], heading[k], extra)
-        frames.append(Frame(pose, params.hours, params.cloud_cover, label))
+        frames.append(Frame(pose, params.hours, params.cloud_cover, labels[k]))
     return frames
+
+
+def _beside(spline: CubicSpline, arc: np.ndarray, offset: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return the points (F, 2) `offset` m to the left of the route at arc lengths `arc` (m), and its heading (rad)."""
+    tangent = spline(arc, 1)
+    heading = np.arctan2(tangent[..., 1], tangent[..., 0])
+    normal = np.stack([-np.sin(heading), np.cos(heading)], axis=-1)
+    return spline(arc) + offset * normal, heading
+
+
+#: Widths (m) of a detour's loop, from where it leaves the route to where it comes back, tried widest first.
+DETOUR_WIDTHS = (3.0, 2.0, 1.0)
+#: Directions (degrees from the route's normal, towards its end) in which a detour's loop may run out, tried in turn.
+DETOUR_ANGLES = (0.0, 20.0, -20.0, 40.0, -40.0)
+#: Spacing (m) of the points along a detour's loop that must lie in free space.
+DETOUR_CHECK_STEP = 0.05
+
+
+def _detour_loop(world: World, spline: CubicSpline, middle: float, reach: float,
+                 offset: float) -> tuple[CubicSpline, float, float, float]:
+    """Return a loop through free space off the route (driven `offset` m to its left) around arc length `middle` (m),
+    running out to `reach` m from the route's point there: (spline of its arc length -> (x, y), its length, and the
+    route's arc lengths where it leaves and where it comes back); ValueError when the yard has no room for one."""
+    for width in sorted({min(w, reach) for w in DETOUR_WIDTHS}, reverse=True):
+        leave, rejoin = middle - width / 2, middle + width / 2
+        (a, b, centre), _ = _beside(spline, np.array([leave, rejoin, middle]), offset)
+        along = spline(middle, 1) / np.linalg.norm(spline(middle, 1))
+        for side in (1.0, -1.0):
+            for angle in np.radians(DETOUR_ANGLES):
+                # out: the route's normal on this side, turned by angle towards the route's end; across: from the
+                # leg that goes out to the leg that comes back
+                out = np.cos(angle) * side * np.array([-along[1], along[0]]) + np.sin(angle) * along
+                across = np.array([out[1], -out[0]])
+                across *= np.sign(np.dot(across, b - a)) or 1.0
+                neck, head = 0.35 * reach, reach - width / 2
+                points = np.array([a, centre + neck * out - width / 2 * across,
+                                   centre + head * out - width / 2 * across, centre + reach * out,
+                                   centre + head * out + width / 2 * across, centre + neck * out + width / 2 * across,
+                                   b])
+                loop, length = _arc_length_spline(points, (spline(leave, 1), spline(rejoin, 1)))
+                samples = loop(np.linspace(0, length, int(length / DETOUR_CHECK_STEP) + 2))
+                if world.is_free(samples[:, 0], samples[:, 1]).all():
+                    return loop, length, leave, rejoin
+    raise ValueError(f'no free room in this world for a detour of {reach:g} m from the middle of the route; '
+                     'try a shorter one')
+
+
+def _detour_drive(world: World, spline: CubicSpline, start: float, length: float, reach: float, step: float,
+                  offset: float, label: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Return positions (F, 2), headings (F,, rad) and labels of a drive `offset` m beside the route's arc lengths
+    start..start + length (m) with a loop off it in the middle, a frame every `step` m of travel; frames on the loop
+    are labelled 'detour', the others `label`."""
+    loop, loop_length, leave, rejoin = _detour_loop(world, spline, start + length / 2, reach, offset)
+    before = leave - start
+    travel = np.arange(0.0, before + loop_length + (start + length - rejoin), step)
+    on_loop = (travel >= before) & (travel < before + loop_length)
+    beside, heading = _beside(spline, np.where(travel < before, start + travel, rejoin + travel - before - loop_length),
+                              offset)
+    along_loop = np.clip(travel - before, 0.0, loop_length)
+    loop_tangent = loop(along_loop, 1)
+    xy = np.where(on_loop[:, None], loop(along_loop), beside)
+    heading = np.where(on_loop, np.arctan2(loop_tangent[:, 1], loop_tangent[:, 0]), heading)
+    return xy, heading, ['detour' if k else label for k in on_loop]
 
 
 def _smooth_noise(rng: np.random.Generator, count: int, channels: int, rms: float) -> np.ndarray:
@@ -157,7 +229,7 @@ def _teach(world: World, params: ScenarioParameters, rng: np.random.Generator) -
 
 
 def _repeat(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
-    return _drive(world, params, rng, params.offset, params.shake, 'route', params.wobble)
+    return _drive(world, params, rng, params.offset, params.shake, 'route', params.wobble, params.detour)
 
 
 def snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
@@ -217,7 +289,7 @@ def _skyline(world: World, params: ScenarioParameters, rng: np.random.Generator)
 
 
 #: Scenario parameters added after recordings were bundled, with the default that leaves those recordings as they were.
-_LATER_PARAMETERS = {'wobble': 0.0, 'bump_tilt': 0.0}
+_LATER_PARAMETERS = {'wobble': 0.0, 'bump_tilt': 0.0, 'detour': 0.0}
 
 
 def describe(name: str, world: World, params: ScenarioParameters, seed: int, frames: list[Frame]) -> dict:

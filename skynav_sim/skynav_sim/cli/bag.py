@@ -6,7 +6,8 @@ The recording holds, per frame at 10 Hz: /camera/uv/image_raw, /camera/green/ima
 the same command reproduces it byte for byte. Scenarios:
 
   teach    a drive along a route through the yard
-  repeat   the same route (same --seed and --route-seed) at another --time, --offset, --shake
+  repeat   the same route (same --seed and --route-seed) at another --time, --offset, --shake, --wobble,
+           optionally with a --detour: a loop off the route (frames labelled 'detour', the others 'route')
   homing   a snapshot place and a grid of places around it (--spacing, --grid-radius, --bump-tilt)
   compass  one place under many rotations (--max-tilt), then nearby places (--max-translation)
   skyline  places across the yard at every named time of day, clear and cloudy (--count each)

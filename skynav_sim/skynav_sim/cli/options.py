@@ -38,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     drive.add_argument('--shake', type=float, default=0.0, metavar='DEG', help='extra roll/pitch rms')
     drive.add_argument('--wobble', type=float, default=0.0, metavar='DEG',
                        help='heading deviation from the route, rms (repeat drives)')
+    drive.add_argument('--detour', type=float, default=0.0, metavar='M',
+                       help='repeat drives: leave the route in its middle for a loop reaching M m from it, then '
+                            'come back and drive on (default 0: no detour)')
     grid = parser.add_argument_group('homing grid and compass set')
     grid.add_argument('--spacing', type=float, default=0.5, metavar='M', help='homing grid spacing (default 0.5)')
     grid.add_argument('--grid-radius', type=float, default=3.0, metavar='M', help='homing grid half side (3)')
@@ -93,6 +96,8 @@ def scenario(args: argparse.Namespace):
             raise ValueError(f'--{name.replace("_", "-")} must be positive')
     if args.count < 1:
         raise ValueError('--count must be at least 1')
+    if args.detour < 0:
+        raise ValueError('--detour must be 0 (none) or positive')
     for name in ('max_tilt', 'bump_tilt'):
         if not 0 <= getattr(args, name) <= 90:
             raise ValueError(f'--{name.replace("_", "-")} must be between 0 and 90 degrees')
@@ -100,6 +105,7 @@ def scenario(args: argparse.Namespace):
         hours=parse_time(args.time), cloud_cover=args.clouds, route_seed=args.route_seed, route_length=args.length,
         speed=args.speed, offset=args.offset, shake=args.shake, wobble=args.wobble, spacing=args.spacing, grid_radius=args.grid_radius,
         count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation, bump_tilt=args.bump_tilt,
+        detour=args.detour,
     )
     world = generate(args.world, args.seed)
     frames = build(args.scenario, world, params, args.seed)
