@@ -14,8 +14,15 @@ place descriptors of skynav and the baselines share one code path.
   does); the reported distance stays the sequence distance. The score is again a ratio: the best sequence
   distance over the best one ending more than exclusion + SequenceParams.extent() snapshots away (trajectories
   ending closer run through the same places). With no runner-up (a map shorter than the exclusion zone) the ratio
-  is 0 and only max_distance can reject.
-- Acceptance: accepted when score <= max_score and the best (sequence) distance <= max_distance.
+  is 0 and only the other tests can reject.
+- The newest view in its place (`view_in_place`, skynav's sequence methods): the sequence chooses the place, the
+  snapshots within `exclusion` of its best one; the newest view alone chooses the snapshot within it (its least
+  distance there), and its single-frame ratio at that snapshot tells whether the view itself vouches for it. A
+  sequence assumes that the last `length` views moved along the route; after a detour, a stop or a turn it lags
+  or runs ahead of the robot for up to `length` views, and off the route a straight trajectory still finds the
+  route's likeliest stretch. The newest view corrects the lag and is not fooled by the history.
+- Acceptance: accepted when score <= max_score, the reported distance <= max_distance and, where a view test is
+  set (max_view_score), the newest view's ratio at the matched snapshot <= max_view_score.
 """
 
 from __future__ import annotations
@@ -36,15 +43,22 @@ MIN_LOCAL_STD = 1e-12
 
 @dataclass(frozen=True)
 class Acceptance:
-    """Acceptance test of a match: distance ratio and best distance at most their thresholds."""
+    """Acceptance test of a match: distance ratio, distance and (sequences) the newest view's ratio at their bounds."""
 
     max_score: float  # best / runner-up distance ratio (single frames and sequences alike)
-    max_distance: float = math.inf  # best (sequence) distance, descriptor units, above which nothing is accepted
+    max_distance: float = math.inf  # reported distance, descriptor units, above which nothing is accepted
     exclusion: int = DEFAULT_EXCLUSION  # snapshots either side of the best excluded from the runner-up
+    # sequences: the newest view's single-frame ratio at the matched snapshot, which it chooses within the sequence's
+    # place (view_in_place); None: the sequence's match as SeqSLAM gives it (the baselines)
+    max_view_score: float | None = None
 
-    def accepts(self, score: np.ndarray | float, distance: np.ndarray | float) -> np.ndarray | bool:
-        """Return whether matches with these scores and best distances pass (vectorised)."""
-        return (np.asarray(score) <= self.max_score) & (np.asarray(distance) <= self.max_distance)
+    def accepts(self, score: np.ndarray | float, distance: np.ndarray | float,
+                view_score: np.ndarray | float | None = None) -> np.ndarray | bool:
+        """Return whether matches with these scores, distances and view scores pass (vectorised)."""
+        passed = (np.asarray(score) <= self.max_score) & (np.asarray(distance) <= self.max_distance)
+        if self.max_view_score is not None and view_score is not None:
+            passed = passed & (np.asarray(view_score) <= self.max_view_score)
+        return passed
 
 
 @dataclass(frozen=True)
@@ -263,3 +277,17 @@ def sequence_match(distances: np.ndarray, choice: np.ndarray | None = None,
     best = np.argmin(choice, axis=1)
     best_distance = distances[np.arange(distances.shape[0]), best]
     return best, best_distance, distance_ratio(best_distance, runner_up(distances, best, exclusion))
+
+
+def view_in_place(distances: np.ndarray, place: np.ndarray, exclusion: int = DEFAULT_EXCLUSION
+                  ) -> tuple[np.ndarray, ...]:
+    """Return the newest views' snapshots within `exclusion` of the places (Q,) their sequences chose, from their own
+    distance rows (Q, N): (index, distance, single-frame ratio), each (Q,), and their rows with every snapshot
+    outside the place at +inf (Q, N), for the candidates."""
+    distances = np.atleast_2d(np.asarray(distances, dtype=float))
+    place = np.atleast_1d(place)
+    inside = np.abs(np.arange(distances.shape[1])[None, :] - place[:, None]) <= exclusion
+    rows = np.where(inside, distances, np.inf)
+    index = np.argmin(rows, axis=1)
+    distance = distances[np.arange(distances.shape[0]), index]
+    return index, distance, distance_ratio(distance, runner_up(distances, index, exclusion)), rows

@@ -41,6 +41,8 @@ class LocalizeNode(SkynavNode):
         self.parameter('min_speed', 0.5, 'slowest progress along the map, snapshots per view (sequence methods)')
         self.parameter('max_speed', 2.0, 'fastest progress along the map, snapshots per view (sequence methods)')
         self.parameter('max_ratio', math.nan, "acceptance: best / runner-up distance at most this; NaN: the method's")
+        self.parameter('max_view_ratio', math.nan, "acceptance of sequences: the newest view's own best / runner-up "
+                                                   "ratio at the matched snapshot at most this; NaN: the method's")
         self.parameter('max_distance', math.inf, 'acceptance: best descriptor distance at most this')
         self.parameter('candidates', 5, 'runners-up in each match')
         self.store: MapStore | None = None
@@ -64,7 +66,8 @@ class LocalizeNode(SkynavNode):
             return
         method_acceptance = METHODS[values['method']].acceptance
         ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
-        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion)
+        view = method_acceptance.max_view_score if math.isnan(values['max_view_ratio']) else values['max_view_ratio']
+        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view)
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
         self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
                                    candidates=values['candidates'])

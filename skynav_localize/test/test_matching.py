@@ -7,7 +7,7 @@ import pytest
 
 from skynav_localize.matching import (Acceptance, SequenceBuffer, SequenceParams, best_candidates,
                                       contrast_normalise, distance_ratio, runner_up, sequence_match,
-                                      sequence_scores, single_frame, trajectory_scores)
+                                      sequence_scores, single_frame, trajectory_scores, view_in_place)
 
 SNAPSHOTS = 200
 QUERIES = 60
@@ -132,3 +132,22 @@ def test_acceptance_is_vectorised():
     acceptance = Acceptance(max_score=0.5, max_distance=0.2)
     np.testing.assert_array_equal(acceptance.accepts(np.array([0.4, 0.6, 0.4]), np.array([0.1, 0.1, 0.3])),
                                   [True, False, False])
+
+
+def test_acceptance_checks_the_newest_view_where_it_is_asked_to():
+    acceptance = Acceptance(max_score=0.4, max_view_score=0.45)
+    scores, distances, views = np.array([0.1, 0.1, 0.5]), np.array([0.1, 0.1, 0.1]), np.array([0.3, 0.6, 0.3])
+    np.testing.assert_array_equal(acceptance.accepts(scores, distances, views), [True, False, False])
+    np.testing.assert_array_equal(Acceptance(max_score=0.4).accepts(scores, distances, views), [True, True, False])
+
+
+def test_the_newest_view_chooses_its_snapshot_within_the_sequence_place():
+    # snapshot 12 is the view's best within 10 of the sequence's choice (15); snapshot 40 looks better still but
+    # lies in another place, so it is the runner-up of the view's ratio, not its match
+    row = np.full(60, 1.0)
+    row[[12, 15, 40]] = [0.2, 0.3, 0.1]
+    index, distance, ratio, place = view_in_place(row[None, :], np.array([15]), exclusion=10)
+    assert index[0] == 12 and distance[0] == pytest.approx(0.2) and ratio[0] == pytest.approx(2.0)
+    assert np.all(np.isinf(place[0, :5])) and np.all(np.isinf(place[0, 26:])) and place[0, 12] == pytest.approx(0.2)
+    row[40] = 0.8  # without the better place elsewhere the view vouches for its snapshot: ratio 0.2 / 0.8
+    assert view_in_place(row[None, :], np.array([15]), exclusion=10)[2][0] == pytest.approx(0.25)
