@@ -8,7 +8,10 @@ Definitions (one match per query; lower score = more confident):
   accepted) and recall(t) = correct accepted / positive queries; the curve has one point per distinct score;
 - recall at 100 % precision: the largest recall of a point with precision 1;
 - area under the PR curve: the step-wise sum over the points of (recall increase) x precision (average precision);
-- recall@1: correct matches / positive queries, whatever the acceptance.
+- recall@1: correct matches / positive queries, whatever the acceptance;
+- of the matches the method's acceptance test accepted (`accepted`, what the localize node publishes): precision =
+  correct accepted / accepted (1 when none is accepted), recall = correct accepted / positive queries, and how many
+  off-route queries (no snapshot within the tolerance) it accepted: every one of them is wrong, whatever its index.
 Plots use matplotlib's Agg canvas (no display, no pyplot state).
 """
 
@@ -126,6 +129,7 @@ class LocalizationResult:
     matched: np.ndarray  # (Q,) snapshot index
     scores: np.ndarray  # (Q,)
     accepted: np.ndarray | None = None  # (Q,) bool, by the method's acceptance test, when given
+    positive: np.ndarray | None = None  # (Q,) bool: a snapshot lies within the tolerance (on the route)
 
     @property
     def accepted_precision(self) -> float:
@@ -142,6 +146,13 @@ class LocalizationResult:
             return float('nan')
         return float(np.count_nonzero(self.accepted & self.correct)) / self.positives if self.positives else 0.0
 
+    @property
+    def off_route_accepted(self) -> int:
+        """Return how many off-route queries (no snapshot within the tolerance) the acceptance test accepted."""
+        if self.accepted is None or self.positive is None:
+            return 0
+        return int(np.count_nonzero(self.accepted & ~self.positive))
+
 
 def evaluate(method: str, matched: np.ndarray, scores: np.ndarray, query_positions: np.ndarray,
              snapshot_positions: np.ndarray, tolerance: float = DEFAULT_TOLERANCE,
@@ -154,18 +165,24 @@ def evaluate(method: str, matched: np.ndarray, scores: np.ndarray, query_positio
     return LocalizationResult(method, float(tolerance), int(matched.size), int(np.count_nonzero(positive)),
                               recall_at_full_precision(curve), pr_auc(curve), recall_at_1(correct, positive),
                               threshold_at_full_precision(curve), curve, correct, matched,
-                              np.asarray(scores, float), None if accepted is None else np.asarray(accepted, bool))
+                              np.asarray(scores, float), None if accepted is None else np.asarray(accepted, bool),
+                              positive)
 
 
 def format_table(results: Sequence[LocalizationResult]) -> str:
-    """Return a plain-text table of results: method, recall@100%P, AUC, recall@1, accepted precision/recall."""
-    header = f'{"method":<24} {"R@100%P":>8} {"AUC":>6} {"R@1":>6} {"acc. P":>7} {"acc. R":>7} {"thr@100%P":>10}'
+    """Return a plain-text table of results: method, recall@100%P, AUC, recall@1, and of the accepted matches
+    precision, recall and the off-route queries accepted."""
+    header = (f'{"method":<24} {"R@100%P":>8} {"AUC":>6} {"R@1":>6} {"acc. P":>7} {"acc. R":>7} {"off acc.":>9} '
+              f'{"thr@100%P":>10}')
     lines = [header, '-' * len(header)]
     for r in results:
+        off = f'{r.off_route_accepted}/{r.queries - r.positives}'
         lines.append(f'{r.method:<24} {r.recall_at_full_precision:8.3f} {r.auc:6.3f} {r.recall_at_1:6.3f} '
-                     f'{r.accepted_precision:7.3f} {r.accepted_recall:7.3f} {r.threshold_at_full_precision:10.4g}')
+                     f'{r.accepted_precision:7.3f} {r.accepted_recall:7.3f} {off:>9} '
+                     f'{r.threshold_at_full_precision:10.4g}')
     tolerance = results[0].tolerance if results else DEFAULT_TOLERANCE
-    lines.append(f'(tolerance {tolerance:g} m; R@1 counts positive queries, acc. = by the default acceptance test)')
+    lines.append(f'(tolerance {tolerance:g} m; R@1 counts positive queries; acc. = accepted by the default acceptance '
+                 'test: precision, recall over positive queries, off-route queries accepted of all off-route)')
     return '\n'.join(lines)
 
 
