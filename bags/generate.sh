@@ -18,6 +18,10 @@ sim teach   --world mineral --seed 2 --length 6 --speed 1.0 --time noon "${commo
     --out "$out/synthetic_mineral_teach.mcap"
 sim repeat  --world mineral --seed 2 --length 6 --speed 0.9 --time sunrise \
     --offset -0.2 --shake 3 --wobble 25 "${common[@]}" --out "$out/synthetic_mineral_repeat.mcap"
+# The garden repeat with a detour: in the route's middle a loop off it reaching 4.3 m away, then back on the route;
+# a frame every 0.2 m (2 m/s at 10 Hz, or a mower's 0.5 m/s at 2.5 Hz) keeps the file small.
+sim repeat  --world garden  --seed 1 --length 8 --speed 2.0 --time morning --clouds 0.3 \
+    --offset 0.25 --shake 3 --wobble 25 --detour 4 "${common[@]}" --out "$out/synthetic_garden_detour.mcap"
 
 # A snapshot place and a 7 x 7 grid of places 0.75 m apart around it; then the same on bumpy ground, every
 # place (the snapshot's too) on a bump that tilts the camera up to 20 degrees more.

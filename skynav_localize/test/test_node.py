@@ -52,6 +52,25 @@ def test_on_route_views_are_accepted_and_off_route_views_are_not(garden_map):
         assert len(off) == len(elsewhere) and not any(m.accepted for m in off)
 
 
+def test_off_the_route_the_node_accepts_nothing(garden_map):
+    # the bundled detour drive leaves the garden route for a loop up to 4.3 m away and comes back: every accepted
+    # match must be within 1 m of the view's true place, and nine in ten views on the route must be accepted
+    from skynav_localize.evaluation import evaluate
+    from skynav_localize.store import MapStore
+
+    views = recording_views(BAGS / 'synthetic_garden_detour.mcap', images=False).views
+    with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
+        graph.keep_outputs = True
+        matches = feed(graph, views, start=10**18)
+    assert len(matches) == len(views)
+    with MapStore.open(garden_map) as store:
+        result = evaluate('localize node', np.array([m.index for m in matches]),
+                          np.array([m.distance for m in matches]), np.stack([v.pose[:3] for v in views]),
+                          store.positions(), 1.0, np.array([m.accepted for m in matches]))
+    assert result.queries - result.positives >= 40 and result.off_route_accepted == 0
+    assert result.accepted_precision >= 0.99 and result.accepted_recall >= 0.9
+
+
 def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
     foreign = tmp_path / 'foreign.db'
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
