@@ -25,6 +25,13 @@ sectors on either side, interpolated linearly in azimuth (circularly); with
 no bimodal sector at all every sector uses the reference. For the whole-image
 methods a non-bimodal image uses the configured global threshold when there
 is one.
+
+Structure. After any method, two optional steps use the shape of an upward
+view (structure.py): enclosed ground that nowhere falls `hole_margin` below
+its threshold becomes sky, and sky beyond a ring of ground along the rays
+from the principal point becomes ground when such rings cover at least
+`ring_share` of the azimuths. Both are off in SkylineParams' defaults and on
+in the skyline node's (parameters.py).
 """
 
 from __future__ import annotations
@@ -32,11 +39,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
 from .features import REFERENCE_PERCENTILE, Features, extract_features
 from .geometry import SectorLayout, SkylineGeometry
+from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
 from .threshold import (DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index,
                         histogram_range)
 
@@ -55,6 +64,8 @@ MIN_TRUSTED_PIXELS = 100
 STATISTICS_SAMPLE = 60000
 #: Relative margin (dimensionless) around the sector thresholds' span that covers float32 rounding.
 _INTERPOLATION_ROUNDING = 1e-5
+#: Default least width (degrees of off-axis angle, along a ray) of a band of ground in the ground-ring step.
+RING_WIDTH_DEG = 2.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +82,9 @@ class SkylineParams:
     reference_percentile: float = REFERENCE_PERCENTILE  # per-channel normalisation percentile (%)
     min_separability: float = MIN_SEPARABILITY  # bimodality test, Otsu separability in [0, 1]
     max_deviation: float = math.inf  # local thresholds stay within this of the global one (normalised log units)
+    hole_margin: float = 0.0  # enclosed ground nowhere this far below its threshold becomes sky (log units); 0: off
+    ring_share: float = math.inf  # share of azimuths (0..1) ringed by ground that cuts the sky beyond; above 1: off
+    ring_width_deg: float = RING_WIDTH_DEG  # least width of such a band of ground along a ray (degrees)
 
     def __post_init__(self) -> None:
         """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
@@ -92,6 +106,12 @@ class SkylineParams:
             raise ValueError(f'min_separability must be in [0, 1], got {self.min_separability}')
         if not 0 < self.reference_percentile <= 100:
             raise ValueError(f'reference percentile must be in (0, 100], got {self.reference_percentile}')
+        if not self.hole_margin >= 0:
+            raise ValueError(f'hole_margin must be at least 0 (0: off), got {self.hole_margin}')
+        if not self.ring_share > 0:
+            raise ValueError(f'ring_share must be above 0 (above 1: off), got {self.ring_share}')
+        if not (self.ring_width_deg > 0 and math.isfinite(self.ring_width_deg)):
+            raise ValueError(f'ring_width_deg must be positive and finite, got {self.ring_width_deg}')
         black = np.broadcast_to(np.asarray(self.black_level, float), (2,))
         object.__setattr__(self, 'black_level', (float(black[0]), float(black[1])))
 
@@ -99,6 +119,16 @@ class SkylineParams:
     def uses_green(self) -> bool:
         """Return whether the green channel enters the contrast."""
         return self.channels == 'uv-green'
+
+    @property
+    def fills_holes(self) -> bool:
+        """Return whether enclosed ground near the threshold becomes sky."""
+        return self.hole_margin > 0
+
+    @property
+    def cuts_rings(self) -> bool:
+        """Return whether sky beyond a ring of ground becomes ground."""
+        return self.ring_share <= 1
 
     @property
     def projection_angle(self) -> float:
@@ -221,10 +251,25 @@ class SkylineSegmenter:
             self.geometry = SkylineGeometry.from_camera(geometry)
         self.params = SkylineParams() if params is None else params
         # Work on the pixels inside the image circle only: one row of them, scattered back at the end.
-        self._row, pixels = self.geometry.packed()
-        self._stride = max(1, -(-pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
+        self._row, self._pixels = self.geometry.packed()
+        self._stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
         if self.params.method.startswith('sector-'):
             self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
+        if self.params.fills_holes or self.params.cuts_rings:
+            # row position of each image pixel (-1 outside the circle), for pixels the structure steps change
+            self._row_position = np.full(self.geometry.shape, -1, np.intp)
+            self._row_position.reshape(-1)[self._pixels] = np.arange(self._pixels.size)
+        if self.params.fills_holes:
+            self._rim = np.zeros(self.geometry.shape, bool)
+            self._rim.reshape(-1)[self.geometry.rim()] = True
+        if self.params.cuts_rings:
+            self._rays = self.geometry.rays(RAY_COUNT, RAY_STEP)  # ValueError without a camera model
+            self._ray_inside = cv2.remap(self.geometry.circle.view(np.uint8), self._rays.map_u, self._rays.map_v,
+                                         cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+            self._ray_index = self._row.sectors(RAY_COUNT).index
+            self._ray_radius = self._row.radius().astype(np.float32)
+            self._ring_samples = max(1, math.ceil(math.radians(self.params.ring_width_deg)
+                                                  * self._rays.samples_per_radian))
 
     def features(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
                  encoding_green: str | None = None) -> Features:
@@ -333,8 +378,60 @@ class SkylineSegmenter:
         else:
             above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
         sky = features.sky_by_rule(circle) | (decided & above)
+        if p.fills_holes or p.cuts_rings:
+            strong = self._clearly_ground(features, contrast, threshold, sectors, decided) if p.fills_holes else None
+            sky = self._apply_structure(sky, strong)
         mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
+
+    def _clearly_ground(self, features: Features, contrast: np.ndarray, threshold: np.ndarray | float,
+                        sectors: SectorThresholds | None, decided: np.ndarray) -> np.ndarray:
+        """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or UV dark."""
+        margin = self.params.hole_margin
+        dark = features.uv.dark
+        if not math.isfinite(margin):
+            return dark
+        if sectors is None:
+            below = contrast <= threshold - margin
+        else:
+            below = ~above_sector_thresholds(contrast, self._row.sectors(self.params.sectors),
+                                             np.asarray(threshold) - margin)
+        return (decided & below) | dark
+
+    def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:
+        """Return the row's sky after the structure steps: enclosed ground filled (given `strong`), ground ring cut."""
+        ground = ~sky
+        # the row as an image: 0 sky (and outside the circle), 1 ground, 2 clearly ground
+        state_row = ground.view(np.uint8)
+        if strong is not None:
+            state_row = state_row + (strong & ground).view(np.uint8)
+        state = np.zeros(self.geometry.shape, np.uint8)
+        state[self.geometry.circle] = state_row.reshape(-1)
+        if strong is not None:
+            filled = unanchored_ground(state == 1, state == 2, self._rim)
+            if filled.size:
+                sky.reshape(-1)[self._row_position.reshape(-1)[filled]] = True
+                state.reshape(-1)[filled] = 0
+        if self.params.cuts_rings:
+            beyond = self._beyond_ground_ring(sky, state)
+            if beyond is not None:
+                sky &= ~beyond
+        return sky
+
+    def _beyond_ground_ring(self, sky: np.ndarray, state: np.ndarray) -> np.ndarray | None:
+        """Return the row's sky pixels beyond a band of ground on their ray if such bands ring enough azimuths.
+
+        `state` is the row as an image, nonzero where ground. None when too few azimuths are ringed.
+        """
+        rays = self._rays
+        samples = cv2.remap(state, rays.map_u, rays.map_v, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                            borderValue=0)
+        end, cut = outermost_band_end(samples > 0, self._ray_inside, self._ring_samples)
+        if np.count_nonzero(cut) < self.params.ring_share * rays.count:
+            return None
+        # pixels from the centre: half way between the band's last sample and the next
+        limit = np.where(cut, (end - 0.5) * rays.spacing, np.inf).astype(np.float32)
+        return sky & (self._ray_radius >= limit.take(self._ray_index))
 
 
 def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
