@@ -429,9 +429,9 @@ class SkylineSegmenter:
         end, cut = outermost_band_end(samples > 0, self._ray_inside, self._ring_samples)
         if np.count_nonzero(cut) < self.params.ring_share * rays.count:
             return None
-        # pixels from the centre: half way between the band's last sample and the next
-        limit = np.where(cut, (end - 0.5) * rays.spacing, np.inf).astype(np.float32)
-        return sky & (self._ray_radius >= limit.take(self._ray_index))
+        # sky farther from the centre than the band's last sample (pixels) is beyond the band
+        limit = np.where(cut, (end - 1) * rays.spacing, np.inf).astype(np.float32)
+        return sky & (self._ray_radius > limit.take(self._ray_index))
 
 
 def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
