@@ -256,15 +256,23 @@ class SkylineSegmenter:
         if self.params.method.startswith('sector-'):
             self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
         if self.params.fills_holes or self.params.cuts_rings:
-            # row position of each image pixel (-1 outside the circle), for pixels the structure steps change
-            self._row_position = np.full(self.geometry.shape, -1, np.intp)
-            self._row_position.reshape(-1)[self._pixels] = np.arange(self._pixels.size)
+            # The structure steps work on the image circle's bounding box: its circle, and the row position of
+            # each of its pixels (-1 outside the circle) for the pixels they change.
+            circle = self.geometry.circle
+            rows, columns = np.flatnonzero(circle.any(axis=1)), np.flatnonzero(circle.any(axis=0))
+            self._box = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
+            self._box_circle = np.ascontiguousarray(circle[self._box])
+            self._row_position = np.full(self._box_circle.shape, -1, np.intp)
+            self._row_position[self._box_circle] = np.arange(self._pixels.size)
         if self.params.fills_holes:
-            self._rim = np.zeros(self.geometry.shape, bool)
-            self._rim.reshape(-1)[self.geometry.rim()] = True
+            rim = np.zeros(self.geometry.shape, bool)
+            rim.reshape(-1)[self.geometry.rim()] = True
+            self._rim = np.ascontiguousarray(rim[self._box])
         if self.params.cuts_rings:
             self._rays = self.geometry.rays(RAY_COUNT, RAY_STEP)  # ValueError without a camera model
-            self._ray_inside = cv2.remap(self.geometry.circle.view(np.uint8), self._rays.map_u, self._rays.map_v,
+            self._ray_u = self._rays.map_u - np.float32(self._box[1].start)  # in the box
+            self._ray_v = self._rays.map_v - np.float32(self._box[0].start)
+            self._ray_inside = cv2.remap(self._box_circle.view(np.uint8), self._ray_u, self._ray_v,
                                          cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
             self._ray_index = self._row.sectors(RAY_COUNT).index
             self._ray_radius = self._row.radius().astype(np.float32)
@@ -405,8 +413,8 @@ class SkylineSegmenter:
         state_row = ground.view(np.uint8)
         if strong is not None:
             state_row = state_row + (strong & ground).view(np.uint8)
-        state = np.zeros(self.geometry.shape, np.uint8)
-        state[self.geometry.circle] = state_row.reshape(-1)
+        state = np.zeros(self._box_circle.shape, np.uint8)
+        state[self._box_circle] = state_row.reshape(-1)
         if strong is not None:
             filled = unanchored_ground(state == 1, state == 2, self._rim)
             if filled.size:
@@ -421,10 +429,11 @@ class SkylineSegmenter:
     def _beyond_ground_ring(self, sky: np.ndarray, state: np.ndarray) -> np.ndarray | None:
         """Return the row's sky pixels beyond a band of ground on their ray if such bands ring enough azimuths.
 
-        `state` is the row as an image, nonzero where ground. None when too few azimuths are ringed.
+        `state` is the row as an image of the circle's box, nonzero where ground. None when too few azimuths
+        are ringed.
         """
         rays = self._rays
-        samples = cv2.remap(state, rays.map_u, rays.map_v, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+        samples = cv2.remap(state, self._ray_u, self._ray_v, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
                             borderValue=0)
         end, cut = outermost_band_end(samples > 0, self._ray_inside, self._ring_samples)
         if np.count_nonzero(cut) < self.params.ring_share * rays.count:

@@ -56,9 +56,9 @@ def unanchored_ground(weak: np.ndarray, strong: np.ndarray, rim: np.ndarray) -> 
     anchored = np.zeros(count, bool)
     anchored[0] = True  # the background: not weak ground
     anchored[labels[box_weak & ~box_candidate]] = True
-    row, column = np.nonzero(box_candidate)
-    free = ~anchored[labels[row, column]]
-    return np.ravel_multi_index((row[free] + rows.start, column[free] + columns.start), weak.shape)
+    found = np.flatnonzero(candidate)
+    row, column = np.divmod(found, weak.shape[1])
+    return found[~anchored[labels[row - rows.start, column - columns.start]]]
 
 
 def outermost_band_end(ground: np.ndarray, inside: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
