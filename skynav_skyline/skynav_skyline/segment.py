@@ -265,9 +265,9 @@ class SkylineSegmenter:
             self._row_position = np.full(self._box_circle.shape, -1, np.intp)
             self._row_position[self._box_circle] = np.arange(self._pixels.size)
         if self.params.fills_holes:
-            rim = np.zeros(self.geometry.shape, bool)
-            rim.reshape(-1)[self.geometry.rim()] = True
-            self._rim = np.ascontiguousarray(rim[self._box])
+            inner = np.ones(self.geometry.shape, bool)  # False on the circle's rim
+            inner.reshape(-1)[self.geometry.rim()] = False
+            self._inner = np.ascontiguousarray(inner[self._box])
         if self.params.cuts_rings:
             self._rays = self.geometry.rays(RAY_COUNT, RAY_STEP)  # ValueError without a camera model
             self._ray_u = self._rays.map_u - np.float32(self._box[1].start)  # in the box
@@ -408,15 +408,15 @@ class SkylineSegmenter:
 
     def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:
         """Return the row's sky after the structure steps: enclosed ground filled (given `strong`), ground ring cut."""
-        ground = ~sky
         # the row as an image: 0 sky (and outside the circle), 1 ground, 2 clearly ground
+        ground = ~sky
         state_row = ground.view(np.uint8)
         if strong is not None:
             state_row = state_row + (strong & ground).view(np.uint8)
         state = np.zeros(self._box_circle.shape, np.uint8)
         state[self._box_circle] = state_row.reshape(-1)
         if strong is not None:
-            filled = unanchored_ground(state == 1, state == 2, self._rim)
+            filled = unanchored_ground(state, self._inner)
             if filled.size:
                 sky.reshape(-1)[self._row_position.reshape(-1)[filled]] = True
                 state.reshape(-1)[filled] = 0

@@ -33,31 +33,32 @@ RAY_STEP = np.radians(1.0)
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
 
 
-def unanchored_ground(weak: np.ndarray, strong: np.ndarray, rim: np.ndarray) -> np.ndarray:
+def unanchored_ground(state: np.ndarray, inner: np.ndarray) -> np.ndarray:
     """Return the flat indices of the ground pixels in 8-connected regions of ground with no anchor.
 
-    Ground is `weak` | `strong` (bool images; disjoint). A region is anchored when it holds
-    a `strong` pixel or a `rim` pixel (bool image). Only regions of weak pixels alone, none
-    of them next to a strong pixel or on the rim (the candidates), can be unanchored; they
-    are labelled in the candidates' bounding box grown by one pixel, where a weak pixel
-    that is not a candidate anchors its region (a region leaving the box crosses its
-    border, which holds no candidate).
+    `state` (uint8 image) is 0 where not ground, 1 where ground and 2 where clearly ground;
+    `inner` (bool image) is False on the rim of the image circle. A region is
+    anchored when it holds a clearly ground pixel or a rim pixel. Only regions of plain
+    ground alone, none of it next to a clearly ground pixel or on the rim (the candidates),
+    can be unanchored; they are labelled in the candidates' bounding box grown by one pixel,
+    where a plain ground pixel that is not a candidate anchors its region (a region leaving
+    the box crosses its border, which holds no candidate).
     """
-    anchoring = cv2.dilate(strong.view(np.uint8), _NEIGHBOURS).view(bool) | rim
-    candidate = weak & ~anchoring
+    weak = state == 1
+    # a candidate: plain ground with no clearly ground pixel among its 8 neighbours, off the rim
+    candidate = weak & inner & (cv2.dilate(state, _NEIGHBOURS) == 1)
     if not candidate.any():
         return np.zeros(0, np.intp)
     left, top, width, height = cv2.boundingRect(candidate.view(np.uint8))
-    rows = slice(max(top - 1, 0), min(top + height + 1, weak.shape[0]))
-    columns = slice(max(left - 1, 0), min(left + width + 1, weak.shape[1]))
+    rows = slice(max(top - 1, 0), min(top + height + 1, state.shape[0]))
+    columns = slice(max(left - 1, 0), min(left + width + 1, state.shape[1]))
     box_weak = np.ascontiguousarray(weak[rows, columns])
-    box_candidate = candidate[rows, columns]
     count, labels = cv2.connectedComponents(box_weak.view(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     anchored = np.zeros(count, bool)
-    anchored[0] = True  # the background: not weak ground
-    anchored[labels[box_weak & ~box_candidate]] = True
+    anchored[0] = True  # the background: not plain ground
+    anchored[labels[box_weak & ~candidate[rows, columns]]] = True  # plain ground that is not a candidate
     found = np.flatnonzero(candidate)
-    row, column = np.divmod(found, weak.shape[1])
+    row, column = np.divmod(found, state.shape[1])
     return found[~anchored[labels[row - rows.start, column - columns.start]]]
 
 

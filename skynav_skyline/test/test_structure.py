@@ -158,7 +158,7 @@ def _unanchored_reference(weak: np.ndarray, strong: np.ndarray, rim: np.ndarray)
 def test_unanchored_ground_equals_labelling_the_whole_ground(classes, seed):
     weak, strong = classes == 1, classes == 2
     rim = np.random.default_rng(seed).random(classes.shape) < 0.1
-    found = unanchored_ground(weak, strong, rim)
+    found = unanchored_ground(classes, ~rim)
     assert set(found.tolist()) == _unanchored_reference(weak, strong, rim)
     assert len(set(found.tolist())) == found.size
 
