@@ -255,25 +255,28 @@ class SkylineSegmenter:
         self._stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
         if self.params.method.startswith('sector-'):
             self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
-        if self.params.fills_holes or self.params.cuts_rings:
-            # The structure steps work on the image circle's bounding box: its circle, and the row position of
-            # each of its pixels (-1 outside the circle) for the pixels they change.
+        if self.params.fills_holes:
+            # The enclosed-ground step works on the image circle's bounding box: its circle, the row position of
+            # each of its pixels (-1 outside the circle) for the pixels it fills, and the circle's inside off the rim.
             circle = self.geometry.circle
             rows, columns = np.flatnonzero(circle.any(axis=1)), np.flatnonzero(circle.any(axis=0))
             self._box = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
             self._box_circle = np.ascontiguousarray(circle[self._box])
             self._row_position = np.full(self._box_circle.shape, -1, np.intp)
             self._row_position[self._box_circle] = np.arange(self._pixels.size)
-        if self.params.fills_holes:
             inner = np.ones(self.geometry.shape, bool)  # False on the circle's rim
             inner.reshape(-1)[self.geometry.rim()] = False
             self._inner = np.ascontiguousarray(inner[self._box])
         if self.params.cuts_rings:
             self._rays = self.geometry.rays(RAY_COUNT, RAY_STEP)  # ValueError without a camera model
-            self._ray_u = self._rays.map_u - np.float32(self._box[1].start)  # in the box
-            self._ray_v = self._rays.map_v - np.float32(self._box[0].start)
-            self._ray_inside = cv2.remap(self._box_circle.view(np.uint8), self._ray_u, self._ray_v,
-                                         cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+            # each ray sample reads the row position of its nearest pixel (-1: outside the circle or the image)
+            position = np.full(self.geometry.shape, -1, np.intp)
+            position.reshape(-1)[self._pixels] = np.arange(self._pixels.size)
+            u, v = np.rint(self._rays.map_u).astype(np.intp), np.rint(self._rays.map_v).astype(np.intp)
+            on_image = (u >= 0) & (u < position.shape[1]) & (v >= 0) & (v < position.shape[0])
+            sample = np.where(on_image, position[np.where(on_image, v, 0), np.where(on_image, u, 0)], -1)
+            self._ray_inside = sample >= 0
+            self._ray_sample = np.maximum(sample, 0)
             self._ray_index = self._row.sectors(RAY_COUNT).index
             self._ray_radius = self._row.radius().astype(np.float32)
             self._ring_samples = max(1, math.ceil(math.radians(self.params.ring_width_deg)
@@ -408,38 +411,31 @@ class SkylineSegmenter:
 
     def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:
         """Return the row's sky after the structure steps: enclosed ground filled (given `strong`), ground ring cut."""
-        # the row as an image: 0 sky (and outside the circle), 1 ground, 2 clearly ground
-        ground = ~sky
-        state_row = ground.view(np.uint8)
         if strong is not None:
-            state_row = state_row + (strong & ground).view(np.uint8)
-        state = np.zeros(self._box_circle.shape, np.uint8)
-        state[self._box_circle] = state_row.reshape(-1)
-        if strong is not None:
+            # the row as an image of the circle's box: 0 sky (and outside the circle), 1 ground, 2 clearly ground
+            ground = ~sky
+            state = np.zeros(self._box_circle.shape, np.uint8)
+            state[self._box_circle] = (ground.view(np.uint8) + (strong & ground).view(np.uint8)).reshape(-1)
             filled = unanchored_ground(state, self._inner)
             if filled.size:
                 sky.reshape(-1)[self._row_position.reshape(-1)[filled]] = True
-                state.reshape(-1)[filled] = 0
         if self.params.cuts_rings:
-            beyond = self._beyond_ground_ring(sky, state)
+            beyond = self._beyond_ground_ring(sky)
             if beyond is not None:
                 sky &= ~beyond
         return sky
 
-    def _beyond_ground_ring(self, sky: np.ndarray, state: np.ndarray) -> np.ndarray | None:
+    def _beyond_ground_ring(self, sky: np.ndarray) -> np.ndarray | None:
         """Return the row's sky pixels beyond a band of ground on their ray if such bands ring enough azimuths.
 
-        `state` is the row as an image of the circle's box, nonzero where ground. None when too few azimuths
-        are ringed.
+        None when too few azimuths are ringed.
         """
-        rays = self._rays
-        samples = cv2.remap(state, self._ray_u, self._ray_v, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
-                            borderValue=0)
-        end, cut = outermost_band_end(samples > 0, self._ray_inside, self._ring_samples)
-        if np.count_nonzero(cut) < self.params.ring_share * rays.count:
+        ground = ~sky.reshape(-1).take(self._ray_sample)  # samples outside the circle are masked by _ray_inside
+        end, cut = outermost_band_end(ground, self._ray_inside, self._ring_samples)
+        if np.count_nonzero(cut) < self.params.ring_share * self._rays.count:
             return None
         # sky farther from the centre than the band's last sample (pixels) is beyond the band
-        limit = np.where(cut, (end - 1) * rays.spacing, np.inf).astype(np.float32)
+        limit = np.where(cut, (end - 1) * self._rays.spacing, np.inf).astype(np.float32)
         return sky & (self._ray_radius > limit.take(self._ray_index))
 
 

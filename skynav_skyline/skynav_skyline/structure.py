@@ -53,13 +53,15 @@ def unanchored_ground(state: np.ndarray, inner: np.ndarray) -> np.ndarray:
     rows = slice(max(top - 1, 0), min(top + height + 1, state.shape[0]))
     columns = slice(max(left - 1, 0), min(left + width + 1, state.shape[1]))
     box_weak = np.ascontiguousarray(weak[rows, columns])
+    box_candidate = np.ascontiguousarray(candidate[rows, columns])
     count, labels = cv2.connectedComponents(box_weak.view(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     anchored = np.zeros(count, bool)
     anchored[0] = True  # the background: not plain ground
-    anchored[labels[box_weak & ~candidate[rows, columns]]] = True  # plain ground that is not a candidate
-    found = np.flatnonzero(candidate)
-    row, column = np.divmod(found, state.shape[1])
-    return found[~anchored[labels[row - rows.start, column - columns.start]]]
+    anchored[labels[box_weak & ~box_candidate]] = True  # plain ground that is not a candidate
+    found = np.flatnonzero(box_candidate)
+    free = found[~anchored[labels.reshape(-1)[found]]]
+    row, column = np.divmod(free, box_candidate.shape[1])
+    return (row + rows.start) * state.shape[1] + column + columns.start
 
 
 def outermost_band_end(ground: np.ndarray, inside: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
