@@ -5,7 +5,7 @@ reaches the rim of the image circle (or hangs from something that does), and alo
 outwards from the sky, the sky ends where the ground that stands on the horizon begins.
 
 - Enclosed ground. A region classified ground (8-connected) that neither reaches the rim nor
-  holds a pixel clearly ground (contrast at least `hole_margin` below its threshold) is sky
+  holds a pixel clearly ground (contrast at least `hole_margin` below its threshold, or UV dark) is sky
   the threshold missed: the dim sky opposite a low sun, when a thin ring of ground leaves the
   histogram without a second mode. A crown or a branch over the camera is enclosed by sky
   too, but it lies far below the threshold, so it stays ground.
@@ -16,8 +16,9 @@ outwards from the sky, the sky ends where the ground that stands on the horizon 
   or beside a tree is real, and a camera tilted by the ground sees far above the horizon
   on one side.
 
-Both work on whole images with precomputed per-camera tables (geometry.py): one
-connected-component labelling and one polar resampling per frame.
+Both use per-camera tables built once (geometry.py): the first labels the ground of one
+image per frame (only the part that can hold an enclosed region), the second reads the
+mask at fixed samples along RAY_COUNT rays.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 
 #: Rays of the ground-ring step: one per degree of azimuth.
 RAY_COUNT = 360
-#: Off-axis angle (rad) between samples along a ray: half a degree (but at least a pixel).
+#: Off-axis angle (rad) between samples along a ray: one degree (but at least a pixel).
 RAY_STEP = np.radians(1.0)
 #: Neighbourhood of 8-connectivity, for dilating the clearly ground pixels onto their neighbours.
 _NEIGHBOURS = np.ones((3, 3), np.uint8)
