@@ -3,7 +3,8 @@
     .venv/bin/python bench/skyline_mask.py [--encoding mono8|mono16|32FC1]
 
 Renders three synthetic exposures (garden, park, mineral; forenoon), then times every method of the
-skyline node with its shipped parameters, and the peer a user might pick instead: cv2.threshold
+skyline node with its shipped parameters, the default method once more without the structure steps
+(enclosed ground, ground ring: what they cost), and the peer a user might pick instead: cv2.threshold
 with THRESH_OTSU on the UV image (8-bit). Every mask is timed on its own; prints the median and the
 90th percentile of milliseconds per mask over all repeats, and the ratio of the medians to the peer's.
 Pin it to one core (`taskset -c 0`) for the one-core figure.
@@ -12,6 +13,7 @@ Pin it to one core (`taskset -c 0`) for the one-core figure.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
@@ -66,19 +68,22 @@ def main() -> int:
     peer_median = float(np.median(peer_ms))
     print(f'640x480 {args.encoding}, {REPEATS} x {len(exposures)} synthetic exposures, each mask timed')
     print(f'{"method":18s} {"channels":9s} {"median ms":>9s} {"p90 ms":>7s} {"/ cv2 Otsu":>10s}')
-    for channels in ('uv', 'uv-green'):
-        for method in METHODS:
-            segmenter = SkylineSegmenter(geometry, skyline_params({**defaults(), 'method': method,
-                                                                   'channels': channels}))
+    shipped = defaults()
+    rows = [(method, channels, {}) for channels in ('uv', 'uv-green') for method in METHODS]
+    rows.append((shipped['method'], shipped['channels'], {'hole_margin': 0.0, 'ring_share': math.inf}))
+    for method, channels, changes in rows:
+        segmenter = SkylineSegmenter(geometry, skyline_params({**shipped, 'method': method, 'channels': channels,
+                                                               **changes}))
 
-            def run(uv: np.ndarray, green: np.ndarray) -> None:
-                segmenter.segment(uv, green, args.encoding, args.encoding)
+        def run(uv: np.ndarray, green: np.ndarray) -> None:
+            segmenter.segment(uv, green, args.encoding, args.encoding)
 
-            mask_times_ms(run, exposures, 1)  # warm up
-            ms = mask_times_ms(run, exposures)
-            median = float(np.median(ms))
-            print(f'{method:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} '
-                  f'{median / peer_median:10.1f}')
+        mask_times_ms(run, exposures, 1)  # warm up
+        ms = mask_times_ms(run, exposures)
+        median = float(np.median(ms))
+        label = method + (' -structure' if changes else '')
+        print(f'{label:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} '
+              f'{median / peer_median:10.1f}')
     print(f'{"cv2 Otsu (peer)":18s} {"uv":9s} {peer_median:9.2f} {np.percentile(peer_ms, 90):7.2f} {1.0:10.1f}')
     return 0
 

@@ -1,6 +1,7 @@
 """Sky/ground segmentation of upward-looking UV/green fish-eye images: the skyline.
 
-Pure numpy (OpenCV only for the optional Debevec merge); no ROS imports. Typical use::
+Plain numpy and OpenCV (connected components and morphology of the structure steps, the optional
+Debevec merge); no ROS imports. Typical use::
 
     from skynav_skyline import SkylineGeometry, SkylineParams, SkylineSegmenter
     segmenter = SkylineSegmenter(SkylineGeometry.from_camera(camera), SkylineParams(method='sector-otsu'))

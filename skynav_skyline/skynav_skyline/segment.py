@@ -25,6 +25,13 @@ sectors on either side, interpolated linearly in azimuth (circularly); with
 no bimodal sector at all every sector uses the reference. For the whole-image
 methods a non-bimodal image uses the configured global threshold when there
 is one.
+
+Structure. After any method, two optional steps use the shape of an upward
+view (structure.py): enclosed ground that nowhere falls `hole_margin` below
+its threshold becomes sky, and sky beyond a ring of ground along the rays
+from the principal point becomes ground when such rings cover at least
+`ring_share` of the azimuths. Both are off in SkylineParams' defaults and on
+in the skyline node's (parameters.py).
 """
 
 from __future__ import annotations
@@ -32,11 +39,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
 from .features import REFERENCE_PERCENTILE, Features, extract_features
 from .geometry import SectorLayout, SkylineGeometry
+from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
 from .threshold import (DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index,
                         histogram_range)
 
@@ -55,6 +64,8 @@ MIN_TRUSTED_PIXELS = 100
 STATISTICS_SAMPLE = 60000
 #: Relative margin (dimensionless) around the sector thresholds' span that covers float32 rounding.
 _INTERPOLATION_ROUNDING = 1e-5
+#: Default least width (degrees of off-axis angle, along a ray) of a band of ground in the ground-ring step.
+RING_WIDTH_DEG = 2.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +82,9 @@ class SkylineParams:
     reference_percentile: float = REFERENCE_PERCENTILE  # per-channel normalisation percentile (%)
     min_separability: float = MIN_SEPARABILITY  # bimodality test, Otsu separability in [0, 1]
     max_deviation: float = math.inf  # local thresholds stay within this of the global one (normalised log units)
+    hole_margin: float = 0.0  # enclosed ground nowhere this far below its threshold becomes sky (log units); 0: off
+    ring_share: float = math.inf  # share of azimuths (0..1) ringed by ground that cuts the sky beyond; above 1: off
+    ring_width_deg: float = RING_WIDTH_DEG  # least width of such a band of ground along a ray (degrees)
 
     def __post_init__(self) -> None:
         """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
@@ -92,6 +106,12 @@ class SkylineParams:
             raise ValueError(f'min_separability must be in [0, 1], got {self.min_separability}')
         if not 0 < self.reference_percentile <= 100:
             raise ValueError(f'reference percentile must be in (0, 100], got {self.reference_percentile}')
+        if not self.hole_margin >= 0:
+            raise ValueError(f'hole_margin must be at least 0 (0: off), got {self.hole_margin}')
+        if not self.ring_share > 0:
+            raise ValueError(f'ring_share must be above 0 (above 1: off), got {self.ring_share}')
+        if not (self.ring_width_deg > 0 and math.isfinite(self.ring_width_deg)):
+            raise ValueError(f'ring_width_deg must be positive and finite, got {self.ring_width_deg}')
         black = np.broadcast_to(np.asarray(self.black_level, float), (2,))
         object.__setattr__(self, 'black_level', (float(black[0]), float(black[1])))
 
@@ -99,6 +119,16 @@ class SkylineParams:
     def uses_green(self) -> bool:
         """Return whether the green channel enters the contrast."""
         return self.channels == 'uv-green'
+
+    @property
+    def fills_holes(self) -> bool:
+        """Return whether enclosed ground near the threshold becomes sky."""
+        return self.hole_margin > 0
+
+    @property
+    def cuts_rings(self) -> bool:
+        """Return whether sky beyond a ring of ground becomes ground."""
+        return self.ring_share <= 1
 
     @property
     def projection_angle(self) -> float:
@@ -221,10 +251,36 @@ class SkylineSegmenter:
             self.geometry = SkylineGeometry.from_camera(geometry)
         self.params = SkylineParams() if params is None else params
         # Work on the pixels inside the image circle only: one row of them, scattered back at the end.
-        self._row, pixels = self.geometry.packed()
-        self._stride = max(1, -(-pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
+        self._row, self._pixels = self.geometry.packed()
+        self._stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
         if self.params.method.startswith('sector-'):
             self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
+        if self.params.fills_holes:
+            # The enclosed-ground step works on the image circle's bounding box: its circle, the row position of
+            # each of its pixels (-1 outside the circle) for the pixels it fills, and the circle's inside off the rim.
+            circle = self.geometry.circle
+            rows, columns = np.flatnonzero(circle.any(axis=1)), np.flatnonzero(circle.any(axis=0))
+            self._box = (slice(rows[0], rows[-1] + 1), slice(columns[0], columns[-1] + 1))
+            self._box_circle = np.ascontiguousarray(circle[self._box])
+            self._row_position = np.full(self._box_circle.shape, -1, np.intp)
+            self._row_position[self._box_circle] = np.arange(self._pixels.size)
+            inner = np.ones(self.geometry.shape, bool)  # False on the circle's rim
+            inner.reshape(-1)[self.geometry.rim()] = False
+            self._inner = np.ascontiguousarray(inner[self._box])
+        if self.params.cuts_rings:
+            self._rays = self.geometry.rays(RAY_COUNT, RAY_STEP)  # ValueError without a camera model
+            # each ray sample reads the row position of its nearest pixel (-1: outside the circle or the image)
+            position = np.full(self.geometry.shape, -1, np.intp)
+            position.reshape(-1)[self._pixels] = np.arange(self._pixels.size)
+            u, v = np.rint(self._rays.map_u).astype(np.intp), np.rint(self._rays.map_v).astype(np.intp)
+            on_image = (u >= 0) & (u < position.shape[1]) & (v >= 0) & (v < position.shape[0])
+            sample = np.where(on_image, position[np.where(on_image, v, 0), np.where(on_image, u, 0)], -1)
+            self._ray_inside = sample >= 0
+            self._ray_sample = np.maximum(sample, 0)
+            self._ray_index = self._row.sectors(RAY_COUNT).index
+            self._ray_radius = self._row.radius().astype(np.float32)
+            self._ring_samples = max(1, math.ceil(math.radians(self.params.ring_width_deg)
+                                                  * self._rays.samples_per_radian))
 
     def features(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
                  encoding_green: str | None = None) -> Features:
@@ -333,8 +389,54 @@ class SkylineSegmenter:
         else:
             above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
         sky = features.sky_by_rule(circle) | (decided & above)
+        if p.fills_holes or p.cuts_rings:
+            strong = self._clearly_ground(features, contrast, threshold, sectors, decided) if p.fills_holes else None
+            sky = self._apply_structure(sky, strong)
         mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
+
+    def _clearly_ground(self, features: Features, contrast: np.ndarray, threshold: np.ndarray | float,
+                        sectors: SectorThresholds | None, decided: np.ndarray) -> np.ndarray:
+        """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or UV dark."""
+        margin = self.params.hole_margin
+        dark = features.uv.dark
+        if not math.isfinite(margin):
+            return dark
+        if sectors is None:
+            below = contrast <= threshold - margin
+        else:
+            below = ~above_sector_thresholds(contrast, self._row.sectors(self.params.sectors),
+                                             np.asarray(threshold) - margin)
+        return (decided & below) | dark
+
+    def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:
+        """Return the row's sky after the structure steps: enclosed ground filled (given `strong`), ground ring cut."""
+        if strong is not None:
+            # the row as an image of the circle's box: 0 sky (and outside the circle), 1 ground, 2 clearly ground
+            ground = ~sky
+            state = np.zeros(self._box_circle.shape, np.uint8)
+            state[self._box_circle] = (ground.view(np.uint8) + (strong & ground).view(np.uint8)).reshape(-1)
+            filled = unanchored_ground(state, self._inner)
+            if filled.size:
+                sky.reshape(-1)[self._row_position.reshape(-1)[filled]] = True
+        if self.params.cuts_rings:
+            beyond = self._beyond_ground_ring(sky)
+            if beyond is not None:
+                sky &= ~beyond
+        return sky
+
+    def _beyond_ground_ring(self, sky: np.ndarray) -> np.ndarray | None:
+        """Return the row's sky pixels beyond a band of ground on their ray if such bands ring enough azimuths.
+
+        None when too few azimuths are ringed.
+        """
+        ground = ~sky.reshape(-1).take(self._ray_sample)  # samples outside the circle are masked by _ray_inside
+        end, cut = outermost_band_end(ground, self._ray_inside, self._ring_samples)
+        if np.count_nonzero(cut) < self.params.ring_share * self._rays.count:
+            return None
+        # sky farther from the centre than the band's last sample (pixels) is beyond the band
+        limit = np.where(cut, (end - 1) * self._rays.spacing, np.inf).astype(np.float32)
+        return sky & (self._ray_radius > limit.take(self._ray_index))
 
 
 def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,

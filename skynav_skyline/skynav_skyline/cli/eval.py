@@ -2,9 +2,12 @@
 
 The classification rate of an exposure is the share of pixels inside the image circle that a method
 labels as /ground_truth/mask does. Every method runs with the skyline node's parameters (the shipped
-defaults, or --params), so what is measured is what the node does. Prints one table per world
-(rows: method and channels; columns: time of day) and one over all worlds, and saves a plot of the
-log UV / log green histogram of sky and ground pixels with the learned separators.
+defaults, or --params), so what is measured is what the node does; the default method runs once more
+without the structure steps (enclosed ground, ground ring; see skynav_skyline/structure.py) when the
+parameters use them. Prints one table per world (the world or landscape named in the recording's
+metadata; rows: method, channels and structure steps; columns: time of day), one over all worlds, and
+the default method per world without and with the structure steps; saves a plot of the log UV / log
+green histogram of sky and ground pixels with the learned separators.
 """
 
 from __future__ import annotations
@@ -30,11 +33,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
+    import math
+    from dataclasses import replace
     from pathlib import Path
 
     from skynav_bringup.cli import CliError
 
-    from ..parameters import load_parameter_file, skyline_params
+    from ..parameters import defaults, load_parameter_file, skyline_params
     from ..segment import METHODS
 
     if unknown := [m for m in args.methods if m not in METHODS]:
@@ -44,20 +49,31 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f'{plot.parent}: no such directory')
     values = load_parameter_file(args.params) if args.params else shipped_parameters()
     configurations = {}
+    default_method, default_channels = (str({**defaults(), **values}[name]) for name in ('method', 'channels'))
     for method in args.methods:
         for channels in args.channels:
             try:
-                configurations[(method, channels)] = skyline_params({**values, 'method': method,
-                                                                     'channels': channels})
+                params = skyline_params({**values, 'method': method, 'channels': channels})
             except ValueError as exc:
                 print(f'skynav skyline eval: skipping {method} {channels}: {exc}', file=sys.stderr)
+                continue
+            configurations[(method, channels, structure_label(params))] = params
+            if (method, channels) == (default_method, default_channels) and structure_label(params) == 'on':
+                configurations[(method, channels, 'off')] = replace(params, hole_margin=0.0, ring_share=math.inf)
     if not configurations:
         raise CliError('nothing to evaluate (no usable method and channel combination)')
     rates, samples, synthetic = evaluate(args.bags, configurations)
     print(report(rates, values))
+    if comparison := structure_report(rates):
+        print(comparison)
     draw_histogram(plot, samples, values, synthetic)
     print(f'skynav skyline eval: saved the histogram plot to {plot}', file=sys.stderr)
     return 0
+
+
+def structure_label(params) -> str:
+    """Return whether settings use the structure steps: 'on' (either), 'off' (neither)."""
+    return 'on' if params.fills_holes or params.cuts_rings else 'off'
 
 
 def shipped_parameters() -> dict:
@@ -72,7 +88,7 @@ def shipped_parameters() -> dict:
 
 
 def evaluate(paths, configurations):
-    """Return per-frame rates {(method, channels): [(world, time, rate)]}, pixel samples, and whether synthetic."""
+    """Return per-frame rates {(method, channels, structure): [(world, time, rate)]}, pixel samples, synthetic?"""
     import numpy as np
     from tqdm import tqdm
 
@@ -123,26 +139,48 @@ def report(rates: dict, values: dict) -> str:
     worlds = list(dict.fromkeys(world for world, _, _ in first))
     times = [t for t in (*TIME_LABELS, 'all') if any(time == t for _, time, _ in first)]
     lines = [f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
-             f'{values.get("channels", "?")}']
+             f'{values.get("channels", "?")}; structure: the structure steps (enclosed ground, ground ring)']
+    header = f'{"method":20s}{"channels":10s}{"structure":>10s}'
     for world in worlds:
         count = sum(1 for w, _, _ in first if w == world)
         lines.append('')
-        lines.append(f'{world} ({count} exposures)'.ljust(30) + ''.join(f'{t:>10s}' for t in times)
-                     + f'{"mean":>10s}{"worst":>10s}')
-        for (method, channels), values_ in rates.items():
+        lines.append(f'{world} ({count} exposures)')
+        lines.append(header + ''.join(f'{t:>10s}' for t in times) + f'{"mean":>10s}{"worst":>10s}')
+        for (method, channels, structure), values_ in rates.items():
             mine = [(t, r) for w, t, r in values_ if w == world]
             cells = [np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan
                      for t in times]
             everything = [r for _, r in mine]
-            lines.append(f'  {method:18s}{channels:10s}' + ''.join(f'{100 * c:10.2f}' for c in cells)
+            lines.append(f'  {method:18s}{channels:10s}{structure:>10s}' + ''.join(f'{100 * c:10.2f}' for c in cells)
                          + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
     lines.append('')
-    lines.append('all worlds'.ljust(30) + ''.join(f'{w:>10s}' for w in worlds) + f'{"mean":>10s}{"worst":>10s}')
-    for (method, channels), values_ in rates.items():
+    lines.append('all worlds')
+    lines.append(header + ''.join(f'{w:>10s}' for w in worlds) + f'{"mean":>10s}{"worst":>10s}')
+    for (method, channels, structure), values_ in rates.items():
         per_world = [np.mean([r for w, _, r in values_ if w == world]) for world in worlds]
         everything = [r for _, _, r in values_]
-        lines.append(f'  {method:18s}{channels:10s}' + ''.join(f'{100 * c:10.2f}' for c in per_world)
+        lines.append(f'  {method:18s}{channels:10s}{structure:>10s}' + ''.join(f'{100 * c:10.2f}' for c in per_world)
                      + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
+    return '\n'.join(lines)
+
+
+def structure_report(rates: dict) -> str:
+    """Return the default method's rates (%) per world without and with the structure steps ('' if not both ran)."""
+    import numpy as np
+
+    pairs = {(m, c) for m, c, s in rates if s == 'off'} & {(m, c) for m, c, s in rates if s == 'on'}
+    if not pairs:
+        return ''
+    method, channels = sorted(pairs)[0]
+    off, on = rates[(method, channels, 'off')], rates[(method, channels, 'on')]
+    worlds = list(dict.fromkeys(world for world, _, _ in off))
+    lines = ['', f'{method} {channels} without -> with the structure steps',
+             f'{"world":20s}{"exposures":>10s}{"mean off":>10s}{"mean on":>10s}{"worst off":>10s}{"worst on":>10s}']
+    for world in [*worlds, 'all worlds']:
+        before = [r for w, _, r in off if world in (w, 'all worlds')]
+        after = [r for w, _, r in on if world in (w, 'all worlds')]
+        lines.append(f'  {world:18s}{len(before):10d}{100 * np.mean(before):10.2f}{100 * np.mean(after):10.2f}'
+                     f'{100 * np.min(before):10.2f}{100 * np.min(after):10.2f}')
     return '\n'.join(lines)
 
 
