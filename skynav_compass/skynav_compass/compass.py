@@ -35,7 +35,7 @@ from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, co
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 from skynav_compass.refine import Refined, newton_prediction, refine
 from skynav_compass.so3 import EulerGrid
-from skynav_compass.verify import is_binary, verify
+from skynav_compass.verify import current_masks, is_binary, verify
 from skynav_compass.views import CompassView
 
 View = Union[CompassView, np.ndarray]
@@ -258,10 +258,11 @@ class Compass:
         c = self.config
         stepped = [newton_prediction(problem, matrix, radius=self.grid.step, jet=jet, max_tilt=c.max_tilt)
                    for matrix, jet in zip(starts, start_jets)]
-        first = verify(problem, np.stack([r.matrix for r in stepped]))
+        masks = current_masks(problem)
+        first = verify(problem, np.stack([r.matrix for r in stepped]), masks)
         chosen = np.lexsort(([r.cost for r in stepped], first.score))[: c.refined]
         results = [refine(problem, stepped[k].matrix, radius=self.grid.step, max_tilt=c.max_tilt) for k in chosen]
-        checked = verify(problem, np.stack([r.matrix for r in results]))
+        checked = verify(problem, np.stack([r.matrix for r in results]), masks)
         order = np.lexsort(([r.cost for r in results], checked.score))
         details.update(refine_iterations=sum(r.iterations for r in results), verified=checked.subset(order),
                        screened=first, hessian=results[order[0]].hessian)

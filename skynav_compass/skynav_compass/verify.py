@@ -22,10 +22,11 @@ import numpy as np
 from skynav_compass.cost import CostProblem
 from skynav_compass.so3 import from_padded, rotate_by_matrix
 
-#: Sample grid nodes per SH degree of the views: a Gauss-Legendre grid of 4 L + 1 rings of 8 L + 8 nodes (65 x 136
-#: at L = 16, 2.7 degrees apart), fine enough to follow the recovered skyline, coarse enough for a few hypotheses
-#: per ms.
-SAMPLES_PER_DEGREE = 4
+#: Sample grid: 65 Gauss-Legendre rings of 128 nodes, 2.8 degrees apart (more if the views' degree needs them).
+#: Fine enough to follow the recovered skyline (at 3.7 degrees the choice got worse on the real landscapes at
+#: L = 16, at 5.5 it failed; at L = 32 2.8 chose as well as 1.4), coarse enough for a few hypotheses per ms.
+SAMPLE_RINGS = 65
+SAMPLE_AZIMUTHS = 128
 #: Least v_L by which v f is divided to recover f near the rim (the cut visibility falls to 1/2 at the rim).
 VISIBILITY_FLOOR = 0.25
 
@@ -45,12 +46,8 @@ class Verification:
 
     @property
     def score(self) -> np.ndarray:
-        """Return what ranks the hypotheses, lowest best."""
-        import os
-        rule = os.environ.get('SKRULE', 'd')
-        if rule == 'd':
-            return self.disagreement
-        return eval(rule, {'np': np, 'd': self.disagreement, 'c': self.contrast, 'o': self.overlap})
+        """Return what ranks the hypotheses, lowest best: the disagreement."""
+        return self.disagreement
 
     def subset(self, index) -> Verification:
         """Return the figures of some hypotheses (an index array or slice)."""
@@ -59,11 +56,11 @@ class Verification:
 
 @lru_cache(maxsize=8)
 def sample_grid(max_degree: int):  # -> skynav_sh.transform.GaussLegendreGrid
-    """Return the shared Gauss-Legendre sample grid for views of SH degree L (SAMPLES_PER_DEGREE times denser)."""
+    """Return the shared Gauss-Legendre sample grid for views of SH degree L (SAMPLE_RINGS x SAMPLE_AZIMUTHS)."""
     from skynav_sh.transform import GaussLegendreGrid
 
     L = int(max_degree)
-    return GaussLegendreGrid(L, n_phi=SAMPLES_PER_DEGREE * (2 * L + 2), n_theta=SAMPLES_PER_DEGREE * L + 1)
+    return GaussLegendreGrid(L, n_phi=max(SAMPLE_AZIMUTHS, 2 * L + 2), n_theta=max(SAMPLE_RINGS, L + 1))
 
 
 def is_binary(problem: CostProblem) -> bool:
@@ -88,13 +85,22 @@ def recovered_masks(weighted: np.ndarray, visibility: np.ndarray, max_degree: in
     return seen, v_f > 0.5 * np.maximum(v, VISIBILITY_FLOOR)
 
 
-def verify(problem: CostProblem, rotations: np.ndarray) -> Verification:
-    """Return the sample figures of rotations R (K, 3, 3) for a masked problem of two binary views."""
+def current_masks(problem: CostProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Return (seen, sky) of a masked problem's current view on the sample grid."""
+    return recovered_masks(from_padded(problem.current[1]), from_padded(problem.current[0]), problem.max_degree)
+
+
+def verify(problem: CostProblem, rotations: np.ndarray,
+           current: tuple[np.ndarray, np.ndarray] | None = None) -> Verification:
+    """Return the sample figures of rotations R (K, 3, 3) for a masked problem of two binary views.
+
+    current: the current view's masks (current_masks), if already at hand.
+    """
     rotations = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
     L = problem.max_degree
     grid = sample_grid(L)
     # the current view on the grid as it is; the snapshot's at R d for every node d: its functions turned by R^T
-    seen_c, sky_c = recovered_masks(from_padded(problem.current[1]), from_padded(problem.current[0]), L)
+    seen_c, sky_c = current_masks(problem) if current is None else current
     turned = from_padded(rotate_by_matrix(problem.snapshot[1:], np.swapaxes(rotations, 1, 2)))  # (K, 2, n): v f, v
     seen_s, sky_s = recovered_masks(turned[:, 0], turned[:, 1], L)
     weights = grid.weights
