@@ -23,6 +23,7 @@ from skynav_bringup.node import SkynavNode
 from skynav_bringup.ros import run_node
 
 from .compass import MAX_TILT, Compass, CompassConfig
+from .cost import PreparedSnapshot
 from .views import CompassView
 
 SH_TOPIC = '/skyline/sh'
@@ -88,12 +89,12 @@ class CompassNode(SkynavNode):
         if match.accepted and match.index >= 0:
             self.match = match
 
-    def build_snapshot_view(self, index: int, field_of_view: float) -> CompassView:
-        """Return the view of one map snapshot as this node compares it."""
-        return CompassView.from_sh_message(self.store.snapshot(index).coefficients, field_of_view, 'zero',
-                                           self.values['max_degree'])
+    def build_snapshot_view(self, index: int, field_of_view: float) -> PreparedSnapshot:
+        """Return the view of one map snapshot as this node compares it, prepared once for every estimate."""
+        return self.compass.prepare(CompassView.from_sh_message(self.store.snapshot(index).coefficients,
+                                                                field_of_view, 'zero', self.values['max_degree']))
 
-    def reference_view(self, field_of_view: float) -> tuple[int, CompassView] | None:
+    def reference_view(self, field_of_view: float) -> tuple[int, CompassView | PreparedSnapshot] | None:
         """Return (index, view) of the reference, None when there is none yet (the reason is counted)."""
         reference = self.values['reference']
         if reference == 'live':
