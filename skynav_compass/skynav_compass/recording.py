@@ -311,15 +311,16 @@ def format_report(evaluation: RecordingEvaluation) -> str:
     lines += ['', f'all {len(e.stamps)} views; AUC: how well the confidence ranks estimates under {RIGHT_DEG:g} deg of '
                   'error above the others (1: perfectly, 0.5: by chance, -: all on one side;',
               "without a confidence: by the residual); tilt: the most any estimate tilts the views apart (deg)"]
-    header = f"{'method':<26} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {f'<{RIGHT_DEG:g}deg':>6} {'AUC':>6} {'tilt':>6}"
+    right = f'<{RIGHT_DEG:g}deg'
+    header = f"{'method':<26} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {right:>6} {'AUC':>6} {'tilt':>6}"
     lines += [header, '-' * len(header)]
     for result in e.results:
         s = error_statistics(result.errors)
-        right = float(np.mean(np.where(np.isfinite(result.errors), result.errors, 180.0) < RIGHT_DEG))
+        share = float(np.mean(np.where(np.isfinite(result.errors), result.errors, 180.0) < RIGHT_DEG))
         auc = result.separation()
         tilt = float(np.max(result.tilts)) if result.tilts is not None and result.tilts.size else float('nan')
         lines.append(f'{result.method:<26} {s.count:>3d} {s.median:>7.2f} {s.p90:>7.2f} {s.max:>7.2f} '
-                     f'{100 * right:>5.0f}% {"-" if np.isnan(auc) else f"{auc:.3f}":>6} {tilt:>6.1f}')
+                     f'{100 * share:>5.0f}% {"-" if np.isnan(auc) else f"{auc:.3f}":>6} {tilt:>6.1f}')
     for method, reason in e.skipped.items():
         lines.append(f'skipped {method}: {reason}')
     return '\n'.join(lines)
