@@ -1,6 +1,7 @@
 """Benchmark: the visual 3D compass against the exhaustive baseline and its peers, on one thread.
 
-    .venv/bin/python bench/compass.py [--quick] [--repeats N] [--degrees 16 32] [--plots DIR]
+    .venv/bin/python bench/compass.py [--quick] [--repeats N] [--degrees 16 32] [--plots DIR] [--bags BAG ...]
+                                      [--methods METHOD ...]
 
 For L = 16 and 32 and each bundled (synthetic) compass set it prints, per method, the 3D rotation error against
 ground truth (median, 90th percentile, maximum, share under 2 deg) separately for pure rotations and for views moved
@@ -11,11 +12,16 @@ to the exhaustive baseline with the same cost, and how often each reached the lo
 starts from the two views) and with the snapshot prepared once (NAME+prepared: Compass.prepare /
 ExhaustiveCompass.prepare, as the compass node compares many views against one snapshot; same estimates).
 
-Methods: fft-masked (the default), fft-zero / fft-mean / fft-mirror (plain cost on filled views), fft-masked-tilt60
-(Euler beta limited to 60 deg), fft-uv-normalised (grey UV image instead of the mask, masked correlation coefficient:
-gain and offset drop out), exhaustive-masked / exhaustive-zero (the source method's coarse-to-fine ZYZ search),
-visual-compass-panorama / visual-compass-sh (yaw only), features-sift / features-orb (UV image, bearings, RANSAC;
-independent of L, so run at the first degree only).
+Methods: fft-masked (the default: tilt bound, hypotheses verified on samples of the two masks), fft-zero / fft-mean /
+fft-mirror (plain cost on filled views), fft-masked-any-tilt (the whole of SO(3), unverified), fft-uv-normalised
+(grey UV image instead of the mask, masked correlation coefficient: gain and offset drop out), exhaustive-masked /
+exhaustive-zero (the source method's coarse-to-fine ZYZ search), visual-compass-panorama / visual-compass-sh (yaw
+only), features-sift / features-orb (UV image, bearings, RANSAC; independent of L, so run at the first degree only).
+
+--bags runs other compass sets (`skynav sim bag compass`, e.g. on a real landscape) instead of the bundled ones: the
+compass on the ground-truth masks, where `skynav eval compass` runs it on the skyline node's masks. Every table ends
+with the ROC AUC of each method's confidence (else its residual) between estimates under and over 5 degrees of
+error, over all views ('-': all on one side).
 """
 
 from __future__ import annotations
@@ -32,7 +38,7 @@ import numpy as np  # noqa: E402
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SETS = ('garden', 'mineral')
-SH_METHODS = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-tilt60', 'fft-uv-normalised',
+SH_METHODS = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-any-tilt', 'fft-uv-normalised',
               'exhaustive-masked', 'exhaustive-zero', 'visual-compass-sh', 'fft-masked+prepared',
               'exhaustive-masked+prepared', 'fft-zero+prepared', 'exhaustive-zero+prepared')
 IMAGE_METHODS = ('visual-compass-panorama', 'features-sift', 'features-orb')
@@ -72,13 +78,17 @@ def main() -> None:
     parser.add_argument('--repeats', type=int, default=3, help='timed runs per estimate (least counts)')
     parser.add_argument('--degrees', type=int, nargs='+', default=[16, 32])
     parser.add_argument('--plots', type=Path, default=None, help='directory for error plots (PNG)')
+    parser.add_argument('--bags', type=Path, nargs='+', default=None,
+                        help='compass sets to run (default: the bundled synthetic ones)')
+    parser.add_argument('--methods', nargs='+', default=None, help='methods to run (default: all)')
     args = parser.parse_args()
 
     from skynav_compass import format_table, load_compass_set, plot_errors, run_methods, standard_methods, summary_rows
 
     repeats = 1 if args.quick else args.repeats
     print(f'skynav_compass benchmark: one thread, CPU time per estimate (least of {repeats}), synthetic data')
-    sets = {name: load_compass_set(BAGS / f'synthetic_{name}_compass.mcap') for name in SETS}
+    paths = args.bags or [BAGS / f'synthetic_{name}_compass.mcap' for name in SETS]
+    sets = {Path(path).stem: load_compass_set(path) for path in paths}
     for k, degree in enumerate(args.degrees):
         for name, data in sets.items():
             queries = list(data.queries)
@@ -87,12 +97,17 @@ def main() -> None:
                 moved = [i for i in queries if data.labels[i] != 'rotation'][:5]
                 queries = rotations + moved
             names = SH_METHODS + (IMAGE_METHODS if k == 0 else ())
+            if args.methods is not None:
+                names = tuple(n for n in args.methods if n in SH_METHODS or (k == 0 and n in IMAGE_METHODS))
             runs = run_methods(data, standard_methods(data.camera, degree, names), queries, repeats=repeats)
             rotation = np.array([data.labels[i] == 'rotation' for i in queries])
-            print(f'\n== {data.name} (synthetic), L = {degree}: {rotation.sum()} pure rotations (tilt up to '
+            kind = 'synthetic' if data.synthetic else 'recorded'
+            print(f'\n== {data.name} ({kind}), L = {degree}: {rotation.sum()} pure rotations (tilt up to '
                   f'{data.tilts()[queries][rotation].max():.0f} deg), {(~rotation).sum()} moved views (up to '
                   f'{data.translations()[queries].max():.2f} m) ==')
             print(format_table(summary_rows([r.result for r in runs], {'rotation': rotation, 'moved': ~rotation})))
+            aucs = [(r.result.method, r.result.separation()) for r in runs]
+            print('  AUC over all views: ' + ', '.join(f'{m} {"-" if np.isnan(a) else f"{a:.3f}"}' for m, a in aucs))
             print('  preparation per view (ms): ' + ', '.join(f'{r.result.method} {1e3 * r.prepare_seconds:.1f}'
                                                           for r in runs))
             for line in ratio_lines(runs, f'L = {degree}'):

@@ -15,18 +15,20 @@ from typing import TYPE_CHECKING
 from skynav_sh.lazy import lazy_exports
 
 _EXPORTS = {
-    'compass': ('Compass', 'CompassConfig', 'estimate_rotation', 'rotation_angle', 'zyz_matrices'),
+    'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation', 'rotation_angle',
+                'zyz_matrices'),
     'estimate': ('CompassEstimate', 'Hypothesis'),
     'views': ('CompassView', 'cap_visibility'),
     'cost': ('COSTS', 'CostProblem', 'PreparedSnapshot', 'build_problem', 'cost_channels', 'prepare_snapshot'),
     'so3': ('EulerGrid', 'so3_correlation', 'correlation_products', 'wigner_small_d_table', 'generators',
             'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded', 'rotate_padded'),
-    'refine': ('refine', 'newton_prediction'),
+    'refine': ('refine', 'newton_prediction', 'within_tilt'),
+    'verify': ('Verification', 'verify', 'recovered_masks'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
     'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
     'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
     'evaluation': ('ErrorStatistics', 'MethodResult', 'angular_error', 'error_statistics', 'format_table',
-                   'heading_error', 'plot_errors', 'relative_tilt', 'summary_rows'),
+                   'heading_error', 'plot_errors', 'relative_tilt', 'roc_auc', 'summary_rows'),
     'dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
     'runner': ('Method', 'RunResult', 'run_methods', 'standard_methods', 'timed_estimates'),
     'recording': ('ExternalSnapshot', 'EvaluationError', 'RecordingEvaluation', 'evaluate_recording',
@@ -45,6 +47,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.recording import *  # noqa: F401,F403
     from skynav_compass.refine import *  # noqa: F401,F403
     from skynav_compass.runner import *  # noqa: F401,F403
+    from skynav_compass.verify import *  # noqa: F401,F403
     from skynav_compass.so3 import *  # noqa: F401,F403
     from skynav_compass.views import *  # noqa: F401,F403
     from skynav_compass.yaw import *  # noqa: F401,F403

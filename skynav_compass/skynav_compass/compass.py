@@ -1,12 +1,23 @@
 """The default visual 3D compass: SO(3) correlation on a ZYZ Euler grid by FFTs, then Newton refinement.
 
 For two views (snapshot and current) the cost of every rotation R = Rz(alpha) Ry(beta) Rz(gamma) on the grid
-comes at once from SO(3) correlations (so3.so3_correlation: per beta a 2D inverse FFT over alpha and gamma). The
-lowest grid minimum is refined by Newton steps on the rotation vector with the exact cost (refine.refine); for the
-next few distinct minima (hypotheses) one Newton model predicts the cost of their optimum, and those that come
-close are refined fully. The estimate is R with d_snapshot = R d_current in camera_link (CONTRACT.md), its
-residual the cost there; a small margin to the second hypothesis (relative to the depth of the cost landscape)
-or a large residual marks it as not confident instead of silently picking one of several similar yaws.
+comes at once from SO(3) correlations (so3.so3_correlation: per beta a 2D inverse FFT over alpha and gamma).
+
+A ground robot's physics is the prior: the grid's tilt beta between the two views runs only up to `max_tilt`
+(MAX_TILT: 45 degrees, two views on opposite slopes of the rough lawn a mower drives on), the refinement never
+steps beyond it, so no estimate turns the camera upside down; rotations whose fields of view overlap by less than
+`min_overlap` of the smaller view are refused.
+
+Several grid minima (hypotheses) are followed up. For two skyline masks each takes one Newton step on the rotation
+vector with the exact cost, all are verified on sphere samples of the two masks (verify.py: the share of the
+overlap where they disagree), and the best few by verification are refined by Newton steps (refine.refine) and
+verified again: the least disagreement wins. For other views (grey images, filled views) the lowest grid minimum is
+refined and the others' optima predicted by one Newton model; those that come close are refined fully, and the
+least cost wins. The estimate is R with d_snapshot = R d_current in camera_link (CONTRACT.md), its residual the
+cost there, and a confidence in [0, 1] that ranks estimates: how sharply the cost rises along the optimum's least
+determined axis (the Hessian's smallest eigenvalue over the typical grid cost), times how much skyline the overlap
+holds (verified: the share two unrelated masks of its sky shares would disagree on) or how clearly the best
+stands out of the other hypotheses (not verified).
 
 Many views compared against one snapshot: `prepared = compass.prepare(snapshot)` does the snapshot's share of the
 work once (padded and complex coefficients, the derivative matrix of the refinement), and
@@ -22,12 +33,20 @@ import numpy as np
 
 from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, cost_channels, prepare_snapshot
 from skynav_compass.estimate import CompassEstimate, Hypothesis
-from skynav_compass.refine import newton_prediction, refine
+from skynav_compass.refine import Refined, newton_prediction, refine
 from skynav_compass.so3 import EulerGrid
+from skynav_compass.verify import current_masks, is_binary, verify
 from skynav_compass.views import CompassView
 
 View = Union[CompassView, np.ndarray]
 Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by Compass.prepare
+#: Largest tilt between the two views searched by default (rad): a mower's camera tilts by some 20-25 degrees on
+#: rough lawn, so two views on opposite slopes differ by up to 45 (the bundled bumpy homing grid: 35 at most; the
+#: compass sets: 36). A wider bound lets more wrong hypotheses in (see README, "The 3D compass").
+MAX_TILT = np.radians(45.0)
+#: Evidence (sharpness x skyline share, rad^-2) at which the confidence is 1/2: on the real-landscape and synthetic
+#: compass sets, estimates within 5 degrees of the truth mostly lie far above it, wrong ones below it.
+CONFIDENCE_SCALE = 0.05
 UNITS = {('masked', False): 'mean squared difference over the overlap (value^2)',
          ('masked', True): '1 - correlation coefficient over the overlap',
          ('plain', False): 'integral of the squared difference (value^2 sr)',
@@ -40,13 +59,22 @@ class CompassConfig:
 
     cost: str = 'masked'  # 'masked' (only where both views see) or 'plain' (filled views, whole sphere)
     normalise: bool = False  # illumination invariance: gain and offset of f drop out
-    max_tilt: float | None = None  # largest relative tilt (Euler beta) searched; None: all of [0, pi]
+    max_tilt: float | None = MAX_TILT  # largest relative tilt (Euler beta) searched; None: all of [0, pi]
+    verify: bool = True  # rank the refined hypotheses of two skyline masks on sphere samples (verify.py)
     oversampling: float = 1.0  # Euler grid with n = oversampling (2L + 2) steps in alpha and gamma
-    hypotheses: int = 3  # grid minima refined and kept
-    min_overlap: float = 0.25  # masked: least overlap, as a share of the smaller view's area
+    hypotheses: int = 8  # grid minima followed up (one Newton step each)
+    refined: int = 3  # verified hypotheses refined to convergence (the best few after one step)
+    min_overlap: float = 0.5  # masked: least overlap, as a share of the smaller view's area
     max_residual: float = float('inf')  # confident only if the residual is at most this (the method's units)
-    min_relative_margin: float = 0.05  # confident only if (second - best) / (mean grid cost - best) is at least this
+    min_relative_margin: float = 0.05  # (second - best) / (mean grid cost - best) below this lowers the confidence
+    min_confidence: float = 0.5  # confident only if the confidence is at least this
     separation: float = np.radians(5.0)  # hypotheses closer than this (rad) count as one
+
+
+def any_tilt_config(**changes) -> CompassConfig:
+    """Return the settings of a compass without the ground robot's prior: the whole of SO(3), refused overlap below
+    a quarter, three hypotheses ranked by the SH cost alone (as the default was before the tilt bound)."""
+    return CompassConfig(**{'max_tilt': None, 'verify': False, 'hypotheses': 3, 'min_overlap': 0.25, **changes})
 
 
 def rotation_angle(first: np.ndarray, second: np.ndarray) -> float:
@@ -148,53 +176,97 @@ class Compass:
         costs = problem.grid_costs(self.grid)
         poles = tuple(k for k, beta in enumerate(self.grid.betas) if min(beta, np.pi - beta) < 1e-12)
         minima = grid_minima(costs, c.hypotheses, poles)
-        starts: list[tuple[np.ndarray, float]] = []
-        if minima:
-            angles = np.array([self.grid.angles(index) for index in minima])
-            matrices = zyz_matrices(angles[:, 0], angles[:, 1], angles[:, 2])
-            # cos of the angle between two rotations is (trace(A^T B) - 1) / 2; keep minima 2 grid steps apart
-            close = np.einsum('aij,bij->ab', matrices, matrices) > 1.0 + 2.0 * np.cos(2 * self.grid.step)
-            kept: list[int] = []
-            for k in range(len(minima)):
-                if not any(close[k, j] for j in kept):
-                    kept.append(k)
-                    if len(kept) == c.hypotheses:
-                        break
-            starts = [(matrices[k], float(costs[minima[k]])) for k in kept]
-        if not starts:
-            return CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, UNITS[c.cost, c.normalise])
-        # the best grid minimum is refined to convergence; for the others one Newton model predicts the cost of their
-        # local minimum (all the margin needs), and those that come close to the best are refined fully
-        start_jets = problem.jets(np.stack([matrix for matrix, _ in starts]))  # all starts in one pass
-        first = refine(problem, starts[0][0], radius=self.grid.step, jet=start_jets[0])
-        results = [first]
+        failed = CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, UNITS[c.cost, c.normalise],
+                                 confidence=0.0)
+        if not minima:
+            return failed
+        angles = np.array([self.grid.angles(index) for index in minima])
+        matrices = zyz_matrices(angles[:, 0], angles[:, 1], angles[:, 2])
+        # cos of the angle between two rotations is (trace(A^T B) - 1) / 2; keep minima 2 grid steps apart
+        close = np.einsum('aij,bij->ab', matrices, matrices) > 1.0 + 2.0 * np.cos(2 * self.grid.step)
+        kept: list[int] = []
+        for k in range(len(minima)):
+            if not any(close[k, j] for j in kept):
+                kept.append(k)
+                if len(kept) == c.hypotheses:
+                    break
+        starts = matrices[kept]
+        start_jets = problem.jets(starts)  # all starts in one pass
         typical = float(np.mean(costs[np.isfinite(costs)]))  # the landscape's level; its depth is typical - best
-        competitive = first.cost + 2.0 * c.min_relative_margin * (typical - first.cost)
-        predicted = 0
-        for (matrix, _), jet in zip(starts[1:], start_jets[1:]):
-            result = newton_prediction(problem, matrix, radius=self.grid.step, jet=jet)
-            if result.cost <= competitive:
-                result = refine(problem, result.matrix, radius=self.grid.step)
-            else:
-                predicted += 1
-            results.append(result)
-        iterations = sum(r.iterations for r in results)
-        found: list[Hypothesis] = []
-        for result in sorted(results, key=lambda r: r.cost):
-            if np.isfinite(result.cost) and all(rotation_angle(result.matrix, h.matrix) > c.separation for h in found):
-                found.append(Hypothesis(result.matrix, result.cost))
+        details: dict = {'typical_cost': typical}
+        if c.verify and is_binary(problem):
+            results = self._verified_optima(problem, starts, start_jets, details)
+        else:
+            results = self._optima(problem, starts, start_jets, typical, details)
+        found: list[tuple[Hypothesis, Refined]] = []
+        for result in results:  # best first
+            if np.isfinite(result.cost) and all(rotation_angle(result.matrix, h.matrix) > c.separation
+                                                for h, _ in found):
+                found.append((Hypothesis(result.matrix, result.cost), result))
         if not found:
-            return CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, UNITS[c.cost, c.normalise])
-        found.sort(key=lambda h: h.cost)
-        best = found[0]
-        margin = found[1].cost - best.cost if len(found) > 1 else float('inf')
+            return failed
+        best, optimum = found[0]
+        others = [h.cost for h, _ in found[1:]]
+        margin = min(others) - best.cost if others else float('inf')
         # the margin against the depth of the cost landscape: the mean grid cost above the best
         depth = typical - best.cost
         relative = float(np.clip(margin / depth, 0.0, 1.0)) if depth > 0 else 0.0
-        confident = best.cost <= c.max_residual and relative >= c.min_relative_margin
-        details = {'refine_iterations': iterations, 'predicted_hypotheses': predicted}
-        return CompassEstimate(best.matrix, best.cost, tuple(found), margin, confident, self.method,
-                               UNITS[c.cost, c.normalise], details, relative_margin=relative)
+        # how sharply the cost rises along the optimum's least determined axis, against the cost's typical level
+        curvature = float(np.linalg.eigvalsh(optimum.hessian)[0]) if np.all(np.isfinite(optimum.hessian)) else 0.0
+        sharpness = max(curvature, 0.0) / typical if typical > 0 else 0.0
+        verified = details.get('verified')
+        if verified is not None:  # and how much of the overlap holds skyline (sky and ground both)
+            evidence = sharpness * float(verified.contrast[0])
+        else:  # and how clearly the best stands out of the other hypotheses
+            evidence = sharpness * min(relative / c.min_relative_margin, 1.0) if c.min_relative_margin > 0 \
+                else sharpness
+        confidence = evidence / (evidence + CONFIDENCE_SCALE)
+        details.update(sharpness=sharpness)
+        confident = best.cost <= c.max_residual and confidence >= c.min_confidence
+        return CompassEstimate(best.matrix, best.cost, tuple(h for h, _ in found), margin, confident, self.method,
+                               UNITS[c.cost, c.normalise], details, relative_margin=relative, confidence=confidence)
+
+    def _optima(self, problem: CostProblem, starts: np.ndarray, start_jets: list, typical: float,
+                details: dict) -> list[Refined]:
+        """Return the local optima of the SH cost near the starts (3x3 each), lowest cost first.
+
+        The best start is refined to convergence; for the others one Newton model predicts the cost of their local
+        minimum (all the margin needs), and those that come close to the best are refined fully.
+        """
+        c = self.config
+        first = refine(problem, starts[0], radius=self.grid.step, jet=start_jets[0], max_tilt=c.max_tilt)
+        results = [first]
+        competitive = first.cost + 2.0 * c.min_relative_margin * (typical - first.cost)
+        predicted = 0
+        for matrix, jet in zip(starts[1:], start_jets[1:]):
+            result = newton_prediction(problem, matrix, radius=self.grid.step, jet=jet, max_tilt=c.max_tilt)
+            if result.cost <= competitive:
+                result = refine(problem, result.matrix, radius=self.grid.step, max_tilt=c.max_tilt)
+            else:
+                predicted += 1
+            results.append(result)
+        details.update(refine_iterations=sum(r.iterations for r in results), predicted_hypotheses=predicted)
+        return sorted(results, key=lambda r: r.cost)
+
+    def _verified_optima(self, problem: CostProblem, starts: np.ndarray, start_jets: list,
+                         details: dict) -> list[Refined]:
+        """Return local optima of the SH cost near the starts, ranked on sphere samples of the two masks (verify.py).
+
+        Every start takes one Newton step (its Jet is at hand) and is verified there; the best few by verification
+        are refined to convergence and verified again, best first.
+        """
+        c = self.config
+        stepped = [newton_prediction(problem, matrix, radius=self.grid.step, jet=jet, max_tilt=c.max_tilt)
+                   for matrix, jet in zip(starts, start_jets)]
+        masks = current_masks(problem)
+        first = verify(problem, np.stack([r.matrix for r in stepped]), masks)
+        chosen = np.lexsort(([r.cost for r in stepped], first.score))[: c.refined]
+        results = [refine(problem, stepped[k].matrix, radius=self.grid.step, max_tilt=c.max_tilt) for k in chosen]
+        checked = verify(problem, np.stack([r.matrix for r in results]), masks)
+        order = np.lexsort(([r.cost for r in results], checked.score))
+        details.update(refine_iterations=sum(r.iterations for r in results), verified=checked.subset(order),
+                       screened=first, hessian=results[order[0]].hessian)
+        return [results[k] for k in order]
 
 
 def estimate_rotation(snapshot: Snapshot, current: View, max_degree: int | None = None,

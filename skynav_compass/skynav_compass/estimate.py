@@ -35,6 +35,7 @@ class CompassEstimate:
     units: str = ''
     details: dict = field(default_factory=dict)  # method-specific figures (iterations, inliers, ...)
     relative_margin: float = 1.0  # margin over the depth of the cost landscape (mean grid cost - residual), 0..1
+    confidence: float = float('nan')  # 0..1, ranks estimates (higher: more likely right); NaN if the method has none
 
     @property
     def rotation(self):  # -> scipy.spatial.transform.Rotation

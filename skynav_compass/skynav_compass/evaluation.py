@@ -13,6 +13,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 ERROR_THRESHOLD_DEG = 2.0  # the share of estimates under this error is reported
+RIGHT_DEG = 5.0  # an estimate within this error (deg) counts as right when judging how its confidence ranks it
 
 
 def _as_rotation(rotations):  # -> scipy Rotation (stack)
@@ -78,6 +79,19 @@ def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD
                            float(e.max()), float(np.mean(e < threshold)), int(e.size))
 
 
+def roc_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
+    """Return the area under the ROC curve of scores (higher: more likely positive): the probability that a random
+    positive scores above a random negative, ties counting half; NaN if either class is empty."""
+    from scipy.stats import rankdata
+
+    scores, positive = np.asarray(scores, dtype=float), np.asarray(positive, dtype=bool)
+    n_positive, n_negative = int(positive.sum()), int((~positive).sum())
+    if n_positive == 0 or n_negative == 0:
+        return float('nan')
+    ranks = rankdata(np.where(np.isnan(scores), -np.inf, scores))  # average ranks of ties (Mann-Whitney U)
+    return float((ranks[positive].sum() - n_positive * (n_positive + 1) / 2) / (n_positive * n_negative))
+
+
 @dataclass(frozen=True)
 class MethodResult:
     """One method's results on one set: errors (deg) per query frame and seconds per estimate."""
@@ -87,6 +101,23 @@ class MethodResult:
     seconds: np.ndarray  # (Q,) s per estimate
     residuals: np.ndarray | None = None  # (Q,) cost at the optimum (method's units)
     confident: np.ndarray | None = None  # (Q,) bool
+    confidence: np.ndarray | None = None  # (Q,) 0..1 (NaN: the method has none)
+    tilts: np.ndarray | None = None  # (Q,) deg, the tilt between the two views each estimate claims
+
+    def ranking(self) -> np.ndarray:
+        """Return what ranks the estimates, higher more trusted: the confidence, else minus the residual."""
+        if self.confidence is not None and np.all(np.isfinite(self.confidence)):
+            return np.asarray(self.confidence, dtype=float)
+        if self.residuals is None:
+            return np.zeros(len(self.errors))
+        return -np.where(np.isfinite(self.residuals), self.residuals, np.inf)
+
+    def separation(self, selection: np.ndarray | None = None) -> float:
+        """Return the ROC AUC of the ranking between estimates under RIGHT_DEG of error and the others (NaN if one
+        side is empty)."""
+        chosen = slice(None) if selection is None else selection
+        errors = np.where(np.isfinite(self.errors), self.errors, 180.0)[chosen]
+        return roc_auc(self.ranking()[chosen], errors < RIGHT_DEG)
 
 
 def summary_rows(results: Sequence[MethodResult], groups: Mapping[str, np.ndarray]) -> list[dict]:

@@ -3,7 +3,8 @@
 Subscribes /skyline/sh and /localization/match; publishes /compass/orientation
 (skynav_msgs/CompassEstimate) for every view: R with d_snapshot = R d_current, the snapshot's map
 index (-1 for a live reference), and as residual the masked cost at the optimum (mean squared mask
-difference over the part of the sphere both views see).
+difference over the part of the sphere both views see). No estimate tilts the two views further apart
+than `max_tilt_deg` (a ground robot never turns its camera over).
 
 The reference (`reference` parameter): the snapshot of the latest accepted place match ('match'),
 a fixed snapshot ('index'), or a live view stored by calling the ~/store_reference service ('live').
@@ -24,7 +25,8 @@ from skynav_bringup.node import SkynavNode
 from skynav_bringup.ros import run_node
 from skynav_sh.product import seen_mean, shows_skyline
 
-from .compass import Compass
+from .compass import MAX_TILT, Compass, CompassConfig
+from .cost import PreparedSnapshot
 from .views import CompassView
 
 SH_TOPIC = '/skyline/sh'
@@ -45,6 +47,8 @@ class CompassNode(SkynavNode):
         self.parameter('reference', 'match', f'what to compare against: {", ".join(REFERENCES)}')
         self.parameter('index', 0, "the snapshot of reference 'index'")
         self.parameter('max_degree', 16, 'SH degree of the estimate')
+        self.parameter('max_tilt_deg', float(np.degrees(MAX_TILT)),
+                       'largest tilt between the current view and the snapshot considered (deg, up to 180)')
         self.store = None
         self.match: PlaceMatch | None = None
         self.latest: CompassView | None = None
@@ -65,9 +69,11 @@ class CompassNode(SkynavNode):
             raise ValueError(f'reference must be one of {", ".join(REFERENCES)}')
         if values['index'] < 0 or not 2 <= values['max_degree'] <= 64:
             raise ValueError('index must not be negative; max_degree must be within 2..64')
+        if not 0 < values['max_tilt_deg'] <= 180:
+            raise ValueError('max_tilt_deg must be more than 0 and at most 180 degrees')
         store = map_for_parameter(self.store, values['map'])
         self.values = values
-        self.compass = Compass(values['max_degree'])
+        self.compass = Compass(values['max_degree'], CompassConfig(max_tilt=np.radians(values['max_tilt_deg'])))
         self.store = store
         # the views of map snapshots, built once per map and setting (least recently used dropped first)
         self.snapshot_view = lru_cache(SNAPSHOT_VIEWS_CACHED)(self.build_snapshot_view)
@@ -86,12 +92,12 @@ class CompassNode(SkynavNode):
         if match.accepted and match.index >= 0:
             self.match = match
 
-    def build_snapshot_view(self, index: int, field_of_view: float) -> CompassView:
-        """Return the view of one map snapshot as this node compares it."""
-        return CompassView.from_sh_message(self.store.snapshot(index).coefficients, field_of_view, 'zero',
-                                           self.values['max_degree'])
+    def build_snapshot_view(self, index: int, field_of_view: float) -> PreparedSnapshot:
+        """Return the view of one map snapshot as this node compares it, prepared once for every estimate."""
+        return self.compass.prepare(CompassView.from_sh_message(self.store.snapshot(index).coefficients,
+                                                                field_of_view, 'zero', self.values['max_degree']))
 
-    def reference_view(self, field_of_view: float) -> tuple[int, CompassView] | None:
+    def reference_view(self, field_of_view: float) -> tuple[int, CompassView | PreparedSnapshot] | None:
         """Return (index, view) of the reference, None when there is none yet (the reason is counted)."""
         reference = self.values['reference']
         if reference == 'live':

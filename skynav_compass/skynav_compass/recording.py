@@ -24,10 +24,12 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from skynav_compass.evaluation import ErrorStatistics, MethodResult, angular_error, error_statistics, summary_rows
+from skynav_compass.compass import MAX_TILT
+from skynav_compass.evaluation import (RIGHT_DEG, ErrorStatistics, MethodResult, angular_error, error_statistics,
+                                       summary_rows)
 from skynav_compass.runner import Method, timed_estimates
 
-RECORDING_METHODS = ('fft-masked', 'fft-masked-tilt60', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
+RECORDING_METHODS = ('fft-masked', 'fft-masked-any-tilt', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
                      'visual-compass-sh', 'visual-compass-panorama', 'features-sift', 'features-orb')
 DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
 IMAGE_METHODS = frozenset({'visual-compass-panorama', 'features-sift', 'features-orb'})
@@ -89,12 +91,13 @@ class RecordingEvaluation:
 
 
 def recording_methods(camera, max_degree: int, field_of_view: float, fill: str = 'zero',
-                      names: Sequence[str] = DEFAULT_METHODS) -> list[Method]:
+                      names: Sequence[str] = DEFAULT_METHODS, max_tilt: float | None = MAX_TILT) -> list[Method]:
     """Return the named methods for views of the SH node (skynav_sh.views.View): prepare(view) -> its input.
 
-    field_of_view (rad) and fill: as the SH node made the coefficients (its ShCoefficients fields).
+    field_of_view (rad) and fill: as the SH node made the coefficients (its ShCoefficients fields); max_tilt (rad):
+    the tilt bound of the fft-masked and fft-zero compasses (the compass node's `max_tilt_deg`).
     """
-    from skynav_compass.compass import Compass, CompassConfig
+    from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
     from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
     from skynav_compass.features import FeatureCompass, FeatureConfig
     from skynav_compass.views import CompassView
@@ -122,10 +125,10 @@ def recording_methods(camera, max_degree: int, field_of_view: float, fill: str =
         return Method(f'features-{detector}', lambda view: compass.features(view.uv), compass.estimate_features)
 
     makers: dict[str, Callable[[], Method]] = {
-        'fft-masked': lambda: compass_method('fft-masked', masked, Compass(L)),
-        'fft-masked-tilt60': lambda: compass_method('fft-masked-tilt60', masked,
-                                                    Compass(L, CompassConfig(max_tilt=np.radians(60)))),
-        'fft-zero': lambda: compass_method('fft-zero', zero_filled, Compass(L, CompassConfig(cost='plain'))),
+        'fft-masked': lambda: compass_method('fft-masked', masked, Compass(L, CompassConfig(max_tilt=max_tilt))),
+        'fft-masked-any-tilt': lambda: compass_method('fft-masked-any-tilt', masked, Compass(L, any_tilt_config())),
+        'fft-zero': lambda: compass_method('fft-zero', zero_filled,
+                                           Compass(L, CompassConfig(cost='plain', max_tilt=max_tilt))),
         'exhaustive-masked': lambda: compass_method('exhaustive-masked', masked, ExhaustiveCompass(L)),
         'exhaustive-zero': lambda: compass_method('exhaustive-zero', zero_filled,
                                                   ExhaustiveCompass(L, ExhaustiveConfig(cost='plain'))),
@@ -139,11 +142,13 @@ def recording_methods(camera, max_degree: int, field_of_view: float, fill: str =
 
 def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot: ExternalSnapshot | None = None,
                    fill: str = 'zero', field_of_view: float | None = None,
-                   clock: Callable[[], float] = time.process_time, repeats: int = 1) -> RecordingEvaluation:
+                   clock: Callable[[], float] = time.process_time, repeats: int = 1,
+                   max_tilt: float | None = MAX_TILT) -> RecordingEvaluation:
     """Return every method's errors on the views of a recording (skynav_sh.views.RecordingViews) against a snapshot.
 
     snapshot None: the recording's frame labelled 'reference' (else its first frame with a pose). fill and
-    field_of_view (rad; default the camera's): how the SH node made the coefficients.
+    field_of_view (rad; default the camera's): how the SH node made the coefficients. max_tilt (rad): the tilt bound
+    of the fft-masked and fft-zero compasses.
     """
     if unknown := [n for n in methods if n not in RECORDING_METHODS]:
         raise EvaluationError(f'unknown method {", ".join(unknown)} (one of {", ".join(RECORDING_METHODS)})')
@@ -207,7 +212,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
         rotation = np.array([v.label == 'rotation' for v in queries])
     else:
         rotation = translations < MOVED_FROM_M
-    chosen = recording_methods(camera, degree, field_of_view, fill, methods)
+    chosen = recording_methods(camera, degree, field_of_view, fill, methods, max_tilt)
     prepared = [[method.prepare(v) for v in [snapshot_view, *queries]] for method in chosen]
     estimates, seconds, snapshot_seconds = timed_estimates(chosen, [p[0] for p in prepared],
                                                            [p[1:] for p in prepared], clock, repeats)
@@ -215,7 +220,9 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
     for k, method in enumerate(chosen):
         errors = angular_error(np.array([e.quaternion for e in estimates[k]]), truth)
         results.append(MethodResult(method.name, errors, seconds[k], np.array([e.residual for e in estimates[k]]),
-                                    np.array([e.confident for e in estimates[k]])))
+                                    np.array([e.confident for e in estimates[k]]),
+                                    np.array([e.confidence for e in estimates[k]]),
+                                    relative_tilt(np.array([e.matrix for e in estimates[k]]))))
     return RecordingEvaluation(path, bool(recording.synthetic), degree, name, np.array([v.stamp for v in queries]),
                                tilts, translations, {'rotation': rotation, 'moved': ~rotation},
                                'labels' if by_labels else 'translation', results, skipped,
@@ -233,7 +240,8 @@ class _SnapshotView:
 
 def evaluate_recording(path: str | Path, methods: Sequence[str] = DEFAULT_METHODS,
                        snapshot: ExternalSnapshot | None = None, ros_args: list[str] | None = None,
-                       clock: Callable[[], float] = time.process_time, repeats: int = 1) -> RecordingEvaluation:
+                       clock: Callable[[], float] = time.process_time, repeats: int = 1,
+                       max_tilt: float | None = MAX_TILT) -> RecordingEvaluation:
     """Run the skyline and SH nodes over a recording (node parameters from ros_args) and evaluate the compass on it.
 
     See evaluate_views; the SH node's fill and field of view come from the parameter files in ros_args.
@@ -248,7 +256,7 @@ def evaluate_recording(path: str | Path, methods: Sequence[str] = DEFAULT_METHOD
     settings = sh_node_settings(ros_args)
     fill = str(settings.get('fill', 'zero'))
     field_of_view = np.radians(float(settings.get('field_of_view_deg', 0.0) or 0.0))
-    return evaluate_views(recording, methods, snapshot, fill, field_of_view or None, clock, repeats)
+    return evaluate_views(recording, methods, snapshot, fill, field_of_view or None, clock, repeats, max_tilt)
 
 
 def sh_node_settings(ros_args: Sequence[str] | None) -> dict:
@@ -300,6 +308,19 @@ def format_report(evaluation: RecordingEvaluation) -> str:
             s = e.statistics(result.method, group)
             lines.append(f'{result.method:<26} {s.count:>3d} {s.median:>7.2f} {s.p90:>7.2f} {s.max:>7.2f} '
                          f'{100 * s.share_under:>5.0f}% {e.milliseconds(result.method, group):>8.2f}')
+    lines += ['', f'all {len(e.stamps)} views; AUC: how well the confidence ranks estimates under {RIGHT_DEG:g} deg of '
+                  'error above the others (1: perfectly, 0.5: by chance, -: all on one side;',
+              "without a confidence: by the residual); tilt: the most any estimate tilts the views apart (deg)"]
+    right = f'<{RIGHT_DEG:g}deg'
+    header = f"{'method':<26} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {right:>6} {'AUC':>6} {'tilt':>6}"
+    lines += [header, '-' * len(header)]
+    for result in e.results:
+        s = error_statistics(result.errors)
+        share = float(np.mean(np.where(np.isfinite(result.errors), result.errors, 180.0) < RIGHT_DEG))
+        auc = result.separation()
+        tilt = float(np.max(result.tilts)) if result.tilts is not None and result.tilts.size else float('nan')
+        lines.append(f'{result.method:<26} {s.count:>3d} {s.median:>7.2f} {s.p90:>7.2f} {s.max:>7.2f} '
+                     f'{100 * share:>5.0f}% {"-" if np.isnan(auc) else f"{auc:.3f}":>6} {tilt:>6.1f}')
     for method, reason in e.skipped.items():
         lines.append(f'skipped {method}: {reason}')
     return '\n'.join(lines)

@@ -76,8 +76,17 @@ def _orthonormalise(matrix: np.ndarray) -> np.ndarray:
     return 1.5 * matrix - 0.5 * matrix @ matrix.T @ matrix
 
 
-def newton_prediction(problem: CostProblem, start: np.ndarray, radius: float = 0.2, jet: Jet | None = None) -> Refined:
-    """Return one Newton step from R0 (3x3) and the cost its quadratic model predicts there (one cost evaluation)."""
+def within_tilt(matrix: np.ndarray, max_tilt: float | None) -> bool:
+    """Return whether R (3x3) tilts z by at most max_tilt (rad; None: any tilt): R_zz >= cos(max_tilt)."""
+    return max_tilt is None or float(matrix[2, 2]) >= math.cos(max_tilt) - 1e-12
+
+
+def newton_prediction(problem: CostProblem, start: np.ndarray, radius: float = 0.2, jet: Jet | None = None,
+                      max_tilt: float | None = None) -> Refined:
+    """Return one Newton step from R0 (3x3) and the cost its quadratic model predicts there (one cost evaluation).
+
+    max_tilt (rad): a step that would tilt z further than this is not taken (R0 and its cost are returned).
+    """
     matrix = _orthonormalise(np.asarray(start, dtype=float))
     jet = problem.jet(matrix) if jet is None else jet
     if not np.isfinite(jet.value):
@@ -87,13 +96,19 @@ def newton_prediction(problem: CostProblem, start: np.ndarray, radius: float = 0
     if length > radius:
         step *= radius / length
     predicted = jet.value + float(jet.grad @ step) + 0.5 * float(step @ jet.hess @ step)
-    return Refined(matrix @ _rotation_vector_exp(step), min(predicted, jet.value), float(np.linalg.norm(jet.grad)), 0,
-                   jet.hess)
+    stepped = matrix @ _rotation_vector_exp(step)
+    if not within_tilt(stepped, max_tilt):
+        return Refined(matrix, jet.value, float(np.linalg.norm(jet.grad)), 0, jet.hess)
+    return Refined(stepped, min(predicted, jet.value), float(np.linalg.norm(jet.grad)), 0, jet.hess)
 
 
 def refine(problem: CostProblem, start: np.ndarray, radius: float = 0.2, max_iterations: int = 40,
-           tolerance: float = 1e-4, jet: Jet | None = None) -> Refined:
-    """Return the local minimum of the cost near R0 (3x3) by Newton steps (|w| <= a trust radius, rad)."""
+           tolerance: float = 1e-4, jet: Jet | None = None, max_tilt: float | None = None) -> Refined:
+    """Return the local minimum of the cost near R0 (3x3) by Newton steps (|w| <= a trust radius, rad).
+
+    max_tilt (rad): a step that would tilt z further than this is refused like one that does not descend, so the
+    result stays within the bound (from a start beyond it, only steps back within it are taken).
+    """
     # the Hessian's eigenvalues are taken by absolute value (floored), so a step always descends; a step that
     # does not lower the cost shrinks the trust radius. Convergence: an accepted Newton step shorter than
     # `tolerance` rad; Newton's error after it is of the order of its square (~1e-8 rad for the default)
@@ -111,7 +126,7 @@ def refine(problem: CostProblem, start: np.ndarray, radius: float = 0.2, max_ite
         if length < 1e-3 * tolerance * tolerance:
             break
         candidate = matrix @ _rotation_vector_exp(step)
-        trial = problem.jet(candidate)
+        trial = problem.jet(candidate) if within_tilt(candidate, max_tilt) else Jet(np.inf, jet.grad, jet.hess)
         slack = 1e-13 * max(abs(jet.value), 1e-300)
         if np.isfinite(trial.value) and (trial.value <= jet.value + slack or
                                          (length < 1e-6 and np.linalg.norm(trial.grad) < np.linalg.norm(jet.grad))):

@@ -18,7 +18,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from skynav_compass.estimate import CompassEstimate
-from skynav_compass.evaluation import MethodResult, angular_error
+from skynav_compass.evaluation import MethodResult, angular_error, relative_tilt
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class Method:
     prepare_snapshot: Callable[[Any], Any] | None = None
 
 
-METHOD_NAMES = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-tilt60', 'fft-uv-normalised',
+METHOD_NAMES = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-any-tilt', 'fft-uv-normalised',
                 'exhaustive-masked', 'exhaustive-zero', 'visual-compass-panorama', 'visual-compass-sh', 'features-sift',
                 'features-orb')
 PREPARED = '+prepared'  # name suffix: the snapshot prepared once (the fft-* and exhaustive-* methods)
@@ -49,7 +49,7 @@ def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None =
     """Return the named methods (default all of METHOD_NAMES) for a camera and SH degree L; masks feed the SH ones."""
     from skynav_sh.fisheye import FisheyeTransform
 
-    from skynav_compass.compass import Compass, CompassConfig
+    from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
     from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
     from skynav_compass.features import FeatureCompass, FeatureConfig
     from skynav_compass.views import CompassView
@@ -75,7 +75,7 @@ def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None =
     # compasses that can prepare a snapshot: name -> (view of a frame, compass)
     compasses: dict[str, Callable[[], tuple[Callable, Any]]] = {
         'fft-masked': lambda: (masked_view, Compass(L)),
-        'fft-masked-tilt60': lambda: (masked_view, Compass(L, CompassConfig(max_tilt=np.radians(60)))),
+        'fft-masked-any-tilt': lambda: (masked_view, Compass(L, any_tilt_config())),
         'exhaustive-masked': lambda: (masked_view, ExhaustiveCompass(L)),
         'exhaustive-zero': lambda: (filled('zero'), ExhaustiveCompass(L, ExhaustiveConfig(cost='plain'))),
         # grey UV image instead of the mask, gain and offset removed over the overlap (masked correlation coefficient)
@@ -181,6 +181,8 @@ def run_methods(compass_set, methods: Sequence[Method], queries: Sequence[int] |
         errors = angular_error(np.array([e.quaternion for e in estimates[k]]), truth[queries])
         out.append(RunResult(MethodResult(method.name, errors, seconds[k],
                                           np.array([e.residual for e in estimates[k]]),
-                                          np.array([e.confident for e in estimates[k]])),
+                                          np.array([e.confident for e in estimates[k]]),
+                                          np.array([e.confidence for e in estimates[k]]),
+                                          relative_tilt(np.array([e.matrix for e in estimates[k]]))),
                              tuple(estimates[k]), prepare_seconds[k], float(snapshot_seconds[k])))
     return out

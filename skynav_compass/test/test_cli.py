@@ -88,9 +88,13 @@ def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
     assert result.returncode == 0, result.stderr
     out = result.stdout
     assert 'pure rotations: 15 views' in out and 'moved views: 15 views' in out
-    medians = [float(line.split()[2]) for line in out.splitlines() if line.split()[:1] == ['fft-masked']]
-    assert len(medians) == 2 and medians[0] < 1.0 and medians[1] < 3.0
-    assert sum(line.startswith('visual-compass-panorama ') for line in out.splitlines()) == 2
+    rows = [line.split() for line in out.splitlines() if line.split()[:1] == ['fft-masked']]
+    medians = [float(row[2]) for row in rows[:2]]
+    assert len(rows) == 3 and medians[0] < 1.0 and medians[1] < 3.0
+    # then all 30 views: every estimate right (AUC '-': nothing to separate), none tilted beyond the bound
+    assert 'all 30 views; AUC' in out
+    assert rows[2][1] == '30' and rows[2][5] == '100%' and rows[2][6] == '-' and float(rows[2][7]) <= 45.0
+    assert sum(line.startswith('visual-compass-panorama ') for line in out.splitlines()) == 3
     plot = tmp_path / 'plots' / 'synthetic_garden_compass_errors.png'
     assert plot.read_bytes()[:8] == PNG_MAGIC
     assert f'plot: {plot}' in out
@@ -148,3 +152,10 @@ def test_sh_node_settings_follow_the_parameter_files(tmp_path):
     settings = sh_node_settings(['--params-file', str(first), '--params-file', str(second), '-p', 'map:=x'])
     assert settings == {'fill': 'mean', 'max_degree': 12, 'field_of_view_deg': 180.0}
     assert sh_node_settings(None) == {}
+
+
+@pytest.mark.parametrize('tilt', ['0', '-5', '200'])
+def test_an_impossible_tilt_bound_is_refused_in_one_line(tilt, tmp_path):
+    result = run_skynav('eval', 'compass', str(GARDEN), '--max-tilt', tilt, '--plots', str(tmp_path / 'plots'))
+    assert result.returncode == 2
+    assert one_line_error(result.stderr) and '--max-tilt' in result.stderr, result.stderr

@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from skynav_compass import (Compass, CompassConfig, CompassView, build_problem, cap_visibility, estimate_rotation,
                             rotation_angle)
-from skynav_compass.evaluation import heading
+from skynav_compass.evaluation import heading, relative_tilt
+from skynav_compass.refine import refine
 from skynav_sh.basis import degree_order
 from skynav_sh.rotation import rotate
 
@@ -43,7 +44,7 @@ def test_exact_recovery_of_random_rotations_full_sphere(cost, seed):
     f_current = band_limited(seed)
     truth = Rotation.random(random_state=100 + seed)
     f_snapshot = rotate(f_current, truth)  # f_s = f_c turned by R
-    compass = Compass(DEGREE, CompassConfig(cost=cost))
+    compass = Compass(DEGREE, CompassConfig(cost=cost, max_tilt=None))  # any rotation: the whole of SO(3)
     if cost == 'masked':
         estimate = compass.estimate(CompassView.from_coefficients(f_snapshot), CompassView.from_coefficients(f_current))
     else:
@@ -163,3 +164,93 @@ def test_small_overlap_rotations_are_rejected():
     compass = Compass(DEGREE, CompassConfig(min_overlap=0.25))
     assert compass.cost(view, view, Rotation.from_euler('x', 180, degrees=True)) == float('inf')
     assert np.isfinite(compass.cost(view, view, np.eye(3)))
+
+
+# --- a ground robot's prior: the tilt bound, the overlap, verification on samples and the confidence ---------------
+
+def skyline_view(orientation: Rotation, skyline, field_of_view_deg: float = 200.0, degree: int = 16) -> CompassView:
+    """Return the binary mask view (degree L) of a world whose sky lies above the elevation skyline(azimuth) (rad).
+
+    The camera (camera_link in the world: orientation Q) sees the cap up to half the field of view from its +z;
+    sampled on a fine Gauss-Legendre grid, so the mask's edges are sharp before the cut to degree L.
+    """
+    from skynav_sh.transform import GaussLegendreGrid
+
+    grid = GaussLegendreGrid(degree, n_phi=512, n_theta=256)
+    directions = grid.directions()
+    world = directions @ orientation.as_matrix().T  # Q d
+    elevation = np.arcsin(np.clip(world[..., 2], -1.0, 1.0))
+    sky = elevation > skyline(np.arctan2(world[..., 1], world[..., 0]))
+    seen = directions[..., 2] >= np.cos(np.radians(field_of_view_deg / 2))
+    return CompassView.from_samples(grid, (seen & sky).astype(float), seen.astype(float))
+
+
+def rugged(azimuth):
+    """A skyline of trees and roofs: 5-30 degrees above the horizon."""
+    return np.radians(15.0 + 7.0 * np.sin(3 * azimuth + 0.4) + 5.0 * np.cos(5 * azimuth) + 3.0 * np.sin(azimuth))
+
+
+def test_the_masks_of_skyline_views_are_verified_on_samples():
+    q_s = Rotation.from_euler('ZYX', [20.0, 4.0, -3.0], degrees=True)
+    q_c = q_s * Rotation.from_euler('ZYX', [130.0, 18.0, -9.0], degrees=True)
+    estimate = Compass(16).estimate(skyline_view(q_s, rugged), skyline_view(q_c, rugged))
+    assert 'verified' in estimate.details  # binary views: ranked on samples
+    assert np.degrees(angle_between(estimate, q_s.inv() * q_c)) < 1.0
+    assert estimate.details['verified'].disagreement[0] < 0.02  # the recovered masks agree where both see
+    assert estimate.confident and estimate.confidence > 0.5
+
+
+def test_an_upside_down_rotation_is_never_returned_within_the_tilt_bound():
+    """The views' truth is a half turn about a horizontal axis; the bounded compass must not claim it."""
+    world = band_limited(91)
+    turned_over = Rotation.from_euler('x', 180.0, degrees=True)
+    views = [CompassView.from_coefficients(view_of(world, q)) for q in (Rotation.identity(), turned_over)]
+    unbounded = Compass(DEGREE, CompassConfig(max_tilt=None)).estimate(*views)
+    assert np.degrees(angle_between(unbounded, turned_over)) < 1e-3  # on the whole sphere the truth is found
+    bounded = Compass(DEGREE).estimate(*views)  # default: 45 degrees
+    tilts = relative_tilt(np.stack([h.matrix for h in bounded.hypotheses]))
+    assert np.all(tilts <= 45.0 + 1e-6)
+    assert relative_tilt(bounded.matrix) <= 45.0 + 1e-6
+
+
+def test_newton_steps_stay_within_the_tilt_bound():
+    """The optimum lies at 80 degrees of tilt; from 30 degrees the bounded refinement stops at the bound."""
+    world = band_limited(93)
+    truth = Rotation.from_euler('y', 80.0, degrees=True)
+    views = [CompassView.from_coefficients(view_of(world, q)) for q in (Rotation.identity(), truth)]
+    problem = Compass(DEGREE).problem(*views)
+    start = Rotation.from_euler('y', 30.0, degrees=True).as_matrix()
+    assert np.degrees(rotation_angle(refine(problem, start).matrix, truth.as_matrix())) < 1e-3
+    bounded = refine(problem, start, max_tilt=np.radians(45.0))
+    assert relative_tilt(bounded.matrix) <= 45.0 + 1e-6
+    assert relative_tilt(bounded.matrix) > 40.0  # it went as far towards the optimum as the bound lets it
+
+
+def test_hypotheses_whose_fields_of_view_hardly_overlap_are_refused():
+    """200-degree fish-eyes turned over still share a 20-degree band (30 % of a view): the default refuses it."""
+    view = CompassView.from_coefficients(band_limited(95), cap_visibility(DEGREE, np.radians(100)),
+                                         max_degree=DEGREE)
+    turned_over = Rotation.from_euler('x', 180, degrees=True)
+    assert Compass(DEGREE).cost(view, view, turned_over) == float('inf')  # default: at least half
+    assert np.isfinite(Compass(DEGREE, CompassConfig(min_overlap=0.25)).cost(view, view, turned_over))
+    assert np.isfinite(Compass(DEGREE).cost(view, view, Rotation.from_euler('x', 45, degrees=True)))
+
+
+def test_the_confidence_ranks_estimates():
+    """A flat horizon says nothing about yaw: its estimates rank below those of a rugged skyline, and below 1/2."""
+    rng = np.random.default_rng(97)
+    flat = lambda azimuth: np.zeros_like(azimuth)  # noqa: E731
+    confidences = {}
+    for name, skyline in (('rugged', rugged), ('flat', flat)):
+        values = []
+        for _ in range(3):
+            q_s = Rotation.from_euler('ZYX', [rng.uniform(0, 360), rng.uniform(-5, 5), rng.uniform(-5, 5)],
+                                      degrees=True)
+            q_c = q_s * Rotation.from_euler('ZYX', [rng.uniform(0, 360), rng.uniform(-20, 20),
+                                                    rng.uniform(-20, 20)], degrees=True)
+            estimate = Compass(16).estimate(skyline_view(q_s, skyline), skyline_view(q_c, skyline))
+            values.append(estimate.confidence)
+            if name == 'rugged':
+                assert np.degrees(angle_between(estimate, q_s.inv() * q_c)) < 1.0
+        confidences[name] = values
+    assert min(confidences['rugged']) > 0.5 > max(confidences['flat'])

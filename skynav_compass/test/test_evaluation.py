@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_compass import (MethodResult, angular_error, error_statistics, format_table, heading_error,
-                            load_compass_set, plot_errors, relative_tilt, run_methods, standard_methods,
+                            load_compass_set, plot_errors, relative_tilt, roc_auc, run_methods, standard_methods,
                             summary_rows, true_rotation)
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
@@ -51,6 +51,24 @@ def test_statistics_table_and_plot(tmp_path):
     assert 'translation' in format_table(rows)
     path = plot_errors([result], np.arange(5.0), np.linspace(0, 0.5, 5), tmp_path / 'errors.png', synthetic=True)
     assert path.exists() and path.stat().st_size > 10_000
+
+
+def test_roc_auc_counts_right_estimates_ranked_above_wrong_ones():
+    right = np.array([True, True, False, False])
+    assert roc_auc([0.9, 0.8, 0.2, 0.1], right) == 1.0
+    assert roc_auc([0.1, 0.2, 0.8, 0.9], right) == 0.0
+    assert roc_auc([0.9, 0.2, 0.8, 0.1], right) == 0.75  # of 4 (right, wrong) pairs, 3 in order
+    assert roc_auc([0.5, 0.5, 0.5, 0.5], right) == 0.5  # ties count half
+    assert np.isnan(roc_auc([0.1, 0.2], [True, True]))  # nothing to separate
+    # a method without a confidence is ranked by its residual, lower first
+    errors = np.array([1.0, 2.0, 30.0, 90.0])
+    by_residual = MethodResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, np.inf]),
+                               confidence=np.full(4, np.nan))
+    assert by_residual.separation() == 1.0
+    by_confidence = MethodResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, 0.4]),
+                                 confidence=np.array([0.2, 0.9, 0.1, 0.05]))
+    assert by_confidence.separation() == 1.0
+    assert by_confidence.separation(np.array([True, False, True, False])) == 1.0
 
 
 def test_runner_on_a_few_frames_of_a_bundled_set():

@@ -184,11 +184,18 @@ def test_unusable_parameters_fall_back_to_the_defaults(reference_map):
         node = graph.nodes[0]
         assert node.rejected['parameters'] == 1
         # every parameter falls back, the map too
-        assert node.parameter_values() == {'map': '', 'reference': 'match', 'index': 0, 'max_degree': 16}
+        assert node.parameter_values() == {'map': '', 'reference': 'match', 'index': 0, 'max_degree': 16,
+                                           'max_tilt_deg': 45.0}
         # at run time an unusable value is refused and the current one kept
         refused = node.set_parameters([Parameter('reference', value='bogus')])[0]
         assert not refused.successful and 'reference' in refused.reason
         assert node.get_parameter('reference').value == 'match'
+        for tilt in (0.0, -10.0, 181.0):  # no tilt at all, or more than turning the camera over
+            refused = node.set_parameters([Parameter('max_tilt_deg', value=tilt)])[0]
+            assert not refused.successful and 'max_tilt_deg' in refused.reason
+        assert node.get_parameter('max_tilt_deg').value == 45.0
+        assert node.set_parameters([Parameter('max_tilt_deg', value=30.0)])[0].successful
+        assert np.degrees(node.compass.config.max_tilt) == pytest.approx(30.0)
 
 
 def test_a_match_selects_the_snapshot_of_a_larger_map(recording, tmp_path):

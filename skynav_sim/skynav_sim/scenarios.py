@@ -58,6 +58,7 @@ class ScenarioParameters:
     max_translation: float = 0.5  # m (compass translated views)
     bump_tilt: float = 0.0  # degrees: each homing place (snapshot too) sits on a bump tilting the camera up to this
     detour: float = 0.0  # m: a repeat drive leaves its route in the middle for a loop reaching this far (0: none)
+    reference_hours: float | None = None  # compass: the reference frame's time of day (None: `hours`, as the others)
     extra: dict = field(default_factory=dict)
 
 
@@ -256,7 +257,8 @@ def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) 
 def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
     place = snapshot_place(world, params)
     reference = camera_pose(world.terrain, *place, rng.uniform(0, 2 * np.pi))
-    frames = [Frame(reference, params.hours, params.cloud_cover, 'reference')]
+    reference_hours = params.hours if params.reference_hours is None else params.reference_hours
+    frames = [Frame(reference, reference_hours, params.cloud_cover, 'reference')]
     for _ in range(params.count):
         # Any heading, and a tilt up to max_tilt about a random horizontal axis, at the same position.
         heading = Rotation.from_euler('z', rng.uniform(0, 2 * np.pi))
@@ -289,7 +291,7 @@ def _skyline(world: World, params: ScenarioParameters, rng: np.random.Generator)
 
 
 #: Scenario parameters added after recordings were bundled, with the default that leaves those recordings as they were.
-_LATER_PARAMETERS = {'wobble': 0.0, 'bump_tilt': 0.0, 'detour': 0.0}
+_LATER_PARAMETERS = {'wobble': 0.0, 'bump_tilt': 0.0, 'detour': 0.0, 'reference_hours': None}
 
 
 def describe(name: str, world: World, params: ScenarioParameters, seed: int, frames: list[Frame]) -> dict:

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from skynav_sh.product import seen_mean, shows_skyline
+from skynav_compass.refine import within_tilt
 from skynav_warping.views import WarpView
 from skynav_warping.warping3d import WarpingSettings, WarpResult, warp_home_vector
 
@@ -31,7 +32,7 @@ class HomeEstimate:
     confident: bool
     distance_ratio: float  # |t| / rho of the optimum (equal-distance model)
     best_direction: np.ndarray  # the optimum's direction, also when not confident (diagnostics)
-    compass_used: bool  # True if a compass rotation started the search
+    compass_used: bool  # True if a compass rotation started the search (one within the tilt bound)
     warp: WarpResult  # the full 3D-warping result
 
     @property
@@ -59,8 +60,8 @@ def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
     """Return the home vector (current camera_link) from the current view to the snapshot's place.
 
     compass: the compass rotation R (d_snapshot = R d_current) as a 3x3 matrix, quaternion (x, y, z, w) or scipy
-    Rotation, used as the start of the rotation search (refined there); None: a rotational pre-alignment over tilt
-    and a whole turn of yaw starts it instead.
+    Rotation, used as the start of the rotation search (refined there) unless it tilts the views further apart than
+    settings.max_relative_tilt; None: a rotational pre-alignment over tilt and a whole turn of yaw starts it instead.
     """
     start = None if compass is None else rotation_matrix(compass)
     result = warp_home_vector(current, snapshot, start, settings)
@@ -69,4 +70,4 @@ def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
     return HomeEstimate(direction=result.direction, rotation=result.rotation, residual=result.residual,
                         confidence=result.confidence, confident=result.confident,
                         distance_ratio=result.distance_ratio, best_direction=result.best_direction,
-                        compass_used=start is not None, warp=result)
+                        compass_used=start is not None and within_tilt(start, settings.max_relative_tilt), warp=result)

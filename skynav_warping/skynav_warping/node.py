@@ -10,9 +10,10 @@ cost at the optimum relative to the best pure rotation's: near 0 the views agree
 The target snapshot: the one the latest accepted place match names (`target: match`), a fixed
 index (`target: index`), or the match's successor `lookahead` snapshots along the route
 (`target: next`, route following). With `use_compass` a view waits for the compass estimate of
-the same stamp and the search starts from it. A view or target snapshot without a skyline (all sky
-or all ground in its field of view) gets no compass estimate and waits for none: its home vector
-has residual 1 (nothing to home on; the direction is the search's best, as for any residual).
+the same stamp and the search starts from it (unless it tilts the views further apart than
+`max_tilt_deg`, the bound of the whole rotation search). A view or target snapshot without a skyline
+(all sky or all ground in its field of view) gets no compass estimate and waits for none: its home
+vector has residual 1 (nothing to home on; the direction is the search's best, as for any residual).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from skynav_bringup.node import SkynavNode
 from skynav_bringup.pairing import StampPairer
 from skynav_bringup.ros import run_node
 from skynav_sh.product import message_sky_share, shows_skyline
+from skynav_compass.compass import MAX_TILT
 
 from .homing import estimate_home_vector
 from .views import view_from_coefficients
@@ -53,6 +55,8 @@ class WarpingNode(SkynavNode):
         self.parameter('lookahead', 1, "how many snapshots beyond the matched one target 'next' aims at")
         self.parameter('use_compass', True, 'start from the compass estimate of the same view (wait for it)')
         self.parameter('max_degree', 16, 'SH degree of the search')
+        self.parameter('max_tilt_deg', float(np.degrees(MAX_TILT)),
+                       'largest tilt between the current view and the snapshot the rotation search considers (deg)')
         self.store = None
         self.match: PlaceMatch | None = None
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0)
@@ -71,9 +75,12 @@ class WarpingNode(SkynavNode):
             raise ValueError(f'target must be one of {", ".join(TARGETS)}')
         if values['lookahead'] < 0 or values['index'] < 0 or not 4 <= values['max_degree'] <= 32:
             raise ValueError('lookahead and index must not be negative; max_degree must be within 4..32')
+        if not 0 < values['max_tilt_deg'] <= 180:
+            raise ValueError('max_tilt_deg must be more than 0 and at most 180 degrees')
         store = map_for_parameter(self.store, values['map'])
         self.values = values
-        self.settings = WarpingSettings(degree=values['max_degree'])
+        self.settings = WarpingSettings(degree=values['max_degree'],
+                                        max_relative_tilt=float(np.radians(values['max_tilt_deg'])))
         self.store = store
         # the views of map snapshots, built once per map and setting (least recently used dropped first)
         self.snapshot_view = lru_cache(SNAPSHOT_VIEWS_CACHED)(self.build_snapshot_view)

@@ -11,7 +11,9 @@ masked mean squared difference of prediction and snapshot where both see (views.
 
 Search:
 0. Start rotation R0: the given compass estimate, or without one a rotational pre-alignment (no translation) over
-   a cap of tilts and a whole turn of yaw (align_rotation). With a compass estimate the pre-alignment runs too
+   a cap of tilts and a whole turn of yaw (align_rotation). A ground robot's physics bounds every rotation of the
+   search: none tilts the camera further than settings.max_relative_tilt against the snapshot (a compass estimate
+   beyond it is not used; the local search never steps beyond it). With a compass estimate the pre-alignment runs too
    (settings.check_compass): where the two disagree by more than the yaw window, both start the coarse search and
    the best hypotheses of either go on, so a compass that took a translated view for a turned one (a yaw flipped
    by half a turn, say) cannot lock the search onto a wrong rotation.
@@ -35,6 +37,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from skynav_compass.compass import MAX_TILT
+from skynav_compass.refine import within_tilt
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_warping.shbatch import apply_sparse, quarter_turn_matrices, rotate_columns, rotate_zyz_columns, \
     z_factors, z_index, zyz_from_matrices
@@ -58,6 +62,7 @@ class WarpingSettings:
     coarse_ratios: tuple[int, ...] = (3, 6, 9, 12)  # indices into ratios tried by the coarse search
     yaw_window: float = np.radians(30.0)  # coarse yaw corrections +- this around the start rotation
     max_tilt: float = np.radians(35.0)  # without a given rotation: tilts tried by the pre-alignment, up to this
+    max_relative_tilt: float = MAX_TILT  # no rotation of the search tilts the views further apart (the compass's)
     tilt_step: float = np.radians(5.0)  # their spacing
     candidates: int = 3  # coarse hypotheses refined locally
     race_iterations: int = 3  # after these pattern-search steps only the best translating hypothesis goes on
@@ -160,7 +165,8 @@ class WarpingTables:
         self.ring_directions = np.stack(np.broadcast_arrays(
             sin_polar * np.cos(self.azimuths), sin_polar * np.sin(self.azimuths),
             np.cos(self.polar)[:, None] + 0 * self.azimuths), -1)  # (n_rings, n_az, 3), current camera_link
-        self.tilts = tilt_hypotheses(settings.max_tilt, settings.tilt_step)  # (K, 3, 3)
+        cap = min(settings.max_tilt, settings.max_relative_tilt)
+        self.tilts = tilt_hypotheses(cap, settings.tilt_step)  # (K, 3, 3)
 
 
 def tilt_hypotheses(max_tilt: float, step: float) -> np.ndarray:
@@ -340,12 +346,14 @@ class Hypothesis:
 
 
 def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypotheses: list[Hypothesis],
-           n_ratios: int, max_iterations: int, min_step: float, race_iterations: int | None = None) -> int:
+           n_ratios: int, max_iterations: int, min_step: float, race_iterations: int | None = None,
+           max_tilt: float | None = None) -> int:
     """Refine hypotheses in place by a pattern search, all moves of a step in one batch; return the costs spent.
 
     Moves of a hypothesis: its direction turned by +-step about two tangent axes, its ratio index +-1, its rotation
-    followed by turns of +-step about the current x, y, z; a hypothesis without translation turns only. After
-    race_iterations steps only the best translating hypothesis (and those without translation) go on.
+    followed by turns of +-step about the current x, y, z (none that tilts z further than max_tilt, rad); a
+    hypothesis without translation turns only. After race_iterations steps only the best translating hypothesis
+    (and those without translation) go on.
     """
     spent = 0
     for iteration in range(max_iterations):
@@ -387,6 +395,8 @@ def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypo
         costs = paired_costs(tables, current, snapshot, np.array(directions), warp_direction, warp_ratio,
                              np.array([t[0] for t in turns]), np.array([t[1] for t in turns]), pair_warp, pair_turn)
         spent += len(costs)
+        if max_tilt is not None:  # a turn beyond the tilt bound is no move
+            costs = np.where([within_tilt(move[3], max_tilt) for move in moves], costs, np.inf)
         for h in active:
             rows = [i for i, move in enumerate(moves) if move[0] is h]
             best = rows[int(np.argmin(costs[rows]))]
@@ -452,6 +462,7 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     full = False if full_turn is None else bool(full_turn)
     nc = n_coefficients(Lc)
     starts = [] if rotation is None else [np.asarray(rotation, dtype=float)]
+    starts = [r0 for r0 in starts if within_tilt(r0, settings.max_relative_tilt)]  # no camera turned over
     if not starts or settings.check_compass:
         aligned, _ = align_rotation(tables, x[:, :nc], s[:, :nc], np.eye(3))
         if not starts or rotation_angle(aligned, starts[0]) > settings.yaw_window:
@@ -473,7 +484,7 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     for h, cost in zip(everyone, start):
         h.cost = float(cost)
     evaluations += len(start) + refine(tables.fine, x, s, everyone, len(tables.ratios), settings.max_iterations,
-                                       settings.min_step, settings.race_iterations)
+                                       settings.min_step, settings.race_iterations, settings.max_relative_tilt)
     # the no-translation reference once more, from the best translating hypothesis's rotation and finer: a pure
     # rotation must not look like a step only because the reference stopped a fraction of a degree short (only
     # needed near the confidence threshold; far from it the decision stands)
@@ -485,7 +496,8 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
                                              second.rotation[None])[0])
         reference.done, reference.step = False, max(reference.step, settings.min_step)
         evaluations += 1 + refine(tables.fine, x, s, [reference, second], len(tables.ratios),
-                                  settings.max_iterations, 0.25 * settings.min_step)
+                                  settings.max_iterations, 0.25 * settings.min_step,
+                                  max_tilt=settings.max_relative_tilt)
         reference = min([reference, second], key=lambda h: h.cost)
     best = min(hypotheses, key=lambda h: h.cost) if hypotheses else reference
     if reference.cost <= best.cost:  # no step explains the views better than a pure rotation

@@ -274,10 +274,14 @@ def test_unusable_parameters_fall_back_to_the_defaults(home_map):
         node = graph.nodes[0]
         assert node.rejected['parameters'] == 1
         assert node.parameter_values() == {'map': '', 'target': 'match', 'index': 0, 'lookahead': 1,
-                                           'use_compass': True, 'max_degree': 16}
+                                           'use_compass': True, 'max_degree': 16, 'max_tilt_deg': 45.0}
         refused = node.set_parameters([Parameter('lookahead', value=-1)])[0]
         assert not refused.successful and 'lookahead' in refused.reason
         assert node.get_parameter('lookahead').value == 1
+        refused = node.set_parameters([Parameter('max_tilt_deg', value=0.0)])[0]
+        assert not refused.successful and 'max_tilt_deg' in refused.reason
+        assert node.set_parameters([Parameter('max_tilt_deg', value=30.0)])[0].successful
+        assert np.degrees(node.settings.max_relative_tilt) == pytest.approx(30.0)
 
 
 def test_non_finite_coefficients_are_rejected(recording, home_map):

@@ -125,3 +125,20 @@ def test_hypotheses_that_hardly_overlap_the_snapshot_are_refused(scene, snapshot
     costs = hypothesis_costs(tables, current.terms, snapshot.terms, np.array([[1.0, 0, 0], [-1.0, 0, 0]]),
                              np.array([6, 6]), np.stack([upside_down, np.eye(3)]))
     assert costs[0] == np.inf and 0.0 <= costs[1] < np.inf
+
+
+def test_a_compass_start_that_turns_the_camera_over_is_not_used(scene, snapshot):
+    """A ground robot never turns its camera over: such a compass estimate cannot start (or end) the search."""
+    current = render_equal_distance_view(scene, np.array([0.25, 0.1, 0.0]), np.eye(3), degree=SETTINGS.degree)
+    turned_over = Rotation.from_euler('x', 180.0, degrees=True).as_matrix()
+    estimate = estimate_home_vector(current, snapshot, turned_over)
+    assert not estimate.compass_used
+    assert estimate.rotation[2, 2] >= np.cos(SETTINGS.max_relative_tilt) - 1e-9
+    assert np.degrees(Rotation.from_matrix(estimate.rotation).magnitude()) < 3.0  # the pre-alignment found it
+    assert angular_errors(estimate.direction[None], np.array([[-0.25, -0.1, 0.0]]))[0] < 10.0
+    # a tighter bound holds for every rotation the local search tries
+    tight = WarpingSettings(max_relative_tilt=np.radians(5.0))
+    tilted = Rotation.from_euler('y', 12.0, degrees=True).as_matrix()  # the true rotation lies beyond it
+    moved = render_equal_distance_view(scene, np.array([0.25, 0.1, 0.0]), tilted, degree=SETTINGS.degree)
+    result = warp_home_vector(moved, snapshot, np.eye(3), tight)
+    assert result.rotation[2, 2] >= np.cos(np.radians(5.0)) - 1e-9

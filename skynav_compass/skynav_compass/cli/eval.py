@@ -7,11 +7,14 @@ is the angle of the 3D rotation between it and the truth Q_s^-1 Q_c from the gro
 camera_link. Prints, per method, median, 90th percentile and maximum error and the share under 2 degrees,
 separately for pure rotations and for moved views (by the frame labels of a synthetic compass set against its
 reference frame, else by the true translation: under / from 0.05 m on), and the CPU time per estimate (views
-prepared once; the fft-* and exhaustive-* compasses prepare the snapshot once, as the compass node does). Saves a
-plot of error against tilt and against translation as DIR/<bag name>_errors.png.
+prepared once; the fft-* and exhaustive-* compasses prepare the snapshot once, as the compass node does). Then, over
+all views, how well each method's confidence (without one: its residual) ranks the estimates under 5 degrees of
+error above the others (the area under the ROC curve) and the largest tilt between the views any estimate claims.
+Saves a plot of error against tilt and against translation as DIR/<bag name>_errors.png.
 
-Methods: fft-masked (the default compass: SO(3) correlation by FFT on the masked cost, then Newton refinement),
-fft-masked-tilt60 (tilt limited to 60 degrees), fft-zero (plain cost on the zero-filled view), exhaustive-masked
+Methods: fft-masked (the default compass: SO(3) correlation by FFT on the masked cost within the tilt bound
+--max-tilt, hypotheses verified on samples of the two masks, then Newton refinement), fft-masked-any-tilt (the
+whole of SO(3), unverified), fft-zero (plain cost on the zero-filled view), exhaustive-masked
 and exhaustive-zero (the source method's coarse-to-fine ZYZ search), visual-compass-sh (yaw only, on the SH);
 needing the snapshot's images, so run only against the recording's reference frame: visual-compass-panorama
 (yaw only, rotational image difference of the skyline mask's panorama), features-sift and features-orb (UV image,
@@ -24,7 +27,7 @@ import argparse
 from pathlib import Path
 
 HELP = 'compass error against ground truth, per method, for pure rotations and moved views'
-METHODS = ('fft-masked', 'fft-masked-tilt60', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
+METHODS = ('fft-masked', 'fft-masked-any-tilt', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
            'visual-compass-sh', 'visual-compass-panorama', 'features-sift', 'features-orb')  # = RECORDING_METHODS
 DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
 
@@ -42,6 +45,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--repeats', type=int, default=1, metavar='N',
                         help='time every estimate N times, the least counts (default 1)')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
+    parser.add_argument('--max-tilt', type=float, default=None, metavar='DEG',
+                        help='largest tilt between the two views the fft-masked and fft-zero compasses consider '
+                             "(default: the compass node's max_tilt_deg, 45)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError('--repeats must be at least 1', exit_code=2)
     if args.index < 0:
         raise CliError('--index must not be negative', exit_code=2)
+    if args.max_tilt is not None and not 0 < args.max_tilt <= 180:
+        raise CliError('--max-tilt must be more than 0 and at most 180 degrees', exit_code=2)
     if not Path(args.bag).exists():
         raise CliError(f'{args.bag}: no such recording')
     snapshot = None
@@ -67,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError('--index chooses a map snapshot; give the map with --map', exit_code=2)
     try:
         evaluation = evaluate_recording(args.bag, args.methods, snapshot, ros_arguments(args.params, None),
-                                        repeats=args.repeats)
+                                        repeats=args.repeats, max_tilt=max_tilt(args.max_tilt))
     except EvaluationError as exc:
         raise CliError(str(exc)) from None
     print(format_report(evaluation))
@@ -80,6 +88,15 @@ def run(args: argparse.Namespace) -> int:
                        args.plots / f'{stem}_errors.png', evaluation.synthetic, f'{stem} against {evaluation.snapshot}')
     print(f'plot: {path}')
     return 0
+
+
+def max_tilt(degrees: float | None) -> float:
+    """Return the tilt bound (rad) of --max-tilt (deg), by default the compass's."""
+    import numpy as np
+
+    from ..compass import MAX_TILT
+
+    return MAX_TILT if degrees is None else float(np.radians(degrees))
 
 
 def map_snapshot(path: Path, index: int):

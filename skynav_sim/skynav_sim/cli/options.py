@@ -49,6 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     grid.add_argument('--max-tilt', type=float, default=30.0, metavar='DEG', help='compass tilt limit (30)')
     grid.add_argument('--max-translation', type=float, default=0.5, metavar='M',
                       help='compass translation limit (0.5)')
+    grid.add_argument('--reference-time', default=None, metavar='TIME',
+                      help="compass: the reference frame's time of day (as --time; default: --time)")
     grid.add_argument('--bump-tilt', type=float, default=0.0, metavar='DEG',
                       help='homing: each place sits on a bump that tilts the camera up to DEG more (default 0)')
 
@@ -106,6 +108,7 @@ def scenario(args: argparse.Namespace):
         speed=args.speed, offset=args.offset, shake=args.shake, wobble=args.wobble, spacing=args.spacing, grid_radius=args.grid_radius,
         count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation, bump_tilt=args.bump_tilt,
         detour=args.detour,
+        reference_hours=None if getattr(args, 'reference_time', None) is None else parse_time(args.reference_time),
     )
     world = generate(args.world, args.seed)
     frames = build(args.scenario, world, params, args.seed)
