@@ -92,19 +92,20 @@ class CompassNode(SkynavNode):
         if match.accepted and match.index >= 0:
             self.match = match
 
-    def build_snapshot_view(self, index: int, field_of_view: float) -> PreparedSnapshot:
-        """Return the view of one map snapshot as this node compares it, prepared once for every estimate."""
-        return self.compass.prepare(CompassView.from_sh_message(self.store.snapshot(index).coefficients,
-                                                                field_of_view, 'zero', self.values['max_degree']))
+    def build_snapshot_view(self, index: int, field_of_view: float) -> tuple[PreparedSnapshot, float]:
+        """Return one map snapshot prepared once for every estimate, and the share of sky in what it sees."""
+        view = CompassView.from_sh_message(self.store.snapshot(index).coefficients, field_of_view, 'zero',
+                                           self.values['max_degree'])
+        return self.compass.prepare(view), sky_share(view)
 
-    def reference_view(self, field_of_view: float) -> tuple[int, CompassView | PreparedSnapshot] | None:
-        """Return (index, view) of the reference, None when there is none yet (the reason is counted)."""
+    def reference_view(self, field_of_view: float) -> tuple[int, CompassView | PreparedSnapshot, float] | None:
+        """Return (index, view, sky share) of the reference, None when there is none yet (the reason is counted)."""
         reference = self.values['reference']
         if reference == 'live':
             if self.live is None:
                 self.reject('no_reference', 'no live reference yet (call ~/store_reference)')
                 return None
-            return -1, self.live
+            return -1, self.live, sky_share(self.live)
         if self.store is None or len(self.store) == 0:
             self.reject('no_map', 'no map with snapshots to compare against (set the map parameter)')
             return None
@@ -122,7 +123,7 @@ class CompassNode(SkynavNode):
             return None
         else:
             index = int(self.match.index)
-        return index, self.snapshot_view(index, field_of_view)
+        return (index, *self.snapshot_view(index, field_of_view))
 
     def on_coefficients(self, message: ShCoefficients) -> None:
         """Estimate the rotation of one view against its reference and publish it."""
@@ -145,7 +146,7 @@ class CompassNode(SkynavNode):
         except ValueError as exc:
             self.reject('fill', f'view stamped {stamp}: {exc}')
             return
-        share = float(seen_mean(current.weighted, current.visibility))
+        share = sky_share(current)
         if not shows_skyline(share):
             self.reject('featureless', f'view stamped {stamp} shows no skyline (sky on {100 * share:.0f} % of '
                                        'what it sees): every rotation fits it alike')
@@ -154,8 +155,7 @@ class CompassNode(SkynavNode):
         reference = self.reference_view(float(message.field_of_view))
         if reference is None:
             return
-        index, snapshot = reference
-        share = float(seen_mean(snapshot.weighted, snapshot.visibility))
+        index, snapshot, share = reference
         if not shows_skyline(share):
             self.reject('featureless_snapshot', f'snapshot {index} shows no skyline (sky on {100 * share:.0f} % '
                                                 'of what it sees): every rotation fits it alike')
@@ -167,6 +167,11 @@ class CompassNode(SkynavNode):
             (result.rotation.x, result.rotation.y, result.rotation.z,
              result.rotation.w) = (float(v) for v in estimate.quaternion)
         self.emit(COMPASS_TOPIC, result)
+
+
+def sky_share(view: CompassView) -> float:
+    """Return the share of sky in what a view sees (0..1)."""
+    return float(seen_mean(view.weighted, view.visibility))
 
 
 def main(args=None) -> int:
