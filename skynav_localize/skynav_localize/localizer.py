@@ -64,6 +64,9 @@ class Method:
 # Baselines, where correct and off-route ratios overlap, keep precision 1 on the pairs: raw UV 0.85, SeqSLAM raw UV
 # 0.8, BoW ORB 0.45; they are SeqSLAM and a bag of words as their authors describe them, without the view test.
 # A real camera and route should have them re-learned (evaluation.threshold_at_full_precision on a labelled drive).
+#: SH degree of skynav's place descriptors: the acceptance thresholds were calibrated at this degree, and a map or
+#: view of a higher degree (the compass needs 32 for skylines near the horizon) is cut to it.
+DESCRIPTOR_DEGREE = 16
 SH_SINGLE_MAX_RATIO = 0.45
 SH_SEQUENCE_MAX_RATIO = 0.4
 METHODS: dict[str, Method] = {m.name: m for m in (
@@ -136,9 +139,11 @@ class Localizer:
 
     def __init__(self, store: MapStore, method_name: str = 'amplitude-seq', *, acceptance: Acceptance | None = None,
                  sequence: SequenceParams | None = None, candidates: int = DEFAULT_CANDIDATES,
-                 circle: np.ndarray | None = None) -> None:
-        """Prepare the map's descriptor matrix for the method; circle (bool image) limits ORB to the image circle."""
+                 circle: np.ndarray | None = None, degree: int = DESCRIPTOR_DEGREE) -> None:
+        """Prepare the map's descriptor matrix for the method (SH descriptors up to `degree`, at most the map's);
+        circle (bool image) limits ORB to the image circle."""
         self.store = store
+        self.degree = min(int(degree), store.max_degree)
         self.method = method(method_name)
         self.acceptance = acceptance or self.method.acceptance
         self.sequence = sequence or SequenceParams()
@@ -158,13 +163,13 @@ class Localizer:
         stored = name in store.descriptor_names() if len(store) else False
         if name in ('amplitude', 'bispectrum'):
             current = self.settings.get('descriptor_version') == DESCRIPTOR_VERSION
-            if stored and current:
+            if stored and current and self.degree == store.max_degree:
                 return store.descriptor_matrix(name)
             if len(store) == 0:
-                return np.zeros((0, describe(name, np.zeros((store.max_degree + 1) ** 2)).size))
+                return np.zeros((0, describe(name, np.zeros((self.degree + 1) ** 2)).size))
             # derived once per map and shared by its Localizers (the bispectrum: ~0.5 ms per snapshot at L = 16)
-            return store.derived(f'{name}-v{DESCRIPTOR_VERSION}',
-                                 lambda: describe(name, store.coefficients(), store.max_degree))
+            return store.derived(f'{name}-v{DESCRIPTOR_VERSION}-L{self.degree}',
+                                 lambda: describe(name, store.coefficients(), self.degree))
         if len(store) == 0:
             return np.zeros((0, 1))
         if missing := missing_descriptors(store, self.method.name):
@@ -189,7 +194,7 @@ class Localizer:
         if self.method.source == 'sh':
             if coefficients is None:
                 raise ValueError(f'method {self.method.name!r} needs SH coefficients')
-            return describe(self.method.descriptor, coefficients, self.store.max_degree)
+            return describe(self.method.descriptor, coefficients, self.degree)
         if uv is None:
             raise ValueError(f'method {self.method.name!r} needs the UV image')
         if self.method.descriptor == 'raw_uv':
@@ -203,7 +208,7 @@ class Localizer:
         if self.method.source == 'sh':
             if coefficients is None:
                 raise ValueError(f'method {self.method.name!r} needs SH coefficients')
-            return describe(self.method.descriptor, np.atleast_2d(coefficients), self.store.max_degree)
+            return describe(self.method.descriptor, np.atleast_2d(coefficients), self.degree)
         if uvs is None:
             raise ValueError(f'method {self.method.name!r} needs the UV images')
         return np.stack([self.describe(uv=uv) for uv in uvs]) if len(uvs) else np.zeros((0, self.index.dimension))

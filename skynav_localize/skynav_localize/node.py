@@ -19,7 +19,7 @@ from skynav_bringup.images import stamp_ns
 from skynav_bringup.node import SkynavNode
 from skynav_bringup.ros import run_node
 
-from .localizer import METHODS, OUR_METHODS, Localizer
+from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .store import MapStore, map_for_parameter
 
@@ -45,6 +45,8 @@ class LocalizeNode(SkynavNode):
                                                    "ratio at the matched snapshot at most this; NaN: the method's")
         self.parameter('max_distance', math.inf, 'acceptance: best descriptor distance at most this')
         self.parameter('candidates', 5, 'runners-up in each match')
+        self.parameter('max_degree', DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut '
+                                                        'to it)')
         self.store: MapStore | None = None
         self.localizer: Localizer | None = None
         self.last_stamp = -1
@@ -58,6 +60,8 @@ class LocalizeNode(SkynavNode):
             raise ValueError(f'method must be one of {", ".join(OUR_METHODS)}')
         if not 0 < values['min_speed'] <= values['max_speed']:
             raise ValueError('need 0 < min_speed <= max_speed')
+        if not 1 <= values['max_degree'] <= 64:
+            raise ValueError('max_degree must be within 1..64')
         if values['sequence_length'] < 1 or values['candidates'] < 1:
             raise ValueError('sequence_length and candidates must be at least 1')
         store = map_for_parameter(self.store, values['map'])
@@ -70,7 +74,7 @@ class LocalizeNode(SkynavNode):
         acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view)
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
         self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
-                                   candidates=values['candidates'])
+                                   candidates=values['candidates'], degree=values['max_degree'])
         if self.store is not None and self.store is not store:
             self.store.close()
         self.store = store
@@ -97,11 +101,11 @@ class LocalizeNode(SkynavNode):
             result.header = message.header
             result.index, result.distance, result.accepted = -1, math.inf, False
             if self.localizer is not None:
-                if degree < self.store.max_degree:
-                    self.reject('degree', f'coefficients of degree {degree} cannot match a map of degree '
-                                          f'{self.store.max_degree}')
+                if degree < self.localizer.degree:
+                    self.reject('degree', f'coefficients of degree {degree} cannot give descriptors of degree '
+                                          f'{self.localizer.degree}')
                     return
-                match = self.localizer.query(coefficients=coefficients[: (self.store.max_degree + 1) ** 2],
+                match = self.localizer.query(coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
                                              field_of_view=float(message.field_of_view), fill=message.fill)
                 result.map_name = self.store.name
                 result.index, result.distance, result.accepted = int(match.index), float(match.distance), \

@@ -176,3 +176,24 @@ def test_views_and_snapshots_without_a_skyline_are_never_accepted(route, name, t
     on_blank = matches.index % 10 == 0
     assert np.any(on_blank) and not np.any(matches.accepted[on_blank])
     np.testing.assert_array_equal(matches.accepted[~on_blank], reference.accepted[~on_blank])
+
+
+def test_a_map_and_views_of_a_higher_degree_are_cut_to_the_descriptor_degree(route, store, tmp_path):
+    # the same route at degree 10 plus made-up degrees 11-12: a degree-10 Localizer must not see the extra degrees
+    rng = np.random.default_rng(5)
+    extra = rng.normal(size=(len(route), (DEGREE + 3) ** 2 - (DEGREE + 1) ** 2))
+    higher = np.concatenate([route, extra], axis=1)
+    with create_map(tmp_path / 'higher.db', 'higher', DEGREE + 2) as writer:
+        for i, coefficients in enumerate(higher):
+            writer.add_snapshot(coefficients, i, np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0]))
+    queries, _ = repeat_drive(route, seed=3)
+    queries_higher = np.concatenate([queries, rng.normal(size=(len(queries), extra.shape[1]))], axis=1)
+    for name in OUR_METHODS:
+        reference = Localizer(store, name).match_sequence(coefficients=queries)
+        cut = Localizer(MapStore.open(tmp_path / 'higher.db'), name, degree=DEGREE)
+        assert cut.degree == DEGREE
+        matches = cut.match_sequence(coefficients=queries_higher)
+        np.testing.assert_array_equal(matches.index, reference.index)
+        np.testing.assert_array_equal(matches.accepted, reference.accepted)
+        full = Localizer(MapStore.open(tmp_path / 'higher.db'), name, degree=64)
+        assert full.degree == DEGREE + 2  # never above the map's
