@@ -24,7 +24,7 @@ import time  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from skynav_sh.camera import EquidistantCamera  # noqa: E402
+from skynav_core.camera import EquidistantCamera  # noqa: E402
 from skynav_sim.recording import captures  # noqa: E402
 from skynav_sim.scenarios import ScenarioParameters, build  # noqa: E402
 from skynav_sim.world import generate  # noqa: E402

@@ -7,9 +7,9 @@ import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.testing import run_skynav
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.bag import open_bag
+from skynav_core.testing import run_skynav
+from skynav_core.camera import EquidistantCamera
 
 BAGS = sorted((Path(__file__).parents[1] / 'bags').glob('*.mcap'))
 INPUT_TOPICS = {

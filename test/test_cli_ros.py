@@ -8,14 +8,14 @@ import time
 
 import yaml
 
-from skynav_bringup.testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
+from skynav_core.testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
 
 
 def test_echo_prints_a_custom_message_as_yaml(ros_context):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from skynav_bringup.ros import message_class
+    from skynav_core.ros import message_class
 
     PlaceMatch = message_class('skynav_msgs/msg/PlaceMatch')
     node = Node('match_source', context=ros_context)
@@ -67,7 +67,7 @@ def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
     # A trivial node, registered the way skynav packages register theirs (a `skynav.nodes` entry point).
     (tmp_path / 'trivial_node.py').write_text(textwrap.dedent('''
         from rclpy.node import Node
-        from skynav_bringup.ros import run_node
+        from skynav_core.ros import run_node
 
         class Trivial(Node):
             def __init__(self):

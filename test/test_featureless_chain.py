@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.testing import run_skynav, write_featureless_recording
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.bag import open_bag
+from skynav_core.testing import run_skynav, write_featureless_recording
+from skynav_core.camera import EquidistantCamera
 
 FOV = np.radians(200.0)  # rad: the bundled recordings' fish-eye
 DEGREE = 16

@@ -10,9 +10,9 @@ import time
 
 import numpy as np
 
-from skynav_bringup.msgyaml import to_plain
-from skynav_bringup.ros import message_class
-from skynav_bringup.testing import start_skynav, write_sample_bag
+from skynav_core.msgyaml import to_plain
+from skynav_core.ros import message_class
+from skynav_core.testing import start_skynav, write_sample_bag
 
 
 def rclpy_to_plain(message):

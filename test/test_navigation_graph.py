@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.images import stamp_ns
-from skynav_bringup.testing import run_skynav, start_skynav, wait_text
+from skynav_core.bag import open_bag
+from skynav_core.images import stamp_ns
+from skynav_core.testing import run_skynav, start_skynav, wait_text
 from skynav_localize.evaluation import correct_matches
 from skynav_localize.store import MapStore
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.testing import messages_equal, start_skynav, wait_text, write_sample_bag
+from skynav_core.bag import open_bag
+from skynav_core.testing import messages_equal, start_skynav, wait_text, write_sample_bag
 
 
 def test_replay_then_record_reproduces_the_bag(tmp_path):
@@ -61,7 +61,7 @@ def test_stopped_recorder_leaves_a_whole_bag(tmp_path, ros_context, stop):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from skynav_bringup.ros import message_class
+    from skynav_core.ros import message_class
 
     ShCoefficients = message_class('skynav_msgs/msg/ShCoefficients')
     node = Node('sh_source', context=ros_context)

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.images import fill_image, image_to_array, stamp_ns
-from skynav_bringup.testing import start_skynav, wait_text
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.bag import open_bag
+from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.testing import start_skynav, wait_text
+from skynav_core.camera import EquidistantCamera
 from skynav_skyline.classify import classification_rate
 
 BAGS = Path(__file__).parents[1] / 'bags'
@@ -36,7 +36,7 @@ def ground_truth(path):
 
 def start_node(module: str, *ros_args: str) -> subprocess.Popen:
     """Start a node class in a process of its own, as `skynav launch` does."""
-    return subprocess.Popen([sys.executable, '-m', 'skynav_bringup.run_node', module, '--ros-args', *ros_args],
+    return subprocess.Popen([sys.executable, '-m', 'skynav_core.run_node', module, '--ros-args', *ros_args],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 

@@ -3,35 +3,32 @@
     python tools/link_data_files.py PREFIX PACKAGE_DIR...
 
 `pip install -e` does not install a package's data_files (its package.xml,
-the ament index marker, config and launch files under share/), so
-`get_package_share_directory` would not find it. This does what colcon's
---symlink-install does: each file is linked, so edits in the source tree are
-seen at once. Links that point into a package's source but whose file is gone
+the ament index marker, config and launch files under share/, as its
+setup.cfg declares them), so `get_package_share_directory` would not find
+it. This does what colcon's --symlink-install does: each file is linked, so
+edits in the source tree are seen at once. Links that point into a package's source but whose file is gone
 are removed.
 """
 
 from __future__ import annotations
 
-import os
-import runpy
+import configparser
 import sys
 from pathlib import Path
-from unittest import mock
-
-import setuptools
 
 
 def data_files(package_dir: Path) -> list[tuple[str, list[str]]]:
-    """Return the data_files a package's setup.py declares (paths relative to the package)."""
-    declared: dict = {}
-    cwd = os.getcwd()
-    os.chdir(package_dir)
-    try:
-        with mock.patch.object(setuptools, 'setup', lambda **kwargs: declared.update(kwargs)):
-            runpy.run_path('setup.py', run_name='__main__')
-    finally:
-        os.chdir(cwd)
-    return declared.get('data_files', [])
+    """Return the data_files a package's setup.cfg declares (paths relative to the package, globs expanded)."""
+    config = configparser.ConfigParser()
+    config.read(package_dir / 'setup.cfg')
+    if not config.has_section('options.data_files'):
+        return []
+    declared = []
+    for target, patterns in config.items('options.data_files'):
+        files = sorted(str(path.relative_to(package_dir)) for pattern in patterns.split()
+                       for path in package_dir.glob(pattern))
+        declared.append((target, files))
+    return declared
 
 
 def link(prefix: Path, package_dir: Path) -> int:

@@ -14,7 +14,7 @@ from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from skynav_bringup.nodes import installed_nodes
+from skynav_core.nodes import installed_nodes
 
 
 def generate_launch_description():

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from skynav_sh.lazy import lazy_exports
+from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
     'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation', 'rotation_angle',

@@ -67,8 +67,8 @@ def load_compass_set(path: str | Path) -> CompassSet:
     """Return the compass set of a recording (first camera info; frames in stamp order; labels from metadata)."""
     import yaml
 
-    from skynav_bringup.bag import open_bag
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.bag import open_bag
+    from skynav_core.camera import EquidistantCamera
 
     frames: dict[int, dict] = {}
     camera = None

@@ -20,9 +20,9 @@ import numpy as np
 from skynav_msgs.msg import CompassEstimate, PlaceMatch, ShCoefficients
 from std_srvs.srv import Trigger
 
-from skynav_bringup.images import stamp_ns
-from skynav_bringup.node import SkynavNode
-from skynav_bringup.ros import run_node
+from skynav_core.images import stamp_ns
+from skynav_core.node import SkynavNode
+from skynav_core.ros import run_node
 from skynav_sh.product import seen_mean, shows_skyline
 
 from .compass import MAX_TILT, Compass, CompassConfig

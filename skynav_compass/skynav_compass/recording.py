@@ -1,6 +1,6 @@
 """The compass measured on a recording as the node graph sees it: the skyline and SH nodes' output, ground truth.
 
-`evaluate_recording` runs the installed skyline and SH nodes over a recording in this process (skynav_sh.views,
+`evaluate_recording` runs the installed skyline and SH nodes over a recording in this process (skynav_core.views,
 the same code and parameters as `skynav run`), turns each /skyline/sh output into a CompassView
 (CompassView.from_sh_message with the SH node's fill and field of view), and compares every view against one
 snapshot with each method. The snapshot is the recording's frame labelled 'reference' (else its first frame with a
@@ -92,7 +92,7 @@ class RecordingEvaluation:
 
 def recording_methods(camera, max_degree: int, field_of_view: float, fill: str = 'zero',
                       names: Sequence[str] = DEFAULT_METHODS, max_tilt: float | None = MAX_TILT) -> list[Method]:
-    """Return the named methods for views of the SH node (skynav_sh.views.View): prepare(view) -> its input.
+    """Return the named methods for views of the SH node (skynav_core.views.View): prepare(view) -> its input.
 
     field_of_view (rad) and fill: as the SH node made the coefficients (its ShCoefficients fields); max_tilt (rad):
     the tilt bound of the fft-masked and fft-zero compasses (the compass node's `max_tilt_deg`).
@@ -144,7 +144,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
                    fill: str = 'zero', field_of_view: float | None = None,
                    clock: Callable[[], float] = time.process_time, repeats: int = 1,
                    max_tilt: float | None = MAX_TILT) -> RecordingEvaluation:
-    """Return every method's errors on the views of a recording (skynav_sh.views.RecordingViews) against a snapshot.
+    """Return every method's errors on the views of a recording (skynav_core.views.RecordingViews) against a snapshot.
 
     snapshot None: the recording's frame labelled 'reference' (else its first frame with a pose). fill and
     field_of_view (rad; default the camera's): how the SH node made the coefficients. max_tilt (rad): the tilt bound
@@ -231,7 +231,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
 
 @dataclass(frozen=True)
 class _SnapshotView:
-    """A snapshot known only by its SH coefficients (a map's): the fields of skynav_sh.views.View methods read."""
+    """A snapshot known only by its SH coefficients (a map's): the fields of skynav_core.views.View methods read."""
 
     coefficients: np.ndarray
     uv: Any = None
@@ -246,7 +246,7 @@ def evaluate_recording(path: str | Path, methods: Sequence[str] = DEFAULT_METHOD
 
     See evaluate_views; the SH node's fill and field of view come from the parameter files in ros_args.
     """
-    from skynav_sh.views import recording_views
+    from skynav_core.views import recording_views
 
     if unknown := [n for n in methods if n not in RECORDING_METHODS]:
         raise EvaluationError(f'unknown method {", ".join(unknown)} (one of {", ".join(RECORDING_METHODS)})')

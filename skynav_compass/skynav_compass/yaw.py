@@ -41,7 +41,7 @@ class PanoramicCompass:
         """Prepare the unwrapping remap of a camera: n_azimuth columns over 2 pi, n_polar rows up to max_theta (rad)."""
         import cv2
 
-        from skynav_sh.camera import directions_from_angles
+        from skynav_core.camera import directions_from_angles
 
         self.camera = camera
         self.n_azimuth = int(n_azimuth)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_bringup.testing import one_line_error, run_skynav
+from skynav_core.testing import one_line_error, run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 GARDEN = BAGS / 'synthetic_garden_compass.mcap'
@@ -23,10 +23,10 @@ PNG_MAGIC = b'\x89PNG\r\n\x1a\n'
 @pytest.fixture(scope='module')
 def garden_views():
     """The garden compass set as the skyline and SH nodes see it (default node parameters)."""
-    from skynav_bringup.cli.run import ros_arguments
-    from skynav_sh.views import recording_views
+    from skynav_core.cli import graph_arguments
+    from skynav_core.views import recording_views
 
-    return recording_views(GARDEN, ros_arguments(None, None), images=True, masks=True)
+    return recording_views(GARDEN, graph_arguments(None, None), images=True, masks=True)
 
 
 @pytest.fixture(scope='module')
@@ -74,7 +74,7 @@ def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
     errors = e.result('fft-masked').errors
     assert errors[e.stamps == reference.stamp][0] < 1e-3  # the snapshot against itself
     assert e.statistics('fft-masked', 'rotation').median < 1.0
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     with pytest.raises(CliError, match='no ground-truth pose'):
         map_snapshot(tmp_path / 'one.db', 0)
@@ -101,9 +101,9 @@ def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
 
 
 def _bag_without_camera(path: Path) -> Path:
-    from skynav_bringup.bag import BagWriter
-    from skynav_bringup.testing import sample_messages
-    from skynav_bringup.typestore import typestore
+    from skynav_core.bag import BagWriter
+    from skynav_core.testing import sample_messages
+    from skynav_core.typestore import typestore
 
     with BagWriter(path) as writer:
         for topic, msgtype, t, message in sample_messages(3):

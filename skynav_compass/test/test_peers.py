@@ -12,7 +12,7 @@ from skynav_compass import (CompassView, ExhaustiveCompass, ExhaustiveConfig, Fe
                             YawCompass, cap_visibility, decompose_essential, eight_point, estimate_rotation, kabsch,
                             load_compass_set, rotation_angle)
 from skynav_sh.basis import degree_order
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 from skynav_sh.fisheye import FisheyeTransform
 from skynav_sh.rotation import rotate
 

@@ -31,8 +31,8 @@ TIMES = ('same', 'noon')  # the snapshot's time of day: the views' (morning), or
 @pytest.fixture(scope='module')
 def evaluations(stellarium, tmp_path_factory):
     """Return the compass evaluations {(landscape, snapshot time, SH degree): evaluation}, rendered at 320x240."""
-    from skynav_bringup.cli.run import ros_arguments
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.cli import graph_arguments
+    from skynav_core.camera import EquidistantCamera
     from skynav_sim import recording
     from skynav_sim.cli.options import DEFAULT_DISTORTION
     from skynav_sim.scenarios import ScenarioParameters, build, describe
@@ -44,7 +44,7 @@ def evaluations(stellarium, tmp_path_factory):
     for degree in DEGREES:
         params_file = folder / f'degree_{degree}.yaml'
         params_file.write_text(f'sh:\n  ros__parameters:\n    max_degree: {degree}\n')
-        arguments[degree] = ros_arguments(params_file, None)
+        arguments[degree] = graph_arguments(params_file, None)
     distortion = tuple(float(k) for k in DEFAULT_DISTORTION.split(','))
     camera = EquidistantCamera.for_field_of_view(320, 240, np.radians(200.0), distortion)
     out = {}

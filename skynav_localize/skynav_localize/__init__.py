@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from skynav_sh.lazy import lazy_exports
+from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
     'store': ('MapError', 'MapStore', 'Snapshot', 'SCHEMA_VERSION'),

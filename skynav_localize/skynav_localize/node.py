@@ -15,9 +15,9 @@ import math
 import numpy as np
 from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
-from skynav_bringup.images import stamp_ns
-from skynav_bringup.node import SkynavNode
-from skynav_bringup.ros import run_node
+from skynav_core.images import stamp_ns
+from skynav_core.node import SkynavNode
+from skynav_core.ros import run_node
 
 from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams

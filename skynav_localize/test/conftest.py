@@ -1,6 +1,6 @@
 """Shared test data: synthetic SH routes, and the bundled synthetic recordings turned into SH coefficients.
 
-The recordings are read through skynav_bringup.bag; SH coefficients come from the ground-truth sky masks
+The recordings are read through skynav_core.bag; SH coefficients come from the ground-truth sky masks
 (FisheyeTransform, fill 'zero'), so these tests measure place recognition, not segmentation.
 """
 
@@ -48,8 +48,8 @@ class Recording:
 
 def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
     """Read a bundled recording's masks, UV images and poses; SH coefficients from the ground-truth masks."""
-    from skynav_bringup.bag import open_bag
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.bag import open_bag
+    from skynav_core.camera import EquidistantCamera
     from skynav_sh.fisheye import FisheyeTransform
 
     masks, uv, poses, info = {}, {}, {}, None
@@ -94,8 +94,8 @@ def make_view():
 
 @pytest.fixture
 def featureless_recording(tmp_path):
-    """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_bringup.testing)."""
-    from skynav_bringup.testing import write_featureless_recording
+    """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_core.testing)."""
+    from skynav_core.testing import write_featureless_recording
 
     def write(kind: str, frames: int = 30) -> Path:
         return write_featureless_recording(tmp_path / f'synthetic_featureless_{kind}.mcap', kind, frames)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_bringup.testing import one_line_error, run_skynav
+from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.localizer import Localizer
 from skynav_localize.store import MapError, MapStore
 

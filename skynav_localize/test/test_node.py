@@ -7,11 +7,11 @@ import pytest
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
-from skynav_bringup.bag import RawMessage
-from skynav_bringup.graph import in_process, type_name
-from skynav_bringup.nodes import NodeSpec
-from skynav_bringup.testing import run_skynav
-from skynav_sh.views import recording_views
+from skynav_core.bag import RawMessage
+from skynav_core.graph import in_process, type_name
+from skynav_core.nodes import NodeSpec
+from skynav_core.testing import run_skynav
+from skynav_core.views import recording_views
 
 BAGS = Path(__file__).parents[2] / 'bags'
 SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
@@ -90,7 +90,7 @@ def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
 
 
 def test_map_info_refuses_foreign_and_corrupt_files(tmp_path, garden_map):
-    from skynav_bringup.testing import one_line_error
+    from skynav_core.testing import one_line_error
 
     foreign = tmp_path / 'foreign.db'
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()

@@ -11,13 +11,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from skynav_sh.lazy import lazy_exports
+from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
     'basis': ('SPHERE_AREA', 'degree_from_size', 'degree_order', 'degree_slices', 'lm_index', 'n_coefficients',
               'normalised_legendre', 'real_sh', 'real_sh_directions'),
-    'camera': ('Camera', 'CameraModel', 'EquidistantCamera', 'OCamCamera', 'angles_from_directions',
-               'directions_from_angles', 'load_camera'),
     'transform': ('GaussLegendreGrid', 'analysis', 'grid', 'synthesis', 'synthesis_at'),
     'fisheye': ('FILLS', 'FisheyeTransform', 'image_values'),
     'rotation': ('as_matrix', 'matrix_from_zyz', 'quarter_turn', 'rotate', 'rotate_y', 'rotate_z', 'rotate_zyz',
@@ -35,7 +33,6 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_sh.basis import *  # noqa: F401,F403
-    from skynav_sh.camera import *  # noqa: F401,F403
     from skynav_sh.coupling import *  # noqa: F401,F403
     from skynav_sh.fisheye import *  # noqa: F401,F403
     from skynav_sh.product import *  # noqa: F401,F403

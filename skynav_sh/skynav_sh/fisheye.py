@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from skynav_sh.camera import Camera
+from skynav_core.camera import Camera
 from skynav_sh.transform import GaussLegendreGrid, grid
 
 FILLS = ('zero', 'mean', 'mirror')

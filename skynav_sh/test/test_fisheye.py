@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from skynav_sh.basis import n_coefficients, real_sh
-from skynav_sh.camera import EquidistantCamera, OCamCamera, angles_from_directions
+from skynav_core.camera import EquidistantCamera, OCamCamera, angles_from_directions
 from skynav_sh.fisheye import FisheyeTransform
 
 DEGREE = 24
@@ -176,7 +176,7 @@ def test_visibility_is_the_image_circle_cap():
 
 
 def test_ocam_camera_cap_mask():
-    camera = OCamCamera.from_calib_file(Path(__file__).parent / 'data' / 'calib_results.txt')
+    camera = OCamCamera.from_calib_file(Path(__file__).parents[2] / 'skynav_core' / 'test' / 'data' / 'calib_results.txt')
 
     def cap(directions):
         return (angles_from_directions(directions)[0] < np.radians(75)).astype(float)

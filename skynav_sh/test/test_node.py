@@ -5,11 +5,11 @@ import math
 import numpy as np
 from rclpy.serialization import serialize_message
 
-from skynav_bringup.bag import RawMessage
-from skynav_bringup.graph import in_process, type_name
-from skynav_bringup.images import fill_image
-from skynav_bringup.nodes import NodeSpec
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.bag import RawMessage
+from skynav_core.graph import in_process, type_name
+from skynav_core.images import fill_image
+from skynav_core.nodes import NodeSpec
+from skynav_core.camera import EquidistantCamera
 from skynav_sh.fisheye import FisheyeTransform
 
 SPEC = NodeSpec('sh', 'skynav_sh', 'skynav_sh.node:ShNode')

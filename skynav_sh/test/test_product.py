@@ -127,7 +127,7 @@ def featureless_masks(camera) -> dict[str, np.ndarray]:
 
 @pytest.mark.parametrize('fill', ['zero', 'mean', 'mirror'])
 def test_sky_share_tells_views_without_a_skyline_from_views_with_one(fill):
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.camera import EquidistantCamera
     from skynav_sh.fisheye import FisheyeTransform
 
     camera = EquidistantCamera.for_field_of_view(160, 120, FEATURELESS_FOV)

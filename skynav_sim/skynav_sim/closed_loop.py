@@ -23,11 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from skynav_bringup.graph import in_process
-from skynav_bringup.images import fill_image
-from skynav_bringup.node import SkynavNode
-from skynav_bringup.nodes import NodeSpec, installed_nodes
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.graph import in_process
+from skynav_core.images import fill_image
+from skynav_core.node import SkynavNode
+from skynav_core.nodes import NodeSpec, installed_nodes
+from skynav_core.camera import EquidistantCamera
 
 from .recording import CAMERA_FRAME, start_stamp
 from .render import Renderer

@@ -15,7 +15,7 @@ import numpy as np
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from skynav_bringup.ros import message_class, run_node
+from skynav_core.ros import message_class, run_node
 
 from . import recording
 from .cli import options

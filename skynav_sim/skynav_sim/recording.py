@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 
 from .render import Renderer, View
 from .scenarios import FRAME_RATE, Frame
@@ -80,8 +80,8 @@ def captures(world: World, camera: EquidistantCamera, frames: list[Frame], encod
 def write(path: str | Path, world: World, camera: EquidistantCamera, frames: list[Frame], encoding: str,
           seed: int, description: dict, progress: Callable[[int], None] | None = None) -> Path:
     """Render `frames` into a recording at `path` (written atomically); return the path."""
-    from skynav_bringup.bag import BagWriter
-    from skynav_bringup.typestore import typestore
+    from skynav_core.bag import BagWriter
+    from skynav_core.typestore import typestore
 
     store = typestore()
     T = store.types

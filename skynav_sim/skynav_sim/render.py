@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 
 from .materials import GREEN_RANGE, TEXTURE_SCALE, UV_RANGE, Surface
 from .noise import FractalNoise

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_sh.camera import EquidistantCamera, angles_from_directions
+from skynav_core.camera import EquidistantCamera, angles_from_directions
 from skynav_sim.materials import Surface
 from skynav_sim.primitives import ConvexPolytope, Ellipsoid
 from skynav_sim.render import CameraPose, Renderer

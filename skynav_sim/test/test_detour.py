@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from skynav_bringup.testing import one_line_error, run_skynav
+from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.scenarios import ScenarioParameters, build, describe
 from skynav_sim.world import generate
 

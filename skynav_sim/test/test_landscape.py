@@ -7,7 +7,7 @@ import pytest
 from scipy.ndimage import binary_erosion
 from scipy.spatial.transform import Rotation
 
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 from skynav_sim.landscape import LANDSCAPES, Backdrop, load, srgb_to_linear
 from skynav_sim.render import CameraPose, Renderer
 from skynav_sim.robot import CAMERA_HEIGHT

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_erosion
 
-from skynav_bringup.bag import open_bag
-from skynav_bringup.testing import one_line_error, run_skynav
-from skynav_sh.camera import EquidistantCamera, angles_from_directions
+from skynav_core.bag import open_bag
+from skynav_core.testing import one_line_error, run_skynav
+from skynav_core.camera import EquidistantCamera, angles_from_directions
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE
 from skynav_sim.render import Renderer
 from skynav_sim.scenarios import ScenarioParameters, build

@@ -13,11 +13,11 @@ from functools import partial
 import numpy as np
 from sensor_msgs.msg import CameraInfo, Image
 
-from skynav_bringup.images import ImageError, fill_image, image_to_array, stamp_ns
-from skynav_bringup.node import SENSOR_QOS, SkynavNode
-from skynav_bringup.pairing import StampPairer
-from skynav_bringup.ros import run_node
-from skynav_sh.camera_input import CAMERA_INFO_TOPIC, CameraInput
+from skynav_core.images import ImageError, fill_image, image_to_array, stamp_ns
+from skynav_core.node import SENSOR_QOS, SkynavNode
+from skynav_core.pairing import StampPairer
+from skynav_core.ros import run_node
+from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 
 from .geometry import SkylineGeometry
 from .parameters import PARAMETERS, skyline_params

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
-from skynav_sh.camera import EquidistantCamera, angles_from_directions
+from skynav_core.camera import EquidistantCamera, angles_from_directions
 
 SKY_UV = 1.0  # sky UV radiance at the zenith (arbitrary radiance unit)
 SKY_UV_GREEN_RATIO = 1.6  # UV/G of the sky

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 
-from skynav_bringup.bag import RawMessage
-from skynav_bringup.graph import in_process
-from skynav_bringup.images import fill_image, image_to_array, stamp_ns
-from skynav_bringup.nodes import NodeSpec
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.bag import RawMessage
+from skynav_core.graph import in_process
+from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.nodes import NodeSpec
+from skynav_core.camera import EquidistantCamera
 
 SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
 CAMERA = EquidistantCamera.for_field_of_view(64, 48, math.radians(200))
@@ -18,7 +18,7 @@ T0 = 1_700_000_000 * 10**9
 
 
 def raw(topic, message, stamp):
-    from skynav_bringup.graph import type_name
+    from skynav_core.graph import type_name
 
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
     return RawMessage(topic, type_name(message), stamp, serialize_message(message))

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from skynav_bringup.environment import share_directory
+from skynav_core.environment import share_directory
 from skynav_skyline.parameters import PARAMETERS, defaults, load_parameter_file, skyline_params
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 from skynav_sim.landscape import LANDSCAPES
 from skynav_sim.recording import captures
 from skynav_sim.scenarios import ScenarioParameters, build

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.ndimage import label
 
-from skynav_sh.camera import EquidistantCamera, angles_from_directions
+from skynav_core.camera import EquidistantCamera, angles_from_directions
 from skynav_skyline.geometry import SkylineGeometry
 from skynav_skyline.segment import SkylineParams, SkylineSegmenter
 from skynav_skyline.structure import outermost_band_end, unanchored_ground

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from skynav_sh.lazy import lazy_exports
+from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
     'views': ('DEFAULT_RIM_TAPER', 'WarpView', 'cap_fraction', 'rim_weights', 'view_from_coefficients',

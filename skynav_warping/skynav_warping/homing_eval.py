@@ -1,6 +1,6 @@
 """Homing on a recorded grid, measured as the node graph runs: every method's home vectors against ground truth.
 
-The input is a recording's views as the skyline and SH nodes produce them (skynav_sh.views.recording_views, with
+The input is a recording's views as the skyline and SH nodes produce them (skynav_core.views.recording_views, with
 the skyline node's masks): SH coefficients of the skyline mask (fill 'zero'), the mask itself and the ground-truth
 pose of camera_link in map. The snapshot is the recording's frame labelled 'snapshot' (else its first frame) or a
 map snapshot with a ground-truth pose. Methods:
@@ -178,7 +178,7 @@ def _prepared(function, snapshot_item, items):
 
 def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None = None,
                     settings: WarpingSettings = WarpingSettings(), progress=None) -> HomingEvaluation:
-    """Return every method's home vectors for the recording's views (skynav_sh.views.RecordingViews) to a snapshot.
+    """Return every method's home vectors for the recording's views (skynav_core.views.RecordingViews) to a snapshot.
 
     snapshot: None for the recording's own (recording_snapshot). The current views are all views with a ground-truth
     pose except the snapshot's frame and any nearer its place than MIN_DISTANCE. progress(k) is called per method

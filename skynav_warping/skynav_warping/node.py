@@ -23,10 +23,10 @@ from functools import lru_cache
 import numpy as np
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
-from skynav_bringup.images import stamp_ns
-from skynav_bringup.node import SkynavNode
-from skynav_bringup.pairing import StampPairer
-from skynav_bringup.ros import run_node
+from skynav_core.images import stamp_ns
+from skynav_core.node import SkynavNode
+from skynav_core.pairing import StampPairer
+from skynav_core.ros import run_node
 from skynav_sh.product import message_sky_share, shows_skyline
 from skynav_compass.compass import MAX_TILT
 

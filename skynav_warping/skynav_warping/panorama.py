@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from skynav_sh.camera import directions_from_angles
+from skynav_core.camera import directions_from_angles
 
 DEFAULT_ELEVATIONS = (np.radians(-10.0), np.radians(40.0))  # rad, lowest and highest elevation of the band
 

@@ -1,6 +1,6 @@
 """A homing grid read from a recording (synthetic or real): snapshot frame 0, current views after it.
 
-Reads a rosbag2 MCAP through skynav_bringup.bag (imported when called; a workspace sibling, not needed by the
+Reads a rosbag2 MCAP through skynav_core.bag (imported when called; a workspace sibling, not needed by the
 warping code itself). Frames are paired by header stamp across /ground_truth/pose, /ground_truth/mask and the two
 image topics; the camera comes from /camera/uv/camera_info.
 """
@@ -46,8 +46,8 @@ def load_homing_grid(path: str) -> HomingGrid:
     """Return the frames of a homing recording (needs /ground_truth/pose, /ground_truth/mask, camera info)."""
     import yaml
 
-    from skynav_bringup.bag import open_bag
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.bag import open_bag
+    from skynav_core.camera import EquidistantCamera
 
     by_stamp: dict[int, dict] = {}
     camera = None

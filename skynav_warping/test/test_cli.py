@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from skynav_bringup.cli import main
-from skynav_bringup.testing import one_line_error, run_skynav, sample_messages
+from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_localize.store import MapStore, Snapshot
-from skynav_sh.views import recording_views
+from skynav_core.views import recording_views
 from skynav_warping.cli import eval as eval_cli
 from skynav_warping.homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
 
@@ -132,8 +132,8 @@ def test_cli_methods_match_the_library():
 
 
 def _write_pose_only_bag(path: Path) -> None:
-    from skynav_bringup.bag import BagWriter
-    from skynav_bringup.typestore import typestore
+    from skynav_core.bag import BagWriter
+    from skynav_core.typestore import typestore
 
     with BagWriter(path) as writer:
         for topic, msgtype, t, message in sample_messages(frames=2):

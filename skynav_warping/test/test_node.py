@@ -22,13 +22,13 @@ from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
-from skynav_bringup.bag import RawMessage
-from skynav_bringup.graph import in_process, type_name
-from skynav_bringup.images import stamp_ns
-from skynav_bringup.nodes import NodeSpec
+from skynav_core.bag import RawMessage
+from skynav_core.graph import in_process, type_name
+from skynav_core.images import stamp_ns
+from skynav_core.nodes import NodeSpec
 from skynav_localize.mapping import build_map
 from skynav_localize.store import Snapshot
-from skynav_sh.views import recording_views
+from skynav_core.views import recording_views
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_park_homing.mcap'
 WARPING = NodeSpec('warping', 'skynav_warping', 'skynav_warping.node:WarpingNode')

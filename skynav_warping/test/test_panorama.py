@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_sh.camera import EquidistantCamera, angles_from_directions
+from skynav_core.camera import EquidistantCamera, angles_from_directions
 from skynav_warping import PanoramaUnwrapper
 
 CAMERA = EquidistantCamera.for_field_of_view(320, 240, np.radians(200))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from skynav_sh.camera import EquidistantCamera
+from skynav_core.camera import EquidistantCamera
 from skynav_sh.fisheye import FisheyeTransform
 from skynav_sh.transform import grid
 from skynav_warping import WarpingSettings, hypothesis_costs, view_from_coefficients, view_from_fisheye, \

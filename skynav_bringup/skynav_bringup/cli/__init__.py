@@ -22,17 +22,11 @@ import sys
 from collections.abc import Sequence
 from importlib.metadata import entry_points
 
-from ..environment import apply_ros_environment
+from skynav_core.cli import CliError
+from skynav_core.environment import apply_ros_environment
 
 COMMAND_GROUP = 'skynav.commands'
-
-
-class CliError(Exception):
-    """A failure to report as one line, with the exit code to return."""
-
-    def __init__(self, message: str, exit_code: int = 1) -> None:
-        super().__init__(message)
-        self.exit_code = exit_code
+__all__ = ['CliError', 'build_parser', 'main']
 
 
 def _subparsers(parser: argparse.ArgumentParser, path: str) -> argparse._SubParsersAction:
@@ -93,8 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)
         return 2
-    from ..bag import BagError
-    from ..typestore import UnknownMessageType
+    from skynav_core.bag import BagError
+    from skynav_core.typestore import UnknownMessageType
 
     try:
         return args.run(args) or 0

@@ -77,11 +77,11 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
     """Print the classification rate of every mask against ground truth, draw a contact sheet; return the rates."""
     import numpy as np
 
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.camera import EquidistantCamera
     from skynav_skyline.classify import classification_rate
 
-    from ..bag import open_bag
-    from ..images import image_to_array, stamp_ns
+    from skynav_core.bag import open_bag
+    from skynav_core.images import image_to_array, stamp_ns
 
     inputs: dict[int, dict] = {}
     camera = None
@@ -153,8 +153,8 @@ def ground_truth_poses(recording: Path) -> dict:
     import numpy as np
     from scipy.spatial.transform import Rotation
 
-    from ..bag import open_bag
-    from ..images import stamp_ns
+    from skynav_core.bag import open_bag
+    from skynav_core.images import stamp_ns
 
     poses = {}
     with open_bag(recording) as bag:
@@ -172,8 +172,8 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     from skynav_localize.evaluation import correct_matches, plot_matches_along_route
     from skynav_localize.store import MapStore
 
-    from ..bag import open_bag
-    from ..images import stamp_ns
+    from skynav_core.bag import open_bag
+    from skynav_core.images import stamp_ns
 
     with open_bag(run_bag) as bag:
         matches = [bag.deserialize(raw) for raw in bag.messages(['/localization/match'])]
@@ -209,8 +209,8 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
 
     from skynav_localize.store import MapStore
 
-    from ..bag import open_bag
-    from ..images import stamp_ns
+    from skynav_core.bag import open_bag
+    from skynav_core.images import stamp_ns
 
     with open_bag(run_bag) as bag:
         compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]

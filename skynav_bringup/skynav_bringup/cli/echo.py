@@ -33,10 +33,10 @@ def run(args: argparse.Namespace) -> int:
     """Echo the topic; return the exit code."""
     from rclpy.validate_topic_name import validate_topic_name
 
-    from ..msgyaml import to_yaml
-    from ..qos import subscription_qos
-    from ..ros import StopRequest, message_class, spin_until, tool_node
-    from ..typestore import ensure_type, typestore
+    from skynav_core.msgyaml import to_yaml
+    from skynav_core.qos import subscription_qos
+    from skynav_core.ros import StopRequest, message_class, spin_until, tool_node
+    from skynav_core.typestore import ensure_type, typestore
     from . import CliError
 
     count = 1 if args.once else args.count

@@ -1,6 +1,6 @@
 """Start the skynav node graph on live topics, one process per node; Ctrl-C stops every node cleanly.
 
-The nodes are those installed in this environment (see `skynav_bringup.nodes`).
+The nodes are those installed in this environment (see `skynav_core.nodes`).
 Parameters come from the defaults shipped in skynav_bringup/config, overridden by the YAML file
 given with --params, in the ROS 2 format (`node_name: {ros__parameters: {...}}`); --map sets the
 map of the nodes that compare against one (localize, compass, warping). On a full ROS 2 install,
@@ -26,37 +26,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def default_params_file() -> Path | None:
     """Return the parameter file shipped with skynav_bringup, if installed."""
-    from ..environment import share_directory
+    from skynav_core.environment import share_directory
 
     share = share_directory('skynav_bringup')
     path = None if share is None else share / 'config' / 'skynav.yaml'
     return path if path is not None and path.is_file() else None
 
 
-def check_params_file(path: Path) -> None:
-    """Raise CliError unless `path` is a readable ROS 2 parameter file."""
-    import yaml
-
-    from . import CliError
-
-    try:
-        content = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise CliError(f'cannot read parameter file {path}: {exc.strerror}') from None
-    except yaml.YAMLError as exc:
-        raise CliError(f'parameter file {path} is not valid YAML: {str(exc).splitlines()[0]}') from None
-    if content is not None and not (
-        isinstance(content, dict)
-        and all(isinstance(v, dict) and 'ros__parameters' in v for v in content.values())
-    ):
-        raise CliError(f'parameter file {path} is not in the ROS 2 format (node_name: {{ros__parameters: ...}})')
-
-
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
-    from ..launcher import Launcher
-    from ..nodes import installed_nodes
-    from ..ros import StopRequest
+    from skynav_core.launcher import Launcher
+    from skynav_core.nodes import installed_nodes
+    from skynav_core.ros import StopRequest
     from . import CliError
     from .run import ros_arguments
 

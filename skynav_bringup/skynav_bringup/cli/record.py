@@ -26,9 +26,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C or SIGTERM; return the exit code."""
-    from ..bag import BagWriter
-    from ..recorder import Recorder
-    from ..ros import StopRequest, tool_node
+    from skynav_core.bag import BagWriter
+    from skynav_core.recorder import Recorder
+    from skynav_core.ros import StopRequest, tool_node
     from . import CliError
 
     if not args.topics and not args.all:

@@ -30,8 +30,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay the bag; return the exit code."""
-    from ..bag import open_bag
-    from ..ros import StopRequest, tool_node
+    from skynav_core.bag import open_bag
+    from skynav_core.ros import StopRequest, tool_node
     from . import CliError
 
     if args.rate < 0:
@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         topics = args.topics or list(bag.topics)
         if missing := [t for t in topics if t not in bag.topics]:
             raise CliError(f'{args.bag} has no topic {", ".join(missing)} (it has {", ".join(bag.topics)})')
-        from ..player import Player
+        from skynav_core.player import Player
 
         with StopRequest() as stop, tool_node('skynav_replay') as (node, executor):
             player = Player(node, bag, topics)

@@ -25,26 +25,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def ros_arguments(params: Path | None, map_path: Path | None) -> list[str]:
-    """Return the --ros-args of the graph: shipped defaults, the user's parameter file, the map."""
-    from .launch import check_params_file, default_params_file
+    """Return the --ros-args of the graph: the shipped defaults, then the user's parameter file, and the map."""
+    from skynav_core.cli import graph_arguments
 
-    arguments = []
-    for path in (default_params_file(), params):
-        if path is not None:
-            check_params_file(path)
-            arguments += ['--params-file', str(path)]
-    if map_path is not None:
-        arguments += ['-p', f'map:={map_path}']
-    return arguments
+    from .launch import default_params_file
+
+    shipped = default_params_file()
+    return (['--params-file', str(shipped)] if shipped is not None else []) + graph_arguments(params, map_path)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the graph; return the exit code."""
     from tqdm import tqdm
 
-    from ..bag import BagWriter, open_bag
-    from ..graph import in_process, node_class
-    from ..nodes import installed_nodes
+    from skynav_core.bag import BagWriter, open_bag
+    from skynav_core.graph import in_process, node_class
+    from skynav_core.nodes import installed_nodes
     from . import CliError
 
     specs = installed_nodes()

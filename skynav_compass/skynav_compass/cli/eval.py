@@ -52,8 +52,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
-    from skynav_bringup.cli import CliError
-    from skynav_bringup.cli.run import ros_arguments
+    from skynav_core.cli import CliError
+    from skynav_core.cli import graph_arguments
 
     from ..evaluation import plot_errors
     from ..recording import EvaluationError, evaluate_recording, format_report
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.index:
         raise CliError('--index chooses a map snapshot; give the map with --map', exit_code=2)
     try:
-        evaluation = evaluate_recording(args.bag, args.methods, snapshot, ros_arguments(args.params, None),
+        evaluation = evaluate_recording(args.bag, args.methods, snapshot, graph_arguments(args.params, None),
                                         repeats=args.repeats, max_tilt=max_tilt(args.max_tilt))
     except EvaluationError as exc:
         raise CliError(str(exc)) from None
@@ -101,7 +101,7 @@ def max_tilt(degrees: float | None) -> float:
 
 def map_snapshot(path: Path, index: int):
     """Return the map's snapshot `index` as an ExternalSnapshot (CliError if the map or its pose is unusable)."""
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
     from skynav_localize.store import MapError, MapStore
 
     from ..recording import ExternalSnapshot

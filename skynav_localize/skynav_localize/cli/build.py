@@ -41,10 +41,10 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from skynav_bringup.bag import open_bag
-    from skynav_bringup.cli import CliError
-    from skynav_bringup.cli.run import ros_arguments
-    from skynav_sh.views import recording_views
+    from skynav_core.bag import open_bag
+    from skynav_core.cli import CliError
+    from skynav_core.cli import graph_arguments
+    from skynav_core.views import recording_views
 
     from ..descriptors import describe
     from ..mapping import SnapshotSelector, baseline_descriptors, build_map, finish_baselines
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     with open_bag(args.bag) as bag:
         inputs = sum(bag.topics[t].count for t in CAMERA_TOPICS if t in bag.topics)
     with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
-        recording = recording_views(args.bag, ros_arguments(args.params, None), images=args.baselines,
+        recording = recording_views(args.bag, graph_arguments(args.params, None), images=args.baselines,
                                     progress=bar.update)
     if not recording.views:
         raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')

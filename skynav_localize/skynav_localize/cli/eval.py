@@ -38,9 +38,9 @@ def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
     import numpy as np
 
-    from skynav_bringup.cli import CliError
-    from skynav_bringup.cli.run import ros_arguments
-    from skynav_sh.views import recording_views
+    from skynav_core.cli import CliError
+    from skynav_core.cli import graph_arguments
+    from skynav_core.views import recording_views
 
     from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
     from ..localizer import BASELINES_HINT, METHODS, Localizer, missing_descriptors
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     needs_images = any(METHODS[name].source == 'uv' for name in methods)
     args.plots.mkdir(parents=True, exist_ok=True)
     for bag in args.bags:
-        recording = recording_views(bag, ros_arguments(args.params, None), images=needs_images)
+        recording = recording_views(bag, graph_arguments(args.params, None), images=needs_images)
         views = [v for v in recording.views if v.pose is not None]
         if not views:
             raise CliError(f'{bag}: no ground-truth poses to evaluate against')

@@ -15,7 +15,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the description; return the exit code."""
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from ..store import MapError, MapStore
 

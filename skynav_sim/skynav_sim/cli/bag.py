@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from .. import recording
     from . import options

@@ -40,9 +40,9 @@ def teach_world(teach: Path):
     """Return (world, seed, camera) of a synthetic teach recording; CliError when it is not one."""
     import yaml
 
-    from skynav_bringup.bag import BagError, open_bag
-    from skynav_bringup.cli import CliError
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.bag import BagError, open_bag
+    from skynav_core.cli import CliError
+    from skynav_core.camera import EquidistantCamera
 
     from ..world import STYLES, generate
 
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     """Follow the route once; return the exit code."""
     import numpy as np
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
     from skynav_localize.store import MapError, MapStore
 
     from ..closed_loop import STEP, follow_route, route_deviation

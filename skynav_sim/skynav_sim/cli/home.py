@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from ..closed_loop import home_runs, random_starts, snapshot_map
     from ..scenarios import ScenarioParameters, snapshot_place

@@ -59,7 +59,7 @@ def camera(args: argparse.Namespace):
     """Return the camera the options describe; raise ValueError for an impossible one."""
     import numpy as np
 
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.camera import EquidistantCamera
 
     try:
         width, height = (int(v) for v in args.size.lower().split('x'))

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     """Draw the sheet; return the exit code."""
     from pathlib import Path
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     out = Path(args.out)
     if not out.parent.is_dir():
@@ -62,7 +62,7 @@ def _chosen(count: int, wanted: int) -> list[int]:
 def _from_scenario(args):
     import numpy as np
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from ..preview import SheetFrame
     from ..recording import captures
@@ -92,7 +92,7 @@ def _from_bag(args):
     import numpy as np
     import yaml
 
-    from skynav_bringup.bag import open_bag
+    from skynav_core.bag import open_bag
 
     from ..preview import SheetFrame
     from ..world import generate
@@ -100,7 +100,7 @@ def _from_bag(args):
     with open_bag(args.bag) as bag:
         for topic in ('/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/ground_truth/pose'):
             if topic not in bag.topics:
-                from skynav_bringup.cli import CliError
+                from skynav_core.cli import CliError
 
                 raise CliError(f'{args.bag} has no {topic}; a preview needs images, masks and poses')
         by_stamp: dict[int, dict] = {}

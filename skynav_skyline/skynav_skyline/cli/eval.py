@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
     from pathlib import Path
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from ..parameters import defaults, load_parameter_file, skyline_params
     from ..segment import METHODS
@@ -78,7 +78,7 @@ def structure_label(params) -> str:
 
 def shipped_parameters() -> dict:
     """Return the skyline parameters of the shipped parameter file (empty if not installed)."""
-    from skynav_bringup.environment import share_directory
+    from skynav_core.environment import share_directory
 
     from ..parameters import load_parameter_file
 
@@ -92,7 +92,7 @@ def evaluate(paths, configurations):
     import numpy as np
     from tqdm import tqdm
 
-    from skynav_bringup.bag import open_bag
+    from skynav_core.bag import open_bag
 
     from ..classify import classification_rate
     from ..dataset import count_frames, labelled_frames

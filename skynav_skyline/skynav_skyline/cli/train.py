@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     import yaml
     from tqdm import tqdm
 
-    from skynav_bringup.cli import CliError
+    from skynav_core.cli import CliError
 
     from ..classify import learn_global
     from ..dataset import count_frames, labelled_frames

@@ -46,10 +46,10 @@ def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
     from tqdm import tqdm
 
-    from skynav_bringup.bag import open_bag
-    from skynav_bringup.cli import CliError
-    from skynav_bringup.cli.run import ros_arguments
-    from skynav_sh.views import recording_views
+    from skynav_core.bag import open_bag
+    from skynav_core.cli import CliError
+    from skynav_core.cli import graph_arguments
+    from skynav_core.views import recording_views
 
     from ..homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
 
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CliError(f'{args.plots}: cannot create the plot folder ({exc.strerror or exc})') from None
         with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
-            recording = recording_views(args.bag, ros_arguments(args.params, None), images=False, masks=True,
+            recording = recording_views(args.bag, graph_arguments(args.params, None), images=False, masks=True,
                                         progress=bar.update)
         if not recording.views:
             raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')

@@ -33,6 +33,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from .parameters import ParameterTable
+
 # Camera topics: best effort matches any publisher (drivers often publish best effort).
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
 # skynav's own topics: reliable, a short queue.
@@ -59,6 +61,8 @@ class SkynavNode(Node):
 
     #: Nodes that compare against a map are left out of `skynav run` when no map is given.
     needs_map: ClassVar[bool] = False
+    #: The node's parameters (declared with declare_table); the shipped parameter file is made from these tables.
+    PARAMETERS: ClassVar[ParameterTable] = {}
 
     def __init__(self, name: str, router: Router | None = None, context: Context | None = None) -> None:
         super().__init__(name, context=context)
@@ -82,6 +86,11 @@ class SkynavNode(Node):
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
 
     # --- parameters -------------------------------------------------------------------------
+
+    def declare_table(self, table: ParameterTable) -> None:
+        """Declare every parameter of a table (skynav_core.parameters) with its default and description."""
+        for name, (default, description) in table.items():
+            self.parameter(name, default, description)
 
     def parameter(self, name: str, default: Any, description: str) -> Any:
         """Declare a parameter with its description and return its value."""

@@ -26,7 +26,7 @@ POLL_PERIOD = 0.1
 
 def node_command(spec: NodeSpec, ros_args: Sequence[str] = ()) -> list[str]:
     """Return the command line that runs one node in a process of its own, with its --ros-args."""
-    return [sys.executable, '-m', 'skynav_bringup.run_node', spec.entry, '--ros-args', *ros_args]
+    return [sys.executable, '-m', 'skynav_core.run_node', spec.entry, '--ros-args', *ros_args]
 
 
 class Launcher:

@@ -1,6 +1,6 @@
 """Small rclpy helpers shared by the `skynav` tools and the nodes.
 
-Import this module only after :func:`skynav_bringup.environment.apply_ros_environment`
+Import this module only after :func:`skynav_core.environment.apply_ros_environment`
 has run (the `skynav` command and :func:`run_node` take care of it).
 """
 

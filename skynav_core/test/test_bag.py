@@ -6,10 +6,10 @@ import mcap.reader
 import pytest
 from rosbags.rosbag2 import Reader
 
-from skynav_bringup.bag import BagError, BagWriter, open_bag
-from skynav_bringup.environment import share_directory
-from skynav_bringup.testing import messages_equal, write_sample_bag
-from skynav_bringup.typestore import typestore
+from skynav_core.bag import BagError, BagWriter, open_bag
+from skynav_core.environment import share_directory
+from skynav_core.testing import messages_equal, write_sample_bag
+from skynav_core.typestore import typestore
 
 
 @pytest.fixture(scope='module')

@@ -4,8 +4,8 @@ import math
 
 import yaml
 
-from skynav_bringup.msgyaml import to_plain, to_yaml
-from skynav_bringup.testing import sample_messages
+from skynav_core.msgyaml import to_plain, to_yaml
+from skynav_core.testing import sample_messages
 
 
 def _first(msgtype):

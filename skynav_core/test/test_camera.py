@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from skynav_sh.camera import EquidistantCamera, OCamCamera, angles_from_directions, load_camera
+from skynav_core.camera import EquidistantCamera, OCamCamera, angles_from_directions, load_camera
 
 CALIB = Path(__file__).parent / 'data' / 'calib_results.txt'  # made-up numbers, see the file's first line
 

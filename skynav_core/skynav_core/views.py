@@ -53,10 +53,10 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
     """
     import yaml
 
-    from skynav_bringup.bag import BagError, open_bag
-    from skynav_bringup.graph import in_process
-    from skynav_bringup.images import image_to_array, stamp_ns
-    from skynav_bringup.nodes import installed_nodes
+    from skynav_core.bag import BagError, open_bag
+    from skynav_core.graph import in_process
+    from skynav_core.images import image_to_array, stamp_ns
+    from skynav_core.nodes import installed_nodes
 
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
     if len(specs) != 2:

@@ -14,7 +14,7 @@ import tempfile
 from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 
-PACKAGE = 'skynav_bringup'
+PACKAGE = 'skynav_core'
 FASTDDS_PROFILE = Path('config') / 'fastdds_shm.xml'
 
 

@@ -170,7 +170,7 @@ def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int 
     import yaml
     from scipy.spatial.transform import Rotation
 
-    from skynav_sh.camera import EquidistantCamera
+    from skynav_core.camera import EquidistantCamera
 
     from .bag import BagWriter, open_bag
     from .typestore import typestore

@@ -1,0 +1,39 @@
+"""What every `skynav` subcommand shares, whichever package adds it: its error, and the node graph's arguments.
+
+A package adds a subcommand through a ``skynav.commands`` entry point (see skynav_bringup.cli); its ``run`` raises
+CliError for a failure to report as one line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import SkynavError
+from .parameters import ParameterFileError, load_parameter_file
+
+
+class CliError(SkynavError):
+    """A failure to report as one line, with the exit code to return."""
+
+    def __init__(self, message: str, exit_code: int = 1) -> None:
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+def check_params_file(path: Path) -> None:
+    """Raise CliError unless `path` is a readable ROS 2 parameter file."""
+    try:
+        load_parameter_file(path)
+    except ParameterFileError as exc:
+        raise CliError(str(exc)) from None
+
+
+def graph_arguments(params: Path | None, map_path: Path | None) -> list[str]:
+    """Return the --ros-args of the node graph: the user's parameter file over the nodes' defaults, and the map."""
+    arguments = []
+    if params is not None:
+        check_params_file(params)
+        arguments += ['--params-file', str(params)]
+    if map_path is not None:
+        arguments += ['-p', f'map:={map_path}']
+    return arguments
