@@ -1,0 +1,94 @@
+"""Rotations in skynav's conventions, for one rotation or a stack: matrices, quaternions, ZYZ angles, tilt.
+
+Conventions (docs/interfaces.md, "Frames and angles"): a rotation acts on column vectors; quaternions are
+(x, y, z, w), as geometry_msgs/Quaternion orders them; ZYZ angles (alpha, beta, gamma) in rad mean
+R = Rz(alpha) Ry(beta) Rz(gamma), and beta is the angle by which R tilts the z axis. The compass rotation between
+a snapshot and the current view is R with d_snapshot = R d_current; from ground-truth orientations Q_s and Q_c of
+camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes: (3, 3) or (..., 3, 3) matrices,
+(4,) or (..., 4) quaternions, scalars or arrays of angles.
+"""
+
+from __future__ import annotations
+
+from typing import Union
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+RotationLike = Union[Rotation, np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
+Z_AXIS = np.array([0.0, 0.0, 1.0])
+
+
+def as_matrix(rotation: RotationLike) -> np.ndarray:
+    """Return the rotation matrices (..., 3, 3) of a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)."""
+    if isinstance(rotation, Rotation):
+        return rotation.as_matrix()
+    array = np.asarray(rotation, dtype=float)
+    if array.shape[-2:] == (3, 3):
+        return array
+    if array.shape[-1:] == (4,):
+        return Rotation.from_quat(array.reshape(-1, 4)).as_matrix().reshape(array.shape[:-1] + (3, 3))
+    raise ValueError(f'a rotation must be 3x3 matrices or quaternions (x, y, z, w), got shape {array.shape}')
+
+
+def as_quaternion(rotation: RotationLike) -> np.ndarray:
+    """Return the unit quaternions (..., 4) (x, y, z, w) of rotations, w >= 0."""
+    matrices = as_matrix(rotation)
+    quaternions = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_quat(canonical=True)
+    return quaternions.reshape(matrices.shape[:-2] + (4,))
+
+
+def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
+    """Return the matrices Rz(alpha) Ry(beta) Rz(gamma) (..., 3, 3) of ZYZ angles (rad; arrays broadcast)."""
+    ca, sa, cb, sb, cg, sg = (f(np.asarray(x, dtype=float)) for x in (alpha, beta, gamma) for f in (np.cos, np.sin))
+    return np.stack([
+        np.stack(np.broadcast_arrays(ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb), -1),
+        np.stack(np.broadcast_arrays(sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb), -1),
+        np.stack(np.broadcast_arrays(-sb * cg, sb * sg, cb), -1)], -2)
+
+
+def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the ZYZ angles (alpha, beta, gamma) in rad of rotations, exact near gimbal lock; gamma in [-pi, pi).
+
+    alpha comes from the third column, and gamma from the well-conditioned sum (beta <= pi/2) or difference
+    (beta > pi/2) of the angles read off the upper-left 2x2 block, so the matrix rebuilt from the angles matches R
+    to rounding (scipy's as_euler loses about 1e-8 near beta = 0 or pi). One rotation gives floats.
+    """
+    r = as_matrix(rotation)
+    alpha = np.arctan2(r[..., 1, 2], r[..., 0, 2])
+    beta = np.arctan2(np.hypot(r[..., 0, 2], r[..., 1, 2]), r[..., 2, 2])
+    total = np.arctan2(r[..., 1, 0] - r[..., 0, 1], r[..., 0, 0] + r[..., 1, 1])  # (1 + cos beta)(sin, cos)(a + g)
+    difference = np.arctan2(-(r[..., 1, 0] + r[..., 0, 1]), -(r[..., 0, 0] - r[..., 1, 1]))  # (a - g)
+    gamma = np.where(r[..., 2, 2] >= 0, total - alpha, alpha - difference)
+    gamma = np.remainder(gamma + np.pi, 2 * np.pi) - np.pi
+    if r.ndim == 2:
+        return float(alpha), float(beta), float(gamma)
+    return alpha, beta, gamma
+
+
+def rotation_angle(first: RotationLike, second: RotationLike) -> np.ndarray | float:
+    """Return the angle (rad) of first^T second: how far apart two rotations (or two stacks of them) are."""
+    a, b = as_matrix(first), as_matrix(second)
+    cosine = (np.einsum('...ij,...ij->...', a, b) - 1.0) / 2.0  # trace(A^T B) = 1 + 2 cos(angle)
+    angle = np.arccos(np.clip(cosine, -1.0, 1.0))
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def tilt(rotation: RotationLike) -> np.ndarray | float:
+    """Return the angle (rad) by which rotations tilt the z axis: the ZYZ beta, 0 for a pure turn about z."""
+    z = as_matrix(rotation)[..., 2, 2]
+    angle = np.arccos(np.clip(z, -1.0, 1.0))
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def relative_rotation(snapshot_orientation: RotationLike, current_orientation: RotationLike) -> np.ndarray:
+    """Return the compass rotations Q_s^-1 Q_c (..., 3, 3) from orientations of camera_link in map: d_s = R d_c."""
+    return np.swapaxes(as_matrix(snapshot_orientation), -1, -2) @ as_matrix(current_orientation)
+
+
+def home_direction(snapshot_position: np.ndarray, current_position: np.ndarray,
+                   current_orientation: RotationLike) -> np.ndarray:
+    """Return unit vectors (..., 3) towards the snapshot's place in the current camera_link: Q_c^-1 (p_s - p_c)."""
+    offset = np.asarray(snapshot_position, dtype=float) - np.asarray(current_position, dtype=float)
+    vector = np.einsum('...ji,...j->...i', as_matrix(current_orientation), offset)
+    return vector / np.linalg.norm(vector, axis=-1, keepdims=True)
