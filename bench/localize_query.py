@@ -56,7 +56,7 @@ def build_map(path: Path, count: int, degree: int, rng: np.random.Generator):
     """Write a map of `count` random snapshots with the baseline's raw-UV descriptor; return it opened."""
     from skynav_localize.baselines import RAW_UV_SIZE
     from skynav_localize.mapping import build_map
-    from skynav_localize.store import MapStore, Snapshot
+    from skynav_core.maps import MapStore, Snapshot
 
     size = (degree + 1) ** 2
     raw_size = RAW_UV_SIZE[0] * RAW_UV_SIZE[1]

@@ -19,7 +19,7 @@ from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
 from skynav_core.testing import run_skynav, start_skynav, wait_text
 from skynav_localize.evaluation import correct_matches
-from skynav_localize.store import MapStore
+from skynav_core.maps import MapStore
 
 BAGS = Path(__file__).parents[1] / 'bags'
 

@@ -63,7 +63,7 @@ class CompassNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Open the map and set the compass up (ValueError if unusable)."""
-        from skynav_localize.store import map_for_parameter
+        from skynav_core.maps import map_for_parameter
 
         if values['reference'] not in REFERENCES:
             raise ValueError(f'reference must be one of {", ".join(REFERENCES)}')

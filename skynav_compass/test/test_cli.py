@@ -59,7 +59,7 @@ def test_a_yaw_only_peer_is_measured_in_3d(garden_evaluation):
 def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
     from skynav_compass.cli.eval import map_snapshot
     from skynav_compass.recording import evaluate_views
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
 
     reference = next(v for v in garden_views.views if v.label == 'reference')
     store = MapStore.create(tmp_path / 'one.db', 'one', reference.max_degree)

@@ -26,7 +26,7 @@ from skynav_core.images import stamp_ns
 from skynav_core.nodes import NodeSpec
 from skynav_compass.dataset import true_rotation
 from skynav_localize.mapping import build_map
-from skynav_localize.store import Snapshot
+from skynav_core.maps import Snapshot
 from skynav_core.views import recording_views
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_garden_compass.mcap'

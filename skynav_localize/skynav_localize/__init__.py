@@ -2,7 +2,8 @@
 
 Typical use (no ROS needed)::
 
-    from skynav_localize import MapStore, Localizer
+    from skynav_core.maps import MapStore
+    from skynav_localize import Localizer
     store = MapStore.open('garden.db')                 # read-only, checked; MapError if not a usable map
     localizer = Localizer(store, 'amplitude-seq')      # or 'amplitude', 'bispectrum(-seq)', baselines
     match = localizer.query(coefficients=sh)           # Match: index, distance, score, accepted, candidates
@@ -17,7 +18,6 @@ from typing import TYPE_CHECKING
 from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
-    'store': ('MapError', 'MapStore', 'Snapshot', 'SCHEMA_VERSION'),
     'descriptors': ('DESCRIPTOR_VERSION', 'DescriptorIndex', 'amplitude_descriptor', 'bispectrum_descriptor',
                     'describe', 'descriptor_distance', 'distance_matrix'),
     'matching': ('Acceptance', 'Match', 'SequenceBuffer', 'SequenceParams', 'best_candidates',
@@ -38,4 +38,3 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_localize.localizer import *  # noqa: F401,F403
     from skynav_localize.mapping import *  # noqa: F401,F403
     from skynav_localize.matching import *  # noqa: F401,F403
-    from skynav_localize.store import *  # noqa: F401,F403

@@ -20,7 +20,7 @@ from skynav_localize.descriptors import DESCRIPTOR_VERSION, DescriptorIndex, des
 from skynav_localize.mapping import stored_settings
 from skynav_localize.matching import (DEFAULT_CANDIDATES, Acceptance, Match, SequenceBuffer, SequenceParams,
                                       best_candidates, sequence_match, sequence_scores, single_frame, view_in_place)
-from skynav_localize.store import MapError, MapStore
+from skynav_core.maps import MapError, MapStore
 from skynav_sh.product import message_sky_share, shows_skyline
 
 

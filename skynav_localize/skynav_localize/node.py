@@ -21,7 +21,7 @@ from skynav_core.ros import run_node
 
 from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
-from .store import MapStore, map_for_parameter
+from skynav_core.maps import MapStore, map_for_parameter
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'

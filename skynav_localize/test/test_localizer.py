@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
 from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
-from skynav_localize.store import MapError, MapStore
+from skynav_core.maps import MapError, MapStore
 
 DEGREE = 10
 SNAPSHOTS = 150

@@ -226,7 +226,7 @@ def snapshot_map(world: World, camera: EquidistantCamera, place: np.ndarray, hea
                  seed: int, path, name: str = 'home', ros_args: list[str] | None = None, bump_tilt: float = 0.0):
     """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
     from skynav_localize.mapping import build_map
-    from skynav_localize.store import Snapshot
+    from skynav_core.maps import Snapshot
 
     simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
@@ -277,7 +277,7 @@ def follow_route(world: World, camera: EquidistantCamera, map_path, start: np.nd
 
     Returns the run and the route (snapshot positions x, y in m).
     """
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
 
     store = MapStore.open(map_path)
     route = store.positions()[:, :2]

@@ -63,7 +63,7 @@ def test_route_following_stays_on_the_taught_route(camera, garden_map):
 
     world, seed, teach_camera = teach_world(TEACH)
     assert teach_camera.width == camera.width and world.style == 'garden'
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
 
     with MapStore.open(garden_map) as store:
         route = store.positions()[:, :2]

@@ -69,7 +69,7 @@ class WarpingNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Open the map and set the search up (ValueError if unusable)."""
-        from skynav_localize.store import map_for_parameter
+        from skynav_core.maps import map_for_parameter
 
         if values['target'] not in TARGETS:
             raise ValueError(f'target must be one of {", ".join(TARGETS)}')

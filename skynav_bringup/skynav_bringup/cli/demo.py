@@ -170,7 +170,7 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     import numpy as np
 
     from skynav_localize.evaluation import correct_matches, plot_matches_along_route
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
 
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
@@ -207,7 +207,7 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     import numpy as np
     from scipy.spatial.transform import Rotation
 
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
 
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns

@@ -102,7 +102,7 @@ def max_tilt(degrees: float | None) -> float:
 def map_snapshot(path: Path, index: int):
     """Return the map's snapshot `index` as an ExternalSnapshot (CliError if the map or its pose is unusable)."""
     from skynav_core.cli import CliError
-    from skynav_localize.store import MapError, MapStore
+    from skynav_core.maps import MapError, MapStore
 
     from ..recording import ExternalSnapshot
 

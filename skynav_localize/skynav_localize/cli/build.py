@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..descriptors import describe
     from ..mapping import SnapshotSelector, baseline_descriptors, build_map, finish_baselines
-    from ..store import MapError, Snapshot
+    from skynav_core.maps import MapError, Snapshot
 
     if args.out.exists() and not args.overwrite:
         raise CliError(f'{args.out} exists already; choose another name or pass --overwrite')

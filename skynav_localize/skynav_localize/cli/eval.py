@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
     from ..localizer import BASELINES_HINT, METHODS, Localizer, missing_descriptors
-    from ..store import MapError, MapStore
+    from skynav_core.maps import MapError, MapStore
 
     if unknown := [m for m in args.methods if m not in METHODS]:
         raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)

@@ -17,7 +17,7 @@ def run(args: argparse.Namespace) -> int:
     """Print the description; return the exit code."""
     from skynav_core.cli import CliError
 
-    from ..store import MapError, MapStore
+    from skynav_core.maps import MapError, MapStore
 
     try:
         store = MapStore.open(args.map)

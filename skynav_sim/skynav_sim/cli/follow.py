@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from skynav_core.cli import CliError
-    from skynav_localize.store import MapError, MapStore
+    from skynav_core.maps import MapError, MapStore
 
     from ..closed_loop import STEP, follow_route, route_deviation
     from ..sky import parse_time

@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError('--index must not be negative', exit_code=2)
     store = None
     if args.map is not None:
-        from skynav_localize.store import MapError, MapStore
+        from skynav_core.maps import MapError, MapStore
 
         try:
             store = MapStore.open(args.map)

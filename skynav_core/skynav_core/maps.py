@@ -46,6 +46,8 @@ from urllib.parse import quote
 
 import numpy as np
 
+from .errors import SkynavError
+
 SCHEMA_VERSION = 2
 PAGE_SIZE = 8192  # bytes per SQLite page of a new map
 MAP_FORMAT = 'skynav-map'
@@ -97,7 +99,7 @@ _OPTIONAL_COLUMNS = {
 }
 
 
-class MapError(Exception):
+class MapError(SkynavError):
     """A map file that cannot be opened, read or written; the message names the file and what is wrong."""
 
 

@@ -11,7 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from skynav_localize.store import PAGE_SIZE, SCHEMA_VERSION, MapError, MapStore, Snapshot, _crc
+from skynav_core.maps import PAGE_SIZE, SCHEMA_VERSION, MapError, MapStore, Snapshot, _crc
 
 DEGREE = 4
 SIZE = (DEGREE + 1) ** 2
@@ -326,7 +326,7 @@ def test_corrupt_descriptor_is_caught_when_read(tmp_path):
 WRITER = textwrap.dedent('''
     import itertools, sys
     import numpy as np
-    from skynav_localize.store import MapStore
+    from skynav_core.maps import MapStore
     store = MapStore.create(sys.argv[1], 'killed', {degree})
     for i in itertools.count():
         store.add_snapshot(np.sin(np.arange({size}) * 0.37 + i), i, None, {{'amplitude': np.full({degree}, float(i))}})
