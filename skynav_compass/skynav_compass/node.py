@@ -28,27 +28,24 @@ from skynav_sh.product import seen_mean, shows_skyline
 from .compass import MAX_TILT, Compass, CompassConfig
 from .cost import PreparedSnapshot
 from .views import CompassView
+from .parameters import PARAMETERS, REFERENCES
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
 COMPASS_TOPIC = '/compass/orientation'
-REFERENCES = ('match', 'index', 'live')
 SNAPSHOT_VIEWS_CACHED = 64
 
 
 class CompassNode(SkynavNode):
     """Estimates the rotation of every view against its reference."""
 
+    PARAMETERS = PARAMETERS
+
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
         super().__init__('compass', **kwargs)
-        self.parameter('map', '', 'SQLite map file (`skynav map build`) whose snapshots are compared against')
-        self.parameter('reference', 'match', f'what to compare against: {", ".join(REFERENCES)}')
-        self.parameter('index', 0, "the snapshot of reference 'index'")
-        self.parameter('max_degree', 16, 'SH degree of the estimate')
-        self.parameter('max_tilt_deg', float(np.degrees(MAX_TILT)),
-                       'largest tilt between the current view and the snapshot considered (deg, up to 180)')
+        self.declare_table(PARAMETERS)
         self.store = None
         self.match: PlaceMatch | None = None
         self.latest: CompassView | None = None

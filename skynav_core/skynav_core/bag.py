@@ -18,6 +18,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .errors import SkynavError
 from .typestore import UnknownMessageType, ensure_type, typestore
 
 if TYPE_CHECKING:
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 
 
-class BagError(Exception):
+class BagError(SkynavError):
     """A recording that cannot be read or written; the message names the file and the problem."""
 
 

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import SkynavError
+
 DTYPES = {'mono8': np.dtype(np.uint8), 'mono16': np.dtype(np.uint16), '32FC1': np.dtype(np.float32)}
 
 
-class ImageError(ValueError):
+class ImageError(SkynavError, ValueError):
     """An image message that cannot be read; `reason` is a short tag for diagnostics counts."""
 
     def __init__(self, reason: str, detail: str) -> None:

@@ -13,12 +13,13 @@ from functools import cache
 from typing import TYPE_CHECKING
 
 from .environment import ament_prefixes
+from .errors import SkynavError
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
 
-class UnknownMessageType(LookupError):
+class UnknownMessageType(SkynavError, LookupError):
     """A message type whose definition is neither known nor installed."""
 
 

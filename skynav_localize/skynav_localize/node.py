@@ -21,6 +21,7 @@ from skynav_core.ros import run_node
 
 from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
+from .parameters import PARAMETERS
 from skynav_core.maps import MapStore, map_for_parameter
 
 SH_TOPIC = '/skyline/sh'
@@ -31,22 +32,13 @@ SEQUENCE_GAP_NS = 2_000_000_000  # views further apart than this do not form a s
 class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
+    PARAMETERS = PARAMETERS
+
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
         super().__init__('localize', **kwargs)
-        self.parameter('map', '', 'SQLite map file (`skynav map build`); empty: no map')
-        self.parameter('method', 'amplitude-seq', f'one of {", ".join(OUR_METHODS)}')
-        self.parameter('sequence_length', 10, 'views in a sequence (sequence methods)')
-        self.parameter('min_speed', 0.5, 'slowest progress along the map, snapshots per view (sequence methods)')
-        self.parameter('max_speed', 2.0, 'fastest progress along the map, snapshots per view (sequence methods)')
-        self.parameter('max_ratio', math.nan, "acceptance: best / runner-up distance at most this; NaN: the method's")
-        self.parameter('max_view_ratio', math.nan, "acceptance of sequences: the newest view's own best / runner-up "
-                                                   "ratio at the matched snapshot at most this; NaN: the method's")
-        self.parameter('max_distance', math.inf, 'acceptance: best descriptor distance at most this')
-        self.parameter('candidates', 5, 'runners-up in each match')
-        self.parameter('max_degree', DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut '
-                                                        'to it)')
+        self.declare_table(PARAMETERS)
         self.store: MapStore | None = None
         self.localizer: Localizer | None = None
         self.last_stamp = -1

@@ -18,6 +18,7 @@ from skynav_core.ros import run_node
 
 from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 from .fisheye import FILLS, FisheyeTransform
+from .parameters import PARAMETERS
 
 MASK_TOPIC = '/skyline/mask'
 SH_TOPIC = '/skyline/sh'
@@ -27,12 +28,11 @@ MAX_DEGREE_LIMIT = 128
 class ShNode(SkynavNode):
     """Transforms each skyline mask into SH coefficients."""
 
+    PARAMETERS = PARAMETERS
+
     def __init__(self, **kwargs) -> None:
         super().__init__('sh', **kwargs)
-        self.parameter('max_degree', 16, 'SH degree L of the published coefficients')
-        self.parameter('fill', 'zero', f'value outside the field of view: {", ".join(FILLS)}')
-        self.parameter('supersampling', 2, 'sub-samples per grid cell side (area-averaged sampling)')
-        self.parameter('field_of_view_deg', 0.0, 'narrow the field of view to this full angle; 0: whole image circle')
+        self.declare_table(PARAMETERS)
         self.camera_input = CameraInput(self.reject)
         self.transform: FisheyeTransform | None = None
         self.input(MASK_TOPIC, Image, self.on_mask)

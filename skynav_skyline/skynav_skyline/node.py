@@ -20,7 +20,7 @@ from skynav_core.ros import run_node
 from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 
 from .geometry import SkylineGeometry
-from .parameters import PARAMETERS, skyline_params
+from .parameters import NODE_PARAMETERS, PARAMETERS, skyline_params
 from .segment import SkylineSegmenter
 
 UV_TOPIC = '/camera/uv/image_raw'
@@ -32,12 +32,11 @@ CAMERA_FRAME = 'camera_link'
 class SkylineNode(SkynavNode):
     """Segments each UV(/green) exposure into sky and ground."""
 
+    PARAMETERS = NODE_PARAMETERS
+
     def __init__(self, **kwargs) -> None:
         super().__init__('skyline', **kwargs)
-        for name, (default, description) in PARAMETERS.items():
-            self.parameter(name, default, description)
-        self.parameter('field_of_view_deg', 0.0, 'narrow the field of view to this full angle; 0: whole image circle')
-        self.parameter('pair_tolerance_ms', 2.0, 'UV and green frames this close in stamp form a pair')
+        self.declare_table(NODE_PARAMETERS)
         self.camera_input = CameraInput(self.reject)
         self.segmenter: SkylineSegmenter | None = None
         self.last_stamp = -1

@@ -8,40 +8,52 @@ from __future__ import annotations
 
 import math
 
+from skynav_core.parameters import Parameter, read_parameter_file
+from skynav_core.parameters import defaults as table_defaults
+
 from .segment import METHODS, SkylineParams
 
-# name: (default, description). The angle and thresholds were learned by `skynav skyline train` on
-# synthetic recordings (see skynav_bringup/config/skynav.yaml, which lists the same values for editing).
-PARAMETERS: dict[str, tuple[object, str]] = {
-    'method': ('sector-min-error', f'one of {", ".join(METHODS)}'),
-    'channels': ('uv-green', "'uv' (UV only) or 'uv-green' (UV/green contrast)"),
-    'angle_deg': (-4.45, 'projection angle a of s = cos(a) log UV + sin(a) log G (degrees; 0 for UV only)'),
-    'threshold': (-0.8071, 'global threshold t on s for uv-green (normalised log units); NaN: none'),
-    'threshold_uv': (-0.88444, 'global threshold t on log UV for channels uv (normalised log units); NaN: none'),
-    'sectors': (16, 'azimuth sectors of the sector methods'),
-    'bins': (256, 'histogram bins of the local methods'),
-    'min_separability': (0.8, 'least Otsu separability of a bimodal histogram (0..1)'),
+# The segmentation's parameters. The angle and thresholds were learned by `skynav skyline train` on synthetic
+# recordings (tools/skyline_training_set.sh: 180 exposures, seeds 10-12 of every world style); learn your own from
+# labelled recordings of a real camera.
+PARAMETERS = {
+    'method': Parameter('sector-min-error', f'one of {", ".join(METHODS)}'),
+    'channels': Parameter('uv-green', "'uv' (UV only) or 'uv-green' (UV/green contrast)"),
+    'angle_deg': Parameter(-4.45, 'projection angle a of s = cos(a) log UV + sin(a) log G (degrees; 0 for UV only)'),
+    'threshold': Parameter(-0.8071, 'global threshold t on s for uv-green (normalised log units); NaN: none'),
+    'threshold_uv': Parameter(-0.88444, 'global threshold t on log UV for channels uv (normalised log units); NaN: none'),
+    'sectors': Parameter(16, 'azimuth sectors of the sector methods'),
+    'bins': Parameter(256, 'histogram bins of the local methods'),
+    'min_separability': Parameter(0.8, 'least Otsu separability of a bimodal histogram (0..1)'),
     # 0.05 maximised the mean rate on the training recordings (inf, 0.3, 0.2, 0.1, 0.05, 0 tried).
-    'max_deviation': (0.05, 'local thresholds stay within this of the global threshold (log units); inf: free'),
+    'max_deviation': Parameter(0.05, 'local thresholds stay within this of the global threshold (log units); inf: free'),
     # The structure steps (structure.py) were set on views of real landscapes, the seed 4 skyline sets of garching
     # and hurricane: the dim sky the threshold misses lies within 0.25 of it, enclosed regions that are ground
     # reach 0.7 or more below it; a ground ring with sky beyond surrounds 75-100 % of the azimuths in hurricane's
     # views and at most 13 % in the other seed 4 sets. Checked on views they were not set on (other places, tilts
     # up to 30 degrees, the synthetic training and compass sets: 58-100 % in hurricane, at most 31 % elsewhere);
     # README, Sky/ground segmentation.
-    'hole_margin': (0.5, 'ground enclosed by sky that nowhere falls this far below its threshold is sky (log units); '
+    'hole_margin': Parameter(0.5, 'ground enclosed by sky that nowhere falls this far below its threshold is sky (log units); '
                          '0: off'),
-    'ring_share': (0.5, 'sky beyond a band of ground along the rays is ground when such bands ring at least this share '
+    'ring_share': Parameter(0.5, 'sky beyond a band of ground along the rays is ground when such bands ring at least this share '
                         'of the azimuths (0..1); above 1: off'),
-    'ring_width_deg': (2.0, 'least width of such a band of ground along a ray (degrees of off-axis angle)'),
-    'black_level_uv': (0.0, 'UV black level (counts, or radiance for 32FC1)'),
-    'black_level_green': (0.0, 'green black level (counts, or radiance for 32FC1)'),
+    'ring_width_deg': Parameter(2.0, 'least width of such a band of ground along a ray (degrees of off-axis angle)'),
+    'black_level_uv': Parameter(0.0, 'UV black level (counts, or radiance for 32FC1)'),
+    'black_level_green': Parameter(0.0, 'green black level (counts, or radiance for 32FC1)'),
+}
+
+
+#: The node's table: the segmentation's parameters and what only the node uses.
+NODE_PARAMETERS = {
+    **PARAMETERS,
+    'field_of_view_deg': Parameter(0.0, 'narrow the field of view to this full angle (deg); 0: whole image circle'),
+    'pair_tolerance_ms': Parameter(2.0, 'UV and green frames this close in stamp form a pair (ms)'),
 }
 
 
 def defaults() -> dict[str, object]:
-    """Return the parameter defaults by name."""
-    return {name: default for name, (default, _) in PARAMETERS.items()}
+    """Return the segmentation's parameter defaults by name."""
+    return table_defaults(PARAMETERS)
 
 
 def skyline_params(values: dict[str, object]) -> SkylineParams:
@@ -61,13 +73,5 @@ def skyline_params(values: dict[str, object]) -> SkylineParams:
 
 
 def load_parameter_file(path: str) -> dict[str, object]:
-    """Return the skyline node's parameters from a ROS 2 parameter file (node 'skyline' or '/**')."""
-    import yaml
-
-    with open(path) as stream:
-        content = yaml.safe_load(stream) or {}
-    values: dict[str, object] = {}
-    for node in ('/**', 'skyline', '/skyline'):
-        values.update((content.get(node) or {}).get('ros__parameters') or {})
-    unknown = set(values) - set(PARAMETERS)
-    return {k: v for k, v in values.items() if k not in unknown}
+    """Return the segmentation parameters a ROS 2 parameter file sets for the skyline node (its section or '/**')."""
+    return read_parameter_file(path, 'skyline', PARAMETERS)

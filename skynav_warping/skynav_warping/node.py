@@ -33,30 +33,25 @@ from skynav_compass.compass import MAX_TILT
 from .homing import estimate_home_vector
 from .views import view_from_coefficients
 from .warping3d import WarpingSettings
+from .parameters import PARAMETERS, TARGETS
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
 COMPASS_TOPIC = '/compass/orientation'
 HOME_TOPIC = '/homing/home_vector'
-TARGETS = ('match', 'index', 'next')
 SNAPSHOT_VIEWS_CACHED = 64
 
 
 class WarpingNode(SkynavNode):
     """Estimates the home vector of every view towards the target snapshot."""
 
+    PARAMETERS = PARAMETERS
+
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
         super().__init__('warping', **kwargs)
-        self.parameter('map', '', 'SQLite map file (`skynav map build`) whose snapshots are homed to')
-        self.parameter('target', 'match', f'which snapshot to home to: {", ".join(TARGETS)}')
-        self.parameter('index', 0, "the snapshot of target 'index'")
-        self.parameter('lookahead', 1, "how many snapshots beyond the matched one target 'next' aims at")
-        self.parameter('use_compass', True, 'start from the compass estimate of the same view (wait for it)')
-        self.parameter('max_degree', 16, 'SH degree of the search')
-        self.parameter('max_tilt_deg', float(np.degrees(MAX_TILT)),
-                       'largest tilt between the current view and the snapshot the rotation search considers (deg)')
+        self.declare_table(PARAMETERS)
         self.store = None
         self.match: PlaceMatch | None = None
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0)

@@ -273,11 +273,12 @@ def test_unusable_parameters_fall_back_to_the_defaults(home_map):
     with in_process([WARPING], ['-p', 'target:=bogus', '-p', f'map:={home_map}']) as graph:
         node = graph.nodes[0]
         assert node.rejected['parameters'] == 1
-        assert node.parameter_values() == {'map': '', 'target': 'match', 'index': 0, 'lookahead': 1,
+        # the defaults are the shipped ones (route following: the snapshot six beyond the match)
+        assert node.parameter_values() == {'map': '', 'target': 'next', 'index': 0, 'lookahead': 6,
                                            'use_compass': True, 'max_degree': 16, 'max_tilt_deg': 45.0}
         refused = node.set_parameters([Parameter('lookahead', value=-1)])[0]
         assert not refused.successful and 'lookahead' in refused.reason
-        assert node.get_parameter('lookahead').value == 1
+        assert node.get_parameter('lookahead').value == 6
         refused = node.set_parameters([Parameter('max_tilt_deg', value=0.0)])[0]
         assert not refused.successful and 'max_tilt_deg' in refused.reason
         assert node.set_parameters([Parameter('max_tilt_deg', value=30.0)])[0].successful

@@ -87,15 +87,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)
         return 2
-    from skynav_core.bag import BagError
-    from skynav_core.typestore import UnknownMessageType
+    from skynav_core.errors import SkynavError  # loaded after the parser: `skynav --help` stays light
 
     try:
         return args.run(args) or 0
     except CliError as exc:
         print(f'skynav {args.command}: error: {exc}', file=sys.stderr)
         return exc.exit_code
-    except (BagError, UnknownMessageType) as exc:
+    except SkynavError as exc:  # a damaged file, an unknown type, a bad map: one line
         print(f'skynav {args.command}: error: {exc}', file=sys.stderr)
         return 1
     except KeyboardInterrupt:

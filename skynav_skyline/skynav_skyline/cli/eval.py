@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     plot = Path(args.plot)
     if not plot.parent.is_dir():
         raise CliError(f'{plot.parent}: no such directory')
-    values = load_parameter_file(args.params) if args.params else shipped_parameters()
+    values = load_parameter_file(args.params) if args.params else defaults()
     configurations = {}
     default_method, default_channels = (str({**defaults(), **values}[name]) for name in ('method', 'channels'))
     for method in args.methods:
@@ -74,17 +74,6 @@ def run(args: argparse.Namespace) -> int:
 def structure_label(params) -> str:
     """Return whether settings use the structure steps: 'on' (either), 'off' (neither)."""
     return 'on' if params.fills_holes or params.cuts_rings else 'off'
-
-
-def shipped_parameters() -> dict:
-    """Return the skyline parameters of the shipped parameter file (empty if not installed)."""
-    from skynav_core.environment import share_directory
-
-    from ..parameters import load_parameter_file
-
-    share = share_directory('skynav_bringup')
-    path = None if share is None else share / 'config' / 'skynav.yaml'
-    return load_parameter_file(str(path)) if path is not None and path.is_file() else {}
 
 
 def evaluate(paths, configurations):

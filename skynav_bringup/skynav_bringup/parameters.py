@@ -1,0 +1,33 @@
+"""The shipped parameter file: every installed node's parameter table, with its defaults and meanings.
+
+`skynav_bringup/config/skynav.yaml` is generated from the nodes' tables (`tools/write_parameters.py`) and a test
+fails when the two differ, so a default lives in one place: its node's table. The file is what `skynav launch`,
+`skynav run` and `ros2 launch skynav_bringup skynav.launch.py` start from; a user's --params file overrides it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from skynav_core.graph import node_class
+from skynav_core.nodes import installed_nodes
+from skynav_core.parameters import parameter_file
+
+SHIPPED = Path(__file__).resolve().parents[1] / 'config' / 'skynav.yaml'
+HEADER = """\
+Default parameters of the skynav nodes: `skynav launch`, `skynav run` and
+`ros2 launch skynav_bringup skynav.launch.py` start from these, and a parameter file of yours
+(--params, params_file:=) overrides any of them. Copy the ones you change into your own file.
+
+Generated from the nodes' parameter tables (each package's parameters.py) by tools/write_parameters.py;
+edit the table, not this file. localize, compass and warping compare against a map: `skynav run --map`
+and `skynav launch --map` set their `map` parameter.
+
+skyline: the UV/green separator (angle_deg, threshold) and the UV-only threshold (threshold_uv) were
+learned on SYNTHETIC recordings and are unlikely to fit a real UV/green camera: learn your own from
+labelled recordings of it (`skynav skyline train`)."""
+
+
+def shipped_parameter_file() -> str:
+    """Return the text of the shipped parameter file, made from every installed node's parameter table."""
+    return parameter_file({spec.name: node_class(spec).PARAMETERS for spec in installed_nodes()}, HEADER)
