@@ -251,14 +251,8 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
         planar = {'2d-warping': lambda band: warping_2d(band_snapshot, band),
                   'min-warping': lambda band: min_warping(band_snapshot, band, unwrapper.elevations)}
         for method in (m for m in methods if m in PANORAMA_METHODS):
-            directions, seconds = [], band_seconds
-            for band in bands:
-                result, spent = _timed(planar[method], band)
-                directions.append(result.direction)
-                seconds += spent
-                if progress is not None:
-                    progress(1)
-            results[method] = HomingResult(method, np.array(directions), seconds / n)
+            estimates, seconds = _timed_runs(planar[method], bands, band_seconds, progress)
+            results[method] = HomingResult(method, np.array([e.direction for e in estimates]), seconds)
     return HomingEvaluation(snapshot=snapshot, positions=poses[:, :3], quaternions=poses[:, 3:],
                             true_directions=true_home_directions(poses[:, :3], poses[:, 3:], snapshot.pose[:3]),
                             distances=distances, tilts=tilt_angles(poses[:, 3:]), results=results, skipped=skipped,
@@ -268,12 +262,18 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
 def _run_warping(name: str, estimate, n: int, preparation: float, progress) -> HomingResult:
     """Return a 3D-warping method's result over n views: estimate(k) -> HomeEstimate, after one untimed warm-up."""
     estimate(0)  # builds the warping tables (cached per settings), as the node's first view would
-    directions, confident, seconds = [], [], preparation
-    for k in range(n):
-        result, spent = _timed(estimate, k)
-        directions.append(result.best_direction)
-        confident.append(result.confident)
+    estimates, seconds = _timed_runs(estimate, range(n), preparation, progress)
+    return HomingResult(name, np.array([e.best_direction for e in estimates]), seconds,
+                        np.array([e.confident for e in estimates]))
+
+
+def _timed_runs(estimate, items, preparation: float, progress) -> tuple[list, float]:
+    """Return estimate(item) of every item and the CPU seconds per item, the preparation (s) spread over them."""
+    estimates, seconds = [], preparation
+    for item in items:
+        result, spent = _timed(estimate, item)
+        estimates.append(result)
         seconds += spent
         if progress is not None:
             progress(1)
-    return HomingResult(name, np.array(directions), seconds / n, np.array(confident))
+    return estimates, seconds / len(estimates)
