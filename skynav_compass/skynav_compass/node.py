@@ -108,8 +108,7 @@ class CompassNode(SkynavNode):
         coefficients = usable_coefficients(message, self.reject, degree, FILL_MODES)
         if coefficients is None:
             return
-        if stamp <= self.last_stamp:
-            self.reject('out_of_order', f'view stamped {stamp} is not newer than the last one')
+        if not self.in_order(stamp, self.last_stamp):
             return
         self.last_stamp = stamp
         current = CompassView.from_sh_message(coefficients, float(message.field_of_view), message.fill, degree)

@@ -38,30 +38,10 @@ class View:
     fill: str = 'zero'  # how the SH node filled what the camera does not see
 
 
-@dataclass
-class RecordingViews:
-    """Every view of a recording, its camera, and what the recording says about itself."""
+class Described:
+    """What a recording says about itself: `description`, the skynav_sim metadata of a synthetic one ({} otherwise)."""
 
-    path: Path
-    views: list[View]
-    camera: EquidistantCamera | None
-    description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
-
-    @property
-    def synthetic(self) -> bool:
-        """Return whether the recording says it is synthetic."""
-        return bool(self.description.get('synthetic'))
-
-
-@dataclass
-class RecordedFrames:
-    """What a recording holds per exposure, by stamp (ns): its camera, ground-truth poses and images."""
-
-    camera: EquidistantCamera | None  # of the first camera info
-    stamps: list[int]  # of the camera infos: one per exposure, in the recording's order
-    poses: dict[int, np.ndarray]  # (x, y, z, qx, qy, qz, qw) of camera_link in map
-    images: dict[str, dict[int, np.ndarray]]  # topic -> stamp -> pixels (H, W) in the encoding's dtype
-    description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
+    description: dict
 
     @property
     def synthetic(self) -> bool:
@@ -71,6 +51,27 @@ class RecordedFrames:
     def labels(self) -> list[str]:
         """Return the frame labels of the recording's metadata, in frame order ('' where a frame has none)."""
         return [f.get('label', '') for f in self.description.get('frames', [])]
+
+
+@dataclass
+class RecordingViews(Described):
+    """Every view of a recording, its camera, and what the recording says about itself."""
+
+    path: Path
+    views: list[View]
+    camera: EquidistantCamera | None
+    description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
+
+
+@dataclass
+class RecordedFrames(Described):
+    """What a recording holds per exposure, by stamp (ns): its camera, ground-truth poses and images."""
+
+    camera: EquidistantCamera | None  # of the first camera info
+    stamps: list[int]  # of the camera infos: one per exposure, in the recording's order
+    poses: dict[int, np.ndarray]  # (x, y, z, qx, qy, qz, qw) of camera_link in map
+    images: dict[str, dict[int, np.ndarray]]  # topic -> stamp -> pixels (H, W) in the encoding's dtype
+    description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
 
 
 def recorded_frames(bag: Any, image_topics: Sequence[str] = (),

@@ -92,8 +92,7 @@ class LocalizeNode(SkynavNode):
         coefficients = usable_coefficients(message, self.reject, degree)
         if coefficients is None:
             return
-        if stamp <= self.last_stamp:
-            self.reject('out_of_order', f'coefficients stamped {stamp} are not newer than the last ones')
+        if not self.in_order(stamp, self.last_stamp):
             return
         if self.localizer is not None and self.last_stamp >= 0 and stamp - self.last_stamp > SEQUENCE_GAP_NS:
             self.localizer.reset()

@@ -164,12 +164,8 @@ def _timed(function, *args):
 def _prepared(function, snapshot_item, items):
     """Return (snapshot's prepared view, current ones, CPU seconds for all of them)."""
     prepared_snapshot, seconds = _timed(function, snapshot_item)
-    current = []
-    for item in items:
-        value, spent = _timed(function, item)
-        current.append(value)
-        seconds += spent
-    return prepared_snapshot, current, seconds
+    current, spent = _timed_runs(function, items)
+    return prepared_snapshot, current, seconds + spent
 
 
 def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None = None,
@@ -251,8 +247,9 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
         planar = {'2d-warping': lambda band: warping_2d(band_snapshot, band),
                   'min-warping': lambda band: min_warping(band_snapshot, band, unwrapper.elevations)}
         for method in (m for m in methods if m in PANORAMA_METHODS):
-            estimates, seconds = _timed_runs(planar[method], bands, band_seconds, progress)
-            results[method] = HomingResult(method, np.array([e.direction for e in estimates]), seconds)
+            estimates, seconds = _timed_runs(planar[method], bands, progress)
+            results[method] = HomingResult(method, np.array([e.direction for e in estimates]),
+                                           (band_seconds + seconds) / n)
     return HomingEvaluation(snapshot=snapshot, positions=poses[:, :3], quaternions=poses[:, 3:],
                             true_directions=true_home_directions(poses[:, :3], poses[:, 3:], snapshot.pose[:3]),
                             distances=distances, tilts=tilt_angles(poses[:, 3:]), results=results, skipped=skipped,
@@ -262,18 +259,18 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
 def _run_warping(name: str, estimate, n: int, preparation: float, progress) -> HomingResult:
     """Return a 3D-warping method's result over n views: estimate(k) -> HomeEstimate, after one untimed warm-up."""
     estimate(0)  # builds the warping tables (cached per settings), as the node's first view would
-    estimates, seconds = _timed_runs(estimate, range(n), preparation, progress)
-    return HomingResult(name, np.array([e.best_direction for e in estimates]), seconds,
+    estimates, seconds = _timed_runs(estimate, range(n), progress)
+    return HomingResult(name, np.array([e.best_direction for e in estimates]), (preparation + seconds) / n,
                         np.array([e.confident for e in estimates]))
 
 
-def _timed_runs(estimate, items, preparation: float, progress) -> tuple[list, float]:
-    """Return estimate(item) of every item and the CPU seconds per item, the preparation (s) spread over them."""
-    estimates, seconds = [], preparation
+def _timed_runs(function, items, progress=None) -> tuple[list, float]:
+    """Return function(item) of every item and the CPU seconds they took together; progress(1) after each."""
+    values, seconds = [], 0.0
     for item in items:
-        result, spent = _timed(estimate, item)
-        estimates.append(result)
+        value, spent = _timed(function, item)
+        values.append(value)
         seconds += spent
         if progress is not None:
             progress(1)
-    return estimates, seconds / len(estimates)
+    return values, seconds

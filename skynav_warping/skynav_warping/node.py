@@ -91,9 +91,13 @@ class WarpingNode(SkynavNode):
     def on_compass(self, estimate: CompassEstimate) -> None:
         """Pair a compass estimate with the view of the same stamp."""
         if self.values['use_compass']:
-            pair = self.pairer.add('compass', stamp_ns(estimate.header), estimate)
-            if pair is not None:
-                self.home(pair[1], pair[2])
+            self.pair('compass', estimate)
+
+    def pair(self, channel: str, message: ShCoefficients | CompassEstimate) -> None:
+        """Home once a view ('sh') and its compass estimate ('compass') of the same stamp have both come."""
+        pair = self.pairer.add(channel, stamp_ns(message.header), message)
+        if pair is not None:
+            self.home(pair[1], pair[2])
 
     def on_coefficients(self, message: ShCoefficients) -> None:
         """Take a view: home at once, or when its compass estimate has come."""
@@ -102,9 +106,7 @@ class WarpingNode(SkynavNode):
         if not self.values['use_compass'] or not self.shows_skylines(message):
             self.home(message, None)  # the compass estimates no featureless view or snapshot: nothing to wait for
             return
-        pair = self.pairer.add('sh', stamp_ns(message.header), message)
-        if pair is not None:
-            self.home(pair[1], pair[2])
+        self.pair('sh', message)
 
     def shows_skylines(self, message: ShCoefficients) -> bool:
         """Return whether a view and, when it is known already, the snapshot it would home to both show a skyline."""
@@ -118,8 +120,7 @@ class WarpingNode(SkynavNode):
     def home(self, message: ShCoefficients, compass: CompassEstimate | None) -> None:
         """Publish the home vector of one view."""
         stamp = stamp_ns(message.header)
-        if stamp <= self.last_stamp:
-            self.reject('out_of_order', f'view stamped {stamp} is not newer than the last one')
+        if not self.in_order(stamp, self.last_stamp):
             return
         index = self.snapshots.choose()
         if index is None:
