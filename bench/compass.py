@@ -36,14 +36,15 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from skynav_compass.methods import METHODS, PREPARED  # noqa: E402
+
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SETS = ('garden', 'mineral')
-SH_METHODS = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-any-tilt', 'fft-uv-normalised',
-              'exhaustive-masked', 'exhaustive-zero', 'visual-compass-sh', 'fft-masked+prepared',
-              'exhaustive-masked+prepared', 'fft-zero+prepared', 'exhaustive-zero+prepared')
-IMAGE_METHODS = ('visual-compass-panorama', 'features-sift', 'features-orb')
 PAIRS = (('fft-masked', 'exhaustive-masked'), ('fft-zero', 'exhaustive-zero'))
-PREPARED = '+prepared'
+# every method of the registry on the SH, then the pairs with the snapshot prepared once; the image methods
+SH_METHODS = (*(name for name, m in METHODS.items() if not m.needs_images),
+              *(name + PREPARED for pair in PAIRS for name in pair))
+IMAGE_METHODS = tuple(name for name, m in METHODS.items() if m.needs_images)
 
 
 def ratio_lines(runs, label: str) -> list[str]:

@@ -27,10 +27,12 @@ _EXPORTS = {
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
     'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
     'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
-    'evaluation': ('ErrorStatistics', 'MethodResult', 'angular_error', 'error_statistics', 'format_table',
+    'evaluation': ('CompassResult', 'ErrorStatistics', 'angular_error', 'error_statistics', 'format_table',
                    'heading_error', 'plot_errors', 'relative_tilt', 'roc_auc', 'summary_rows'),
+    'methods': ('METHODS', 'NODE_METHODS', 'DEFAULT_METHODS', 'CompassMethod'),
     'dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
-    'runner': ('Method', 'RunResult', 'run_methods', 'standard_methods', 'timed_estimates'),
+    'runner': ('ImageViews', 'Images', 'Method', 'NodeViews', 'RunResult', 'build_method', 'compass_result',
+               'run_methods', 'standard_methods', 'timed_estimates'),
     'recording': ('ExternalSnapshot', 'EvaluationError', 'RecordingEvaluation', 'evaluate_recording',
                   'evaluate_views', 'format_report', 'recording_methods'),
 }
@@ -44,6 +46,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.evaluation import *  # noqa: F401,F403
     from skynav_compass.exhaustive import *  # noqa: F401,F403
     from skynav_compass.features import *  # noqa: F401,F403
+    from skynav_compass.methods import *  # noqa: F401,F403
     from skynav_compass.recording import *  # noqa: F401,F403
     from skynav_compass.refine import *  # noqa: F401,F403
     from skynav_compass.runner import *  # noqa: F401,F403

@@ -1,7 +1,7 @@
 """Compass sets from recordings: images, masks, camera and ground-truth poses of camera_link in map.
 
 A compass set (skynav sim bag compass) holds a reference view (frame 0, the snapshot) and views rotated and/or
-moved against it. Reading needs skynav_bringup (imported on call only); everything else here is plain arrays.
+moved against it. Reading goes through skynav_core.views.recorded_frames; everything else here is plain arrays.
 """
 
 from __future__ import annotations
@@ -12,8 +12,6 @@ from pathlib import Path
 import numpy as np
 
 IMAGE_TOPICS = {'uv': '/camera/uv/image_raw', 'green': '/camera/green/image_raw', 'mask': '/ground_truth/mask'}
-POSE_TOPIC = '/ground_truth/pose'
-INFO_TOPIC = '/camera/uv/camera_info'
 
 
 def true_rotation(snapshot_orientation: np.ndarray, current_orientations: np.ndarray) -> np.ndarray:
@@ -65,42 +63,19 @@ class CompassSet:
 
 def load_compass_set(path: str | Path) -> CompassSet:
     """Return the compass set of a recording (first camera info; frames in stamp order; labels from metadata)."""
-    import yaml
-
     from skynav_core.bag import open_bag
-    from skynav_core.camera import EquidistantCamera
+    from skynav_core.camera_input import CAMERA_INFO_TOPIC
+    from skynav_core.views import recorded_frames
 
-    frames: dict[int, dict] = {}
-    camera = None
-    custom: dict = {}
     with open_bag(path) as bag:
-        if bag.custom_data and 'skynav_sim' in bag.custom_data:
-            custom = yaml.safe_load(bag.custom_data['skynav_sim']) or {}
-        topics = list(IMAGE_TOPICS.values()) + [POSE_TOPIC, INFO_TOPIC]
-        for raw in bag.messages(topics):
-            message = bag.deserialize(raw)
-            if raw.topic == INFO_TOPIC:
-                camera = camera or EquidistantCamera.from_camera_info(message)
-                continue
-            stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
-            frame = frames.setdefault(stamp, {})
-            if raw.topic == POSE_TOPIC:
-                p, q = message.pose.position, message.pose.orientation
-                frame['position'] = (p.x, p.y, p.z)
-                frame['orientation'] = (q.x, q.y, q.z, q.w)
-            else:
-                if message.encoding != 'mono8':
-                    raise ValueError(f'{path}: {raw.topic} has encoding {message.encoding}, expected mono8')
-                image = np.frombuffer(bytes(message.data), dtype=np.uint8).reshape(message.height, message.step)
-                key = next(k for k, topic in IMAGE_TOPICS.items() if topic == raw.topic)
-                frame[key] = image[:, : message.width].copy()
-    if camera is None:
-        raise ValueError(f'{path}: no {INFO_TOPIC} message')
-    stamps = sorted(s for s, f in frames.items() if {'position', 'uv', 'green', 'mask'} <= set(f))
-    meta_frames = custom.get('frames') or []
+        recorded = recorded_frames(bag, list(IMAGE_TOPICS.values()), encodings=('mono8',))
+    if recorded.camera is None:
+        raise ValueError(f'{path}: no {CAMERA_INFO_TOPIC} message')
+    images = {key: recorded.images[topic] for key, topic in IMAGE_TOPICS.items()}
+    stamps = sorted(s for s in recorded.poses if all(s in by_stamp for by_stamp in images.values()))
+    meta_frames = recorded.description.get('frames') or []
     labels = tuple(str(meta_frames[i].get('label', 'frame')) if i < len(meta_frames) else 'frame'
                    for i in range(len(stamps)))
-    stack = lambda key: np.stack([frames[s][key] for s in stamps])  # noqa: E731
-    return CompassSet(camera, stack('uv'), stack('green'), stack('mask'), stack('position').astype(float),
-                      stack('orientation').astype(float), labels, bool(custom.get('synthetic', False)),
-                      Path(path).stem)
+    poses = np.stack([recorded.poses[s] for s in stamps])
+    return CompassSet(recorded.camera, *(np.stack([images[key][s] for s in stamps]) for key in IMAGE_TOPICS),
+                      poses[:, :3], poses[:, 3:], labels, recorded.synthetic, Path(path).stem)

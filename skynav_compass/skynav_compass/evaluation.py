@@ -12,6 +12,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from skynav_core.evaluation import Column, text_table
+
 ERROR_THRESHOLD_DEG = 2.0  # the share of estimates under this error is reported
 RIGHT_DEG = 5.0  # an estimate within this error (deg) counts as right when judging how its confidence ranks it
 
@@ -93,8 +95,8 @@ def roc_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
 
 
 @dataclass(frozen=True)
-class MethodResult:
-    """One method's results on one set: errors (deg) per query frame and seconds per estimate."""
+class CompassResult:
+    """One compass method's results on one set: errors (deg) per query frame and seconds per estimate."""
 
     method: str
     errors: np.ndarray  # (Q,) deg
@@ -120,7 +122,7 @@ class MethodResult:
         return roc_auc(self.ranking()[chosen], errors < RIGHT_DEG)
 
 
-def summary_rows(results: Sequence[MethodResult], groups: Mapping[str, np.ndarray]) -> list[dict]:
+def summary_rows(results: Sequence[CompassResult], groups: Mapping[str, np.ndarray]) -> list[dict]:
     """Return one row per (method, group): statistics of the errors in each group (boolean masks over queries)."""
     rows = []
     for result in results:
@@ -132,17 +134,24 @@ def summary_rows(results: Sequence[MethodResult], groups: Mapping[str, np.ndarra
     return rows
 
 
+#: The columns of error statistics (deg) every compass table shows after the method's name.
+STATISTICS_COLUMNS = (Column('n', 3, 'd'), Column('median', 7, '.2f'), Column('p90', 7, '.2f'), Column('max', 7, '.2f'))
+
+
+def share_cell(share: float) -> str:
+    """Return a share (0..1) as a table shows it: whole per cent."""
+    return f'{100 * share:.0f}%'
+
+
 def format_table(rows: Sequence[dict]) -> str:
     """Return a text table of summary rows: method, group, median/p90/max error (deg), share < 2 deg, ms."""
-    header = f"{'method':<28} {'views':<12} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {'<2deg':>6} {'ms':>8}"
-    lines = [header, '-' * len(header)]
-    for r in rows:
-        lines.append(f"{r['method']:<28} {r['group']:<12} {r['count']:>3d} {r['median']:>7.2f} {r['p90']:>7.2f} "
-                     f"{r['max']:>7.2f} {100 * r['share_under_2deg']:>5.0f}% {r['ms_per_estimate']:>8.2f}")
-    return '\n'.join(lines)
+    columns = (Column('method', 28, align='<'), Column('views', 12, align='<'), *STATISTICS_COLUMNS,
+               Column('<2deg', 6), Column('ms', 8, '.2f'))
+    return text_table(columns, [(r['method'], r['group'], r['count'], r['median'], r['p90'], r['max'],
+                                 share_cell(r['share_under_2deg']), r['ms_per_estimate']) for r in rows])
 
 
-def plot_errors(results: Sequence[MethodResult], tilt: np.ndarray, translation: np.ndarray,
+def plot_errors(results: Sequence[CompassResult], tilt: np.ndarray, translation: np.ndarray,
                 path: str | Path, synthetic: bool = True, title: str = '') -> Path:
     """Save a figure of angular error (deg) against relative tilt (deg) and against translation (m) per method."""
     import matplotlib

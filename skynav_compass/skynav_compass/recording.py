@@ -24,15 +24,13 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_compass.compass import MAX_TILT
-from skynav_compass.evaluation import (RIGHT_DEG, ErrorStatistics, MethodResult, angular_error, error_statistics,
-                                       summary_rows)
-from skynav_compass.runner import Method, timed_estimates
+from skynav_compass.evaluation import (RIGHT_DEG, STATISTICS_COLUMNS, CompassResult, ErrorStatistics, error_statistics,
+                                       share_cell, summary_rows)
+from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
+from skynav_compass.runner import Method, NodeViews, build_method, compass_result, timed_estimates
 
-RECORDING_METHODS = ('fft-masked', 'fft-masked-any-tilt', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
-                     'visual-compass-sh', 'visual-compass-panorama', 'features-sift', 'features-orb')
-DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
-IMAGE_METHODS = frozenset({'visual-compass-panorama', 'features-sift', 'features-orb'})
 GROUPS = ('rotation', 'moved')  # pure rotations, views moved against the snapshot
 GROUP_TITLES = {'rotation': 'pure rotations', 'moved': 'moved views'}
 MOVED_FROM_M = 0.05  # without frame labels, a view this far (m) or farther from the snapshot counts as moved
@@ -64,7 +62,7 @@ class RecordingEvaluation:
     translations: np.ndarray  # (Q,) m, true distance from the snapshot
     groups: dict[str, np.ndarray]  # 'rotation', 'moved' -> (Q,) bool
     grouped_by: str  # 'labels' or 'translation'
-    results: list[MethodResult]  # errors (deg) and CPU seconds per estimate, per method
+    results: list[CompassResult]  # errors (deg) and CPU seconds per estimate, per method
     skipped: dict[str, str] = field(default_factory=dict)  # method -> why it did not run
     snapshot_seconds: dict[str, float] = field(default_factory=dict)  # method -> preparing the snapshot once (s)
 
@@ -72,7 +70,7 @@ class RecordingEvaluation:
         """Return one summary row per method and group (see evaluation.summary_rows)."""
         return summary_rows(self.results, self.groups)
 
-    def result(self, method: str) -> MethodResult:
+    def result(self, method: str) -> CompassResult:
         """Return one method's result (KeyError if it did not run)."""
         for result in self.results:
             if result.method == method:
@@ -90,6 +88,12 @@ class RecordingEvaluation:
         return 1e3 * float(np.median(selected)) if selected.size else float('nan')
 
 
+def check_node_methods(names: Sequence[str]) -> None:
+    """Raise EvaluationError naming every method the SH node's views cannot serve (methods.NODE_METHODS)."""
+    if problem := unknown_methods(names, NODE_METHODS):
+        raise EvaluationError(problem)
+
+
 def recording_methods(camera, max_degree: int, field_of_view: float, fill: str = 'zero',
                       names: Sequence[str] = DEFAULT_METHODS, max_tilt: float | None = MAX_TILT) -> list[Method]:
     """Return the named methods for views of the SH node (skynav_core.views.View): prepare(view) -> its input.
@@ -97,47 +101,9 @@ def recording_methods(camera, max_degree: int, field_of_view: float, fill: str =
     field_of_view (rad) and fill: as the SH node made the coefficients (its ShCoefficients fields); max_tilt (rad):
     the tilt bound of the fft-masked and fft-zero compasses (the compass node's `max_tilt_deg`).
     """
-    from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
-    from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
-    from skynav_compass.features import FeatureCompass, FeatureConfig
-    from skynav_compass.views import CompassView
-    from skynav_compass.yaw import PanoramicCompass, YawCompass
-
-    L = int(max_degree)
-    if unknown := [n for n in names if n not in RECORDING_METHODS]:
-        raise EvaluationError(f'unknown method {", ".join(unknown)} (one of {", ".join(RECORDING_METHODS)})')
-
-    def masked(view) -> CompassView:
-        return CompassView.from_sh_message(view.coefficients, field_of_view, fill, L)
-
-    def zero_filled(view) -> np.ndarray:  # v f: the view with nothing outside the field of view
-        return masked(view).weighted
-
-    def compass_method(name: str, prepare: Callable, compass) -> Method:
-        return Method(name, prepare, compass.estimate, compass.prepare)
-
-    def panorama() -> Method:
-        compass = PanoramicCompass(camera)
-        return Method('visual-compass-panorama', lambda view: compass.unwrap(view.mask), compass.estimate_panoramas)
-
-    def features(detector: str) -> Method:
-        compass = FeatureCompass(camera, FeatureConfig(detector=detector))
-        return Method(f'features-{detector}', lambda view: compass.features(view.uv), compass.estimate_features)
-
-    makers: dict[str, Callable[[], Method]] = {
-        'fft-masked': lambda: compass_method('fft-masked', masked, Compass(L, CompassConfig(max_tilt=max_tilt))),
-        'fft-masked-any-tilt': lambda: compass_method('fft-masked-any-tilt', masked, Compass(L, any_tilt_config())),
-        'fft-zero': lambda: compass_method('fft-zero', zero_filled,
-                                           Compass(L, CompassConfig(cost='plain', max_tilt=max_tilt))),
-        'exhaustive-masked': lambda: compass_method('exhaustive-masked', masked, ExhaustiveCompass(L)),
-        'exhaustive-zero': lambda: compass_method('exhaustive-zero', zero_filled,
-                                                  ExhaustiveCompass(L, ExhaustiveConfig(cost='plain'))),
-        'visual-compass-sh': lambda: Method('visual-compass-sh', masked, YawCompass(L).estimate),
-        'visual-compass-panorama': panorama,
-        'features-sift': lambda: features('sift'),
-        'features-orb': lambda: features('orb'),
-    }
-    return [makers[name]() for name in names]
+    check_node_methods(names)
+    views = NodeViews(max_degree, field_of_view, fill)
+    return [build_method(METHODS[name], views, max_degree, camera, max_tilt) for name in names]
 
 
 def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot: ExternalSnapshot | None = None,
@@ -150,8 +116,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
     field_of_view (rad; default the camera's): how the SH node made the coefficients. max_tilt (rad): the tilt bound
     of the fft-masked and fft-zero compasses.
     """
-    if unknown := [n for n in methods if n not in RECORDING_METHODS]:
-        raise EvaluationError(f'unknown method {", ".join(unknown)} (one of {", ".join(RECORDING_METHODS)})')
+    check_node_methods(methods)
     if not methods:
         raise EvaluationError('no method to evaluate')
     path = Path(recording.path)
@@ -188,20 +153,19 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
         queries = views
         name = snapshot.name
         by_labels = False
-        needing_images = [m for m in methods if m in IMAGE_METHODS]
-        for method in needing_images:
+        for method in (m for m in methods if METHODS[m].needs_images):
             skipped[method] = "needs the snapshot's images; runs only against the recording's reference frame"
-        methods = [m for m in methods if m not in IMAGE_METHODS]
+        methods = [m for m in methods if not METHODS[m].needs_images]
         if not methods:
             raise EvaluationError(f"every chosen method needs the snapshot's images, which {snapshot.name} lacks; "
                                   'choose an SH method (or no map)')
     if not queries:
         raise EvaluationError(f'{path}: no view with ground truth to compare against {name}')
-    if any(m in IMAGE_METHODS for m in methods):
-        if any(v.uv is None for v in [snapshot_view, *queries]):
-            raise EvaluationError(f'{path}: the image methods need the UV images of the recording')
-        if 'visual-compass-panorama' in methods and any(v.mask is None for v in [snapshot_view, *queries]):
-            raise EvaluationError(f'{path}: the panorama compass needs the skyline masks of the recording')
+    compared = {METHODS[m].view for m in methods}
+    if 'image' in compared and any(v.uv is None for v in [snapshot_view, *queries]):
+        raise EvaluationError(f'{path}: the image methods need the UV images of the recording')
+    if 'mask' in compared and any(v.mask is None for v in [snapshot_view, *queries]):
+        raise EvaluationError(f'{path}: the panorama compass needs the skyline masks of the recording')
     from skynav_compass.dataset import true_rotation
     from skynav_compass.evaluation import relative_tilt
 
@@ -216,13 +180,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
     prepared = [[method.prepare(v) for v in [snapshot_view, *queries]] for method in chosen]
     estimates, seconds, snapshot_seconds = timed_estimates(chosen, [p[0] for p in prepared],
                                                            [p[1:] for p in prepared], clock, repeats)
-    results = []
-    for k, method in enumerate(chosen):
-        errors = angular_error(np.array([e.quaternion for e in estimates[k]]), truth)
-        results.append(MethodResult(method.name, errors, seconds[k], np.array([e.residual for e in estimates[k]]),
-                                    np.array([e.confident for e in estimates[k]]),
-                                    np.array([e.confidence for e in estimates[k]]),
-                                    relative_tilt(np.array([e.matrix for e in estimates[k]]))))
+    results = [compass_result(method.name, estimates[k], truth, seconds[k]) for k, method in enumerate(chosen)]
     return RecordingEvaluation(path, bool(recording.synthetic), degree, name, np.array([v.stamp for v in queries]),
                                tilts, translations, {'rotation': rotation, 'moved': ~rotation},
                                'labels' if by_labels else 'translation', results, skipped,
@@ -248,10 +206,9 @@ def evaluate_recording(path: str | Path, methods: Sequence[str] = DEFAULT_METHOD
     """
     from skynav_core.views import recording_views
 
-    if unknown := [n for n in methods if n not in RECORDING_METHODS]:
-        raise EvaluationError(f'unknown method {", ".join(unknown)} (one of {", ".join(RECORDING_METHODS)})')
-    images = snapshot is None and any(m in IMAGE_METHODS for m in methods)
-    masks = snapshot is None and 'visual-compass-panorama' in methods
+    check_node_methods(methods)
+    images = snapshot is None and any(METHODS[m].needs_images for m in methods)
+    masks = snapshot is None and any(METHODS[m].view == 'mask' for m in methods)
     recording = recording_views(path, ros_args, images=images, masks=masks)
     settings = sh_node_settings(ros_args)
     fill = str(settings.get('fill', 'zero'))
@@ -289,7 +246,7 @@ def format_report(evaluation: RecordingEvaluation) -> str:
              f'against {e.snapshot}',
              'error: 3D rotation error against ground truth (deg); ms: CPU time per estimate'
              + (f' (snapshot prepared once for {", ".join(prepared)})' if prepared else '')]
-    header = f"{'method':<26} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {'<2deg':>6} {'ms':>8}"
+    columns = (Column('method', 26, align='<'), *STATISTICS_COLUMNS, Column('<2deg', 6), Column('ms', 8, '.2f'))
     for group in GROUPS:
         selection = e.groups[group]
         count = int(np.sum(selection))
@@ -303,24 +260,26 @@ def format_report(evaluation: RecordingEvaluation) -> str:
         lines.append(f'{GROUP_TITLES[group]}: {count} views ({how}); tilt {e.tilts[selection].min():.0f}-'
                      f'{e.tilts[selection].max():.0f} deg, translation {e.translations[selection].min():.2f}-'
                      f'{e.translations[selection].max():.2f} m')
-        lines += [header, '-' * len(header)]
+        rows = []
         for result in e.results:
             s = e.statistics(result.method, group)
-            lines.append(f'{result.method:<26} {s.count:>3d} {s.median:>7.2f} {s.p90:>7.2f} {s.max:>7.2f} '
-                         f'{100 * s.share_under:>5.0f}% {e.milliseconds(result.method, group):>8.2f}')
+            rows.append((result.method, s.count, s.median, s.p90, s.max, share_cell(s.share_under),
+                         e.milliseconds(result.method, group)))
+        lines.append(text_table(columns, rows))
     lines += ['', f'all {len(e.stamps)} views; AUC: how well the confidence ranks estimates under {RIGHT_DEG:g} deg of '
                   'error above the others (1: perfectly, 0.5: by chance, -: all on one side;',
               "without a confidence: by the residual); tilt: the most any estimate tilts the views apart (deg)"]
-    right = f'<{RIGHT_DEG:g}deg'
-    header = f"{'method':<26} {'n':>3} {'median':>7} {'p90':>7} {'max':>7} {right:>6} {'AUC':>6} {'tilt':>6}"
-    lines += [header, '-' * len(header)]
+    columns = (Column('method', 26, align='<'), *STATISTICS_COLUMNS, Column(f'<{RIGHT_DEG:g}deg', 6),
+               Column('AUC', 6, '.3f'), Column('tilt', 6, '.1f'))
+    rows = []
     for result in e.results:
         s = error_statistics(result.errors)
         share = float(np.mean(np.where(np.isfinite(result.errors), result.errors, 180.0) < RIGHT_DEG))
         auc = result.separation()
         tilt = float(np.max(result.tilts)) if result.tilts is not None and result.tilts.size else float('nan')
-        lines.append(f'{result.method:<26} {s.count:>3d} {s.median:>7.2f} {s.p90:>7.2f} {s.max:>7.2f} '
-                     f'{100 * share:>5.0f}% {"-" if np.isnan(auc) else f"{auc:.3f}":>6} {tilt:>6.1f}')
+        rows.append((result.method, s.count, s.median, s.p90, s.max, share_cell(share), '-' if np.isnan(auc) else auc,
+                     tilt))
+    lines.append(text_table(columns, rows))
     for method, reason in e.skipped.items():
         lines.append(f'skipped {method}: {reason}')
     return '\n'.join(lines)

@@ -1,121 +1,151 @@
-"""Run compass methods over a compass set: one prepared view per frame, one estimate per query against the reference.
+"""Run compass methods on frames: one prepared view per frame, one estimate per query against a snapshot.
 
-A Method turns a frame's images (uv, green, mask) into its prepared view (SH coefficients, panorama, features;
-timed as preparation) and two prepared views into a CompassEstimate (timed as the estimate). The default
-methods: the FFT compass (masked and with the three fills; on masks, and on grey UV images with illumination
-invariance), the exhaustive baseline, the yaw-only visual compass (panorama and SH) and the feature compass.
-A method whose compass can prepare a snapshot once for many estimates (Compass.prepare, ExhaustiveCompass.prepare)
-also comes as NAME+prepared: the reference's view is then prepared once (timed apart) and every estimate starts from
-it, as a node comparing many views against one snapshot would run it.
+A Method (built from an entry of the registry, methods.METHODS) turns a frame into its prepared view (SH
+coefficients, panorama, features; timed as preparation) and two prepared views into a CompassEstimate (timed as the
+estimate). Frames come as images (a compass set's: ImageViews projects them with the fish-eye transform) or as the
+SH node's views (skynav_core.views.View: NodeViews reads their coefficients). A method whose compass can prepare a
+snapshot once for many estimates (Compass.prepare, ExhaustiveCompass.prepare) does so on recordings, as the compass
+node does; on compass sets it does so when named NAME+prepared, so both ways can be timed.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from functools import partial
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
 
+from skynav_sh.fisheye import FisheyeTransform
+from skynav_compass.compass import MAX_TILT, Compass, CompassConfig, any_tilt_config
 from skynav_compass.estimate import CompassEstimate
-from skynav_compass.evaluation import MethodResult, angular_error, relative_tilt
+from skynav_compass.evaluation import CompassResult, angular_error, relative_tilt
+from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
+from skynav_compass.features import FeatureCompass, FeatureConfig
+from skynav_compass.methods import METHODS, PREPARED, CompassMethod
+from skynav_compass.views import CompassView
+from skynav_compass.yaw import PanoramicCompass, YawCompass
 
 
 @dataclass(frozen=True)
 class Method:
-    """A named compass method: prepare(uv, green, mask) -> view; estimate(snapshot view, current view).
+    """A named compass method: prepare(frame) -> view; estimate(snapshot view, current view).
 
     prepare_snapshot (optional): the snapshot's view -> the form estimate takes for it, built once per snapshot.
     """
 
     name: str
-    prepare: Callable[..., Any]
+    prepare: Callable[[Any], Any]
     estimate: Callable[[Any, Any], CompassEstimate]
     prepare_snapshot: Callable[[Any], Any] | None = None
 
 
-METHOD_NAMES = ('fft-masked', 'fft-zero', 'fft-mean', 'fft-mirror', 'fft-masked-any-tilt', 'fft-uv-normalised',
-                'exhaustive-masked', 'exhaustive-zero', 'visual-compass-panorama', 'visual-compass-sh', 'features-sift',
-                'features-orb')
-PREPARED = '+prepared'  # name suffix: the snapshot prepared once (the fft-* and exhaustive-* methods)
+class Images(NamedTuple):
+    """A frame given by its images: the UV image and the skyline mask (uint8, 255 sky)."""
+
+    uv: np.ndarray
+    mask: np.ndarray
 
 
-def with_snapshot_preparation(name: str, prepare: Callable[..., Any], compass) -> Method:
-    """Return the Method of a compass with estimate and prepare; prepared once per snapshot if name ends +prepared."""
-    return Method(name, prepare, compass.estimate, compass.prepare if name.endswith(PREPARED) else None)
+class ImageViews:
+    """The views (methods.VIEWS) of frames given by their images, through the fish-eye transform of each fill."""
+
+    def __init__(self, camera, max_degree: int) -> None:
+        self.camera = camera
+        self.max_degree = int(max_degree)
+        self._transforms: dict[str, FisheyeTransform] = {}  # built on first use, once per fill
+
+    def transform(self, fill: str) -> FisheyeTransform:
+        """Return the fish-eye transform of the camera to SH of degree L with a fill."""
+        if fill not in self._transforms:
+            self._transforms[fill] = FisheyeTransform(self.camera, self.max_degree, fill)
+        return self._transforms[fill]
+
+    def view(self, kind: str, frame: Images) -> Any:
+        """Return one view of a frame."""
+        if kind == 'masked':
+            return CompassView.from_image(self.transform('zero'), frame.mask, binary=True)
+        if kind == 'uv':
+            return CompassView.from_image(self.transform('zero'), frame.uv, binary=False)
+        if kind in ('zero', 'mean', 'mirror'):
+            return self.transform(kind).coefficients(frame.mask)
+        return frame.mask if kind == 'mask' else frame.uv
+
+
+class NodeViews:
+    """The views (methods.NODE_VIEWS) of the SH node's output, with the fill and field of view (rad) it used."""
+
+    def __init__(self, max_degree: int, field_of_view: float, fill: str = 'zero') -> None:
+        self.max_degree = int(max_degree)
+        self.field_of_view = field_of_view
+        self.fill = fill
+
+    def view(self, kind: str, frame) -> Any:
+        """Return one view of a frame (skynav_core.views.View, or anything with its coefficients, uv and mask)."""
+        if kind in ('masked', 'zero'):
+            view = CompassView.from_sh_message(frame.coefficients, self.field_of_view, self.fill, self.max_degree)
+            return view if kind == 'masked' else view.weighted  # v f: nothing outside the field of view
+        if kind in ('mask', 'image'):
+            return frame.mask if kind == 'mask' else frame.uv
+        raise ValueError(f'the SH node gives no {kind!r} view')
+
+
+def build_method(entry: CompassMethod, views: ImageViews | NodeViews, max_degree: int, camera=None,
+                 max_tilt: float | None = MAX_TILT, prepared: bool = True, name: str | None = None) -> Method:
+    """Return the Method of a registry entry: its view of frames and its compass (degree L, tilt bound in rad).
+
+    prepared: prepare the snapshot once (compasses that can); name: what tables call it (default the entry's).
+    """
+    name, view, L = name or entry.name, partial(views.view, entry.view), int(max_degree)
+    if entry.compass == 'panorama':
+        panoramic = PanoramicCompass(camera)
+        return Method(name, lambda frame: panoramic.unwrap(view(frame)), panoramic.estimate_panoramas)
+    if entry.compass == 'features':
+        features = FeatureCompass(camera, FeatureConfig(**entry.settings))
+        return Method(name, lambda frame: features.features(view(frame)), features.estimate_features)
+    if entry.compass == 'yaw':
+        return Method(name, view, YawCompass(L).estimate)
+    if entry.compass == 'exhaustive':
+        compass = ExhaustiveCompass(L, ExhaustiveConfig(**entry.settings))
+    elif entry.compass == 'fft-any-tilt':
+        compass = Compass(L, any_tilt_config(**entry.settings))
+    else:
+        compass = Compass(L, CompassConfig(**{'max_tilt': max_tilt, **entry.settings}))
+    return Method(name, view, compass.estimate, compass.prepare if prepared else None)
 
 
 def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None = None) -> list[Method]:
-    """Return the named methods (default all of METHOD_NAMES) for a camera and SH degree L; masks feed the SH ones."""
-    from skynav_sh.fisheye import FisheyeTransform
+    """Return the named methods (default all of the registry) for frames given by images, a camera and degree L.
 
-    from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
-    from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
-    from skynav_compass.features import FeatureCompass, FeatureConfig
-    from skynav_compass.views import CompassView
-    from skynav_compass.yaw import PanoramicCompass, YawCompass
-
-    L = int(max_degree)
-    transforms: dict[str, FisheyeTransform] = {}
-
-    def transform(fill: str) -> FisheyeTransform:
-        if fill not in transforms:
-            transforms[fill] = FisheyeTransform(camera, L, fill)
-        return transforms[fill]
-
-    def masked_view(uv, green, mask):
-        return CompassView.from_image(transform('zero'), mask, binary=True)
-
-    def filled(fill: str):
-        return lambda uv, green, mask: transform(fill).coefficients(mask)
-
-    def uv_view(uv, green, mask):
-        return CompassView.from_image(transform('zero'), uv, binary=False)
-
-    # compasses that can prepare a snapshot: name -> (view of a frame, compass)
-    compasses: dict[str, Callable[[], tuple[Callable, Any]]] = {
-        'fft-masked': lambda: (masked_view, Compass(L)),
-        'fft-masked-any-tilt': lambda: (masked_view, Compass(L, any_tilt_config())),
-        'exhaustive-masked': lambda: (masked_view, ExhaustiveCompass(L)),
-        'exhaustive-zero': lambda: (filled('zero'), ExhaustiveCompass(L, ExhaustiveConfig(cost='plain'))),
-        # grey UV image instead of the mask, gain and offset removed over the overlap (masked correlation coefficient)
-        'fft-uv-normalised': lambda: (uv_view, Compass(L, CompassConfig(normalise=True))),
-    }
-    for fill in ('zero', 'mean', 'mirror'):
-        compasses[f'fft-{fill}'] = lambda fill=fill: (filled(fill), Compass(L, CompassConfig(cost='plain')))
-    makers: dict[str, Callable[[], Method]] = {
-        'visual-compass-sh': lambda: Method('visual-compass-sh', masked_view, YawCompass(L).estimate),
-    }
-    for base, make in compasses.items():
-        for name in (base, base + PREPARED):
-            makers[name] = lambda name=name, make=make: with_snapshot_preparation(name, *make())
-
-    def panorama() -> Method:
-        compass = PanoramicCompass(camera)
-        return Method('visual-compass-panorama', lambda uv, green, mask: compass.unwrap(mask),
-                      compass.estimate_panoramas)
-
-    def features(detector: str) -> Method:
-        compass = FeatureCompass(camera, FeatureConfig(detector=detector))
-        return Method(f'features-{detector}', lambda uv, green, mask: compass.features(uv),
-                      compass.estimate_features)
-
-    makers['visual-compass-panorama'] = panorama
-    makers['features-sift'] = lambda: features('sift')
-    makers['features-orb'] = lambda: features('orb')
-    chosen = METHOD_NAMES if names is None else names
-    unknown = [n for n in chosen if n not in makers]
+    A name may end in +prepared (methods.PREPARED) for a compass that prepares the snapshot once.
+    """
+    chosen = list(METHODS) if names is None else list(names)
+    entries = {name: METHODS.get(name.removesuffix(PREPARED)) for name in chosen}
+    unknown = [name for name, entry in entries.items()
+               if entry is None or (name.endswith(PREPARED) and not entry.prepares)]
     if unknown:
-        raise ValueError(f'unknown methods {unknown}; expected some of {METHOD_NAMES} (the fft-* and exhaustive-* '
+        raise ValueError(f'unknown methods {unknown}; expected some of {tuple(METHODS)} (the fft-* and exhaustive-* '
                          f'ones also as NAME{PREPARED})')
-    return [makers[name]() for name in chosen]
+    views = ImageViews(camera, max_degree)
+    return [build_method(entries[name], views, max_degree, camera, prepared=name.endswith(PREPARED), name=name)
+            for name in chosen]
+
+
+def compass_result(name: str, estimates: Sequence[CompassEstimate], truth: np.ndarray,
+                   seconds: np.ndarray) -> CompassResult:
+    """Return a method's result: its estimates' errors against the true rotations (Q, 3, 3) and their seconds."""
+    return CompassResult(name, angular_error(np.array([e.quaternion for e in estimates]), truth), seconds,
+                         np.array([e.residual for e in estimates]), np.array([e.confident for e in estimates]),
+                         np.array([e.confidence for e in estimates]),
+                         relative_tilt(np.array([e.matrix for e in estimates])))
 
 
 @dataclass(frozen=True)
 class RunResult:
     """A method's result on a set, with the estimates, the preparation time per view and of the snapshot (s)."""
 
-    result: MethodResult
+    result: CompassResult
     estimates: tuple[CompassEstimate, ...]
     prepare_seconds: float
     snapshot_seconds: float = 0.0  # preparing the snapshot once (methods with prepare_snapshot), else 0
@@ -170,19 +200,11 @@ def run_methods(compass_set, methods: Sequence[Method], queries: Sequence[int] |
         views = {}
         start = clock()
         for i in frames:
-            views[i] = method.prepare(compass_set.uv[i], compass_set.green[i], compass_set.masks[i])
+            views[i] = method.prepare(Images(compass_set.uv[i], compass_set.masks[i]))
         prepare_seconds.append((clock() - start) / len(frames))
         prepared.append(views)
     estimates, seconds, snapshot_seconds = timed_estimates(
         methods, [views[compass_set.reference] for views in prepared],
         [[views[i] for i in queries] for views in prepared], clock, repeats)
-    out = []
-    for k, method in enumerate(methods):
-        errors = angular_error(np.array([e.quaternion for e in estimates[k]]), truth[queries])
-        out.append(RunResult(MethodResult(method.name, errors, seconds[k],
-                                          np.array([e.residual for e in estimates[k]]),
-                                          np.array([e.confident for e in estimates[k]]),
-                                          np.array([e.confidence for e in estimates[k]]),
-                                          relative_tilt(np.array([e.matrix for e in estimates[k]]))),
-                             tuple(estimates[k]), prepare_seconds[k], float(snapshot_seconds[k])))
-    return out
+    return [RunResult(compass_result(method.name, estimates[k], truth[queries], seconds[k]), tuple(estimates[k]),
+                      prepare_seconds[k], float(snapshot_seconds[k])) for k, method in enumerate(methods)]

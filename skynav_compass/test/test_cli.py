@@ -113,8 +113,9 @@ def _bag_without_camera(path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize('case', ['missing bag', 'no camera topics', 'unknown method', 'corrupt map', 'not a bag'])
-def test_bad_input_is_one_line_and_exit_code_1(case, tmp_path):
+@pytest.mark.parametrize('case, code', [('missing bag', 1), ('no camera topics', 1), ('unknown method', 2),
+                                        ('corrupt map', 1), ('not a bag', 1)])
+def test_bad_input_is_one_line_with_its_exit_code(case, code, tmp_path):
     garden = str(GARDEN)
     if case == 'missing bag':
         args, expected = [str(tmp_path / 'nothere.mcap')], 'no such recording'
@@ -129,16 +130,24 @@ def test_bad_input_is_one_line_and_exit_code_1(case, tmp_path):
         (tmp_path / 'text.mcap').write_text('not a recording')
         args, expected = [str(tmp_path / 'text.mcap')], 'text.mcap'
     result = run_skynav('eval', 'compass', *args, '--plots', str(tmp_path / 'plots'))
-    assert result.returncode == 1
+    assert result.returncode == code  # 2: a malformed command line, as every evaluation command says it
     assert one_line_error(result.stderr) and expected in result.stderr, result.stderr
     assert not (tmp_path / 'plots').exists()
 
 
-def test_command_lists_match_the_library():
-    from skynav_compass.cli import eval as command
-    from skynav_compass.recording import DEFAULT_METHODS, RECORDING_METHODS
+def test_command_offers_the_registry_methods_the_node_views_serve():
+    import argparse
 
-    assert tuple(command.METHODS) == RECORDING_METHODS and tuple(command.DEFAULT_METHODS) == DEFAULT_METHODS
+    from skynav_compass.cli import eval as command
+    from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
+
+    parser = argparse.ArgumentParser()
+    command.configure(parser)
+    methods = next(action for action in parser._actions if action.dest == 'methods')
+    assert methods.default == list(DEFAULT_METHODS) and f'one of {", ".join(NODE_METHODS)}' in methods.help
+    # every method of the registry but those needing another fill or the UV image's SH, in the registry's order
+    assert NODE_METHODS == tuple(n for n in METHODS if n not in ('fft-mean', 'fft-mirror', 'fft-uv-normalised'))
+    assert set(DEFAULT_METHODS) <= set(NODE_METHODS)
     assert command.HELP and '\n' not in command.HELP
 
 

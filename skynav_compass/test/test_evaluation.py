@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass import (MethodResult, angular_error, error_statistics, format_table, heading_error,
+from skynav_compass import (CompassResult, angular_error, error_statistics, format_table, heading_error,
                             load_compass_set, plot_errors, relative_tilt, roc_auc, run_methods, standard_methods,
                             summary_rows, true_rotation)
 
@@ -44,7 +44,7 @@ def test_statistics_table_and_plot(tmp_path):
     stats = error_statistics(errors)
     assert stats.median == pytest.approx(1.5) and stats.max == 180.0 and stats.share_under == pytest.approx(0.6)
     assert stats.count == 5 and stats.p90 == pytest.approx(np.percentile([0.5, 1, 1.5, 2.5, 180], 90))
-    result = MethodResult('m', errors, np.full(5, 0.004))
+    result = CompassResult('m', errors, np.full(5, 0.004))
     groups = {'rotation': np.array([True, True, True, False, False]), 'translation': np.array([False] * 3 + [True] * 2)}
     rows = summary_rows([result], groups)
     assert [r['group'] for r in rows] == ['rotation', 'translation'] and rows[0]['ms_per_estimate'] == pytest.approx(4)
@@ -62,10 +62,10 @@ def test_roc_auc_counts_right_estimates_ranked_above_wrong_ones():
     assert np.isnan(roc_auc([0.1, 0.2], [True, True]))  # nothing to separate
     # a method without a confidence is ranked by its residual, lower first
     errors = np.array([1.0, 2.0, 30.0, 90.0])
-    by_residual = MethodResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, np.inf]),
+    by_residual = CompassResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, np.inf]),
                                confidence=np.full(4, np.nan))
     assert by_residual.separation() == 1.0
-    by_confidence = MethodResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, 0.4]),
+    by_confidence = CompassResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, 0.4]),
                                  confidence=np.array([0.2, 0.9, 0.1, 0.05]))
     assert by_confidence.separation() == 1.0
     assert by_confidence.separation(np.array([True, False, True, False])) == 1.0

@@ -7,9 +7,13 @@ CliError for a failure to report as one line.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import SkynavError
 from .parameters import ParameterFileError, load_parameter_file
+
+if TYPE_CHECKING:
+    from .maps import MapStore
 
 
 class CliError(SkynavError):
@@ -37,3 +41,13 @@ def graph_arguments(params: Path | None, map_path: Path | None) -> list[str]:
     if map_path is not None:
         arguments += ['-p', f'map:={map_path}']
     return arguments
+
+
+def open_map(path: Path) -> MapStore:
+    """Open a map file for a command; CliError with the map's problem in one line if it cannot be used."""
+    from .maps import MapError, MapStore  # numpy: not loaded while the `skynav` command builds its parser
+
+    try:
+        return MapStore.open(path)
+    except MapError as exc:
+        raise CliError(str(exc)) from None

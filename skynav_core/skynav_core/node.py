@@ -6,8 +6,8 @@ A skynav node is an ordinary rclpy node with three habits:
   runs on live topics (`skynav launch`) and, given a router, inside `skynav run`, where every message
   is delivered synchronously and none can be dropped;
 - bad input never kills it: `reject(reason, detail)` logs one clear line for the first input of each
-  kind of problem, counts every one, and the node goes on; an exception in a callback is logged and
-  counted the same way;
+  kind of problem, counts every one, and the node goes on (`in_order` rejects an input no newer than
+  the last one taken as 'out_of_order'); an exception in a callback is logged and counted the same way;
 - its parameters are turned into working state by one method, `configure(values)`, which raises
   ValueError for values it cannot use: at start-up the node then keeps its defaults, at run time the
   change is refused with that reason.
@@ -167,6 +167,13 @@ class SkynavNode(Node):
         if self.rejected[reason] == 1:
             self.get_logger().warning(f'rejected input ({reason}): {detail}; '
                                       f'further inputs rejected for this reason are counted in /diagnostics')
+
+    def in_order(self, stamp: int, last: int, what: str = 'view') -> bool:
+        """Return whether an input stamped `stamp` (ns) is newer than the last one taken; reject it otherwise."""
+        if stamp > last:
+            return True
+        self.reject('out_of_order', f'{what} stamped {stamp} is not newer than the last one')
+        return False
 
     def now_ns(self) -> int:
         """Return the current time: the node's clock live, the input's time in `skynav run`."""

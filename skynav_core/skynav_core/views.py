@@ -2,17 +2,25 @@
 
 For offline tools (map building, evaluations): the installed skyline and SH nodes run in this process
 over the recording (the same code and parameters as `skynav run`), and each /skyline/sh output is
-joined by stamp with the recording's UV image, ground-truth pose and frame label.
+joined by stamp with the recording's UV image, ground-truth pose and frame label. recorded_frames reads
+what a recording holds per exposure (camera, ground-truth poses, images) for the readers of data sets.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import yaml
 
 from .camera import EquidistantCamera
+from .camera_input import CAMERA_INFO_TOPIC
+from .images import DTYPES, image_to_array, stamp_ns
+
+POSE_TOPIC = '/ground_truth/pose'
 
 
 @dataclass
@@ -30,8 +38,23 @@ class View:
     fill: str = 'zero'  # how the SH node filled what the camera does not see
 
 
+class Described:
+    """What a recording says about itself: `description`, the skynav_sim metadata of a synthetic one ({} otherwise)."""
+
+    description: dict
+
+    @property
+    def synthetic(self) -> bool:
+        """Return whether the recording says it is synthetic."""
+        return bool(self.description.get('synthetic'))
+
+    def labels(self) -> list[str]:
+        """Return the frame labels of the recording's metadata, in frame order ('' where a frame has none)."""
+        return [f.get('label', '') for f in self.description.get('frames', [])]
+
+
 @dataclass
-class RecordingViews:
+class RecordingViews(Described):
     """Every view of a recording, its camera, and what the recording says about itself."""
 
     path: Path
@@ -39,10 +62,39 @@ class RecordingViews:
     camera: EquidistantCamera | None
     description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
 
-    @property
-    def synthetic(self) -> bool:
-        """Return whether the recording says it is synthetic."""
-        return bool(self.description.get('synthetic'))
+
+@dataclass
+class RecordedFrames(Described):
+    """What a recording holds per exposure, by stamp (ns): its camera, ground-truth poses and images."""
+
+    camera: EquidistantCamera | None  # of the first camera info
+    stamps: list[int]  # of the camera infos: one per exposure, in the recording's order
+    poses: dict[int, np.ndarray]  # (x, y, z, qx, qy, qz, qw) of camera_link in map
+    images: dict[str, dict[int, np.ndarray]]  # topic -> stamp -> pixels (H, W) in the encoding's dtype
+    description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
+
+
+def recorded_frames(bag: Any, image_topics: Sequence[str] = (),
+                    encodings: tuple[str, ...] = tuple(DTYPES)) -> RecordedFrames:
+    """Return the camera, ground-truth poses and images of `image_topics` of an open recording (skynav_core.bag).
+
+    Topics the recording lacks are left out (their tables empty); an image in another encoding is an ImageError.
+    """
+    frames = RecordedFrames(None, [], {}, {topic: {} for topic in image_topics},
+                            yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {})
+    wanted = [t for t in (CAMERA_INFO_TOPIC, POSE_TOPIC, *image_topics) if t in bag.topics]
+    for raw in bag.messages(wanted):
+        message = bag.deserialize(raw)
+        stamp = stamp_ns(message.header)
+        if raw.topic == CAMERA_INFO_TOPIC:  # one per exposure: the frame order of the recording
+            frames.camera = frames.camera or EquidistantCamera.from_camera_info(message)
+            frames.stamps.append(stamp)
+        elif raw.topic == POSE_TOPIC:
+            p, q = message.pose.position, message.pose.orientation
+            frames.poses[stamp] = np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
+        else:
+            frames.images[raw.topic][stamp] = image_to_array(message, encodings)
+    return frames
 
 
 def recording_views(path: str | Path, ros_args: list[str] | None = None, images: bool = True,
@@ -51,11 +103,8 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
 
     `images` keeps each view's raw UV image, `masks` the skyline node's mask.
     """
-    import yaml
-
     from skynav_core.bag import BagError, open_bag
     from skynav_core.graph import in_process
-    from skynav_core.images import image_to_array, stamp_ns
     from skynav_core.nodes import installed_nodes
 
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
@@ -79,26 +128,11 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
                     coefficients[stamp_ns(message.header)] = (np.asarray(message.coefficients, np.float64),
                                                               int(message.max_degree),
                                                               float(message.field_of_view), str(message.fill))
-        description = yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {}
-        labels = [f.get('label', '') for f in description.get('frames', [])]
-        topics = ['/camera/uv/camera_info'] + [t for t in ('/ground_truth/pose',) if t in bag.topics]
-        if images:
-            topics.append('/camera/uv/image_raw')
-        camera, poses, uvs, order = None, {}, {}, []
-        for raw in bag.messages(topics):
-            message = bag.deserialize(raw)
-            stamp = stamp_ns(message.header)
-            if raw.topic == '/camera/uv/camera_info':  # one per exposure: the frame order of the recording
-                camera = camera or EquidistantCamera.from_camera_info(message)
-                order.append(stamp)
-            elif raw.topic == '/ground_truth/pose':
-                p, q = message.pose.position, message.pose.orientation
-                poses[stamp] = np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
-            else:
-                uvs[stamp] = image_to_array(message)
-    frame_index = {stamp: k for k, stamp in enumerate(sorted(set(order) | set(coefficients)))}
-    views = [View(stamp, c, degree, uvs.get(stamp), poses.get(stamp),
+        recorded = recorded_frames(bag, ['/camera/uv/image_raw'] if images else [])
+    labels, uvs = recorded.labels(), recorded.images.get('/camera/uv/image_raw', {})
+    frame_index = {stamp: k for k, stamp in enumerate(sorted(set(recorded.stamps) | set(coefficients)))}
+    views = [View(stamp, c, degree, uvs.get(stamp), recorded.poses.get(stamp),
                   labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '', node_masks.get(stamp),
                   field_of_view, fill)
              for stamp, (c, degree, field_of_view, fill) in sorted(coefficients.items())]
-    return RecordingViews(path, views, camera, description)
+    return RecordingViews(path, views, recorded.camera, recorded.description)

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from skynav_core.evaluation import Column, text_table
+
 DEFAULT_TOLERANCE = 1.0  # m
 
 
@@ -169,21 +171,20 @@ def evaluate(method: str, matched: np.ndarray, scores: np.ndarray, query_positio
                               positive)
 
 
+TABLE_COLUMNS = (Column('method', 24, align='<'), Column('R@100%P', 8, '.3f'), Column('AUC', 6, '.3f'),
+                 Column('R@1', 6, '.3f'), Column('acc. P', 7, '.3f'), Column('acc. R', 7, '.3f'),
+                 Column('off acc.', 9), Column('thr@100%P', 10, '.4g'))
+
+
 def format_table(results: Sequence[LocalizationResult]) -> str:
     """Return a plain-text table of results: method, recall@100%P, AUC, recall@1, and of the accepted matches
     precision, recall and the off-route queries accepted."""
-    header = (f'{"method":<24} {"R@100%P":>8} {"AUC":>6} {"R@1":>6} {"acc. P":>7} {"acc. R":>7} {"off acc.":>9} '
-              f'{"thr@100%P":>10}')
-    lines = [header, '-' * len(header)]
-    for r in results:
-        off = f'{r.off_route_accepted}/{r.queries - r.positives}'
-        lines.append(f'{r.method:<24} {r.recall_at_full_precision:8.3f} {r.auc:6.3f} {r.recall_at_1:6.3f} '
-                     f'{r.accepted_precision:7.3f} {r.accepted_recall:7.3f} {off:>9} '
-                     f'{r.threshold_at_full_precision:10.4g}')
+    rows = [(r.method, r.recall_at_full_precision, r.auc, r.recall_at_1, r.accepted_precision, r.accepted_recall,
+             f'{r.off_route_accepted}/{r.queries - r.positives}', r.threshold_at_full_precision) for r in results]
     tolerance = results[0].tolerance if results else DEFAULT_TOLERANCE
-    lines.append(f'(tolerance {tolerance:g} m; R@1 counts positive queries; acc. = accepted by the default acceptance '
-                 'test: precision, recall over positive queries, off-route queries accepted of all off-route)')
-    return '\n'.join(lines)
+    return (text_table(TABLE_COLUMNS, rows) + f'\n(tolerance {tolerance:g} m; R@1 counts positive queries; acc. = accepted '
+            'by the default acceptance test: precision, recall over positive queries, off-route queries accepted of '
+            'all off-route)')
 
 
 # --- plots --------------------------------------------------------------------------------------------------------

@@ -6,18 +6,22 @@ the acceptance test, and the runners-up. Setting `map` at run time switches maps
 be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
 A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
 nor is a match on a snapshot without one.
+
+Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the node cannot use
+('malformed', 'non_finite', 'degree': below the descriptors' degree, checked with a map;
+skynav_core.sh_input) and 'out_of_order'.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
 from skynav_core.images import stamp_ns
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
+from skynav_core.sh_input import usable_coefficients
 
 from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
@@ -76,14 +80,11 @@ class LocalizeNode(SkynavNode):
     def on_coefficients(self, message: ShCoefficients) -> None:
         """Match one view and publish the result."""
         stamp = stamp_ns(message.header)
-        coefficients = np.asarray(message.coefficients, np.float64)
-        degree = int(message.max_degree)
-        if coefficients.size != (degree + 1) ** 2 or not np.all(np.isfinite(coefficients)):
-            self.reject('malformed', f'coefficients stamped {stamp}: {coefficients.size} values for degree {degree}'
-                                     ' or not finite')
+        degree = self.localizer.degree if self.localizer is not None else 0
+        coefficients = usable_coefficients(message, self.reject, degree)
+        if coefficients is None:
             return
-        if stamp <= self.last_stamp:
-            self.reject('out_of_order', f'coefficients stamped {stamp} are not newer than the last ones')
+        if not self.in_order(stamp, self.last_stamp):
             return
         if self.localizer is not None and self.last_stamp >= 0 and stamp - self.last_stamp > SEQUENCE_GAP_NS:
             self.localizer.reset()
@@ -93,10 +94,6 @@ class LocalizeNode(SkynavNode):
             result.header = message.header
             result.index, result.distance, result.accepted = -1, math.inf, False
             if self.localizer is not None:
-                if degree < self.localizer.degree:
-                    self.reject('degree', f'coefficients of degree {degree} cannot give descriptors of degree '
-                                          f'{self.localizer.degree}')
-                    return
                 match = self.localizer.query(coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
                                              field_of_view=float(message.field_of_view), fill=message.fill)
                 result.map_name = self.store.name

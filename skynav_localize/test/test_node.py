@@ -71,6 +71,26 @@ def test_off_the_route_the_node_accepts_nothing(garden_map):
     assert result.accepted_precision >= 0.99 and result.accepted_recall >= 0.9
 
 
+def test_views_it_cannot_use_are_rejected_by_the_shared_reasons(garden_map):
+    from types import SimpleNamespace
+
+    view = recording_views(BAGS / 'synthetic_garden_repeat.mcap', images=False).views[0]
+    broken = view.coefficients.copy()
+    broken[5] = np.nan
+    low = view.coefficients[:81]  # degree 8: the descriptors need 16
+    bad = [SimpleNamespace(max_degree=16, coefficients=low), SimpleNamespace(max_degree=16, coefficients=broken),
+           SimpleNamespace(max_degree=8, coefficients=low)]
+    with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        assert feed(graph, bad, start=10**18) == []
+        assert node.rejected == {'malformed': 1, 'non_finite': 1, 'degree': 1} and node.errors == 0
+        assert len(feed(graph, [view], start=2 * 10**18)) == 1
+    with in_process([SPEC]) as graph:  # without a map no degree is needed: every view gets its (empty) match
+        graph.keep_outputs = True
+        assert [m.index for m in feed(graph, bad[2:], start=10**18)] == [-1] and not graph.nodes[0].rejected
+
+
 def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
     foreign = tmp_path / 'foreign.db'
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()

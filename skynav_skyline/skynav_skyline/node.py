@@ -71,8 +71,7 @@ class SkylineNode(SkynavNode):
         except ImageError as exc:
             self.reject(exc.reason, f'{channel} image stamped {stamp}: {exc}')
             return
-        if stamp <= self.last_stamp:
-            self.reject('out_of_order', f'{channel} image stamped {stamp} is not newer than the last mask')
+        if not self.in_order(stamp, self.last_stamp, f'{channel} image'):
             return
         if not self.params.uses_green:
             if channel == 'uv':

@@ -31,8 +31,9 @@ _EXPORTS = {
     'evaluation': ('DISTANCE_BINS', 'TILT_BINS', 'BinStatistics', 'angular_errors', 'binned_statistics',
                    'home_vectors_in_map', 'quiver_plot', 'rotation_errors', 'seconds_per_call', 'summary_table',
                    'tilt_angles', 'true_home_directions', 'true_rotations'),
+    'methods': ('METHODS', 'PANORAMA_METHODS'),
     'recording': ('HomingGrid', 'load_homing_grid'),
-    'homing_eval': ('HomingEvalError', 'HomingEvaluation', 'HomingSnapshot', 'MethodResult', 'evaluate_homing',
+    'homing_eval': ('HomingEvalError', 'HomingEvaluation', 'HomingSnapshot', 'HomingResult', 'evaluate_homing',
                     'map_snapshot', 'recording_snapshot'),
     'synthetic': ('BlobScene', 'PoleWorld', 'blob_scene', 'pole_world', 'render_equal_distance_view',
                   'render_pole_panorama'),
@@ -43,6 +44,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_warping.evaluation import *  # noqa: F401,F403
     from skynav_warping.homing import *  # noqa: F401,F403
     from skynav_warping.homing_eval import *  # noqa: F401,F403
+    from skynav_warping.methods import *  # noqa: F401,F403
     from skynav_warping.panorama import *  # noqa: F401,F403
     from skynav_warping.planar import *  # noqa: F401,F403
     from skynav_warping.recording import *  # noqa: F401,F403

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_core.evaluation import Column, text_table
+
 DISTANCE_BINS = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0))  # m
 TILT_BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
 
@@ -88,18 +90,16 @@ def binned_statistics(errors: np.ndarray, values: np.ndarray,
 def summary_table(errors: dict[str, np.ndarray], distances: np.ndarray, tilts: np.ndarray,
                   seconds: dict[str, float] | None = None, distance_bins=DISTANCE_BINS, tilt_bins=TILT_BINS) -> str:
     """Return a text table: per method, median / p90 error (degrees) per distance and tilt bin, time per estimate."""
-    columns = [f'{lo:g}-{hi:g} m' for lo, hi in distance_bins] + [f'tilt {lo:g}-{hi:g} deg' for lo, hi in tilt_bins]
-    header = f'{"method":<14}' + ''.join(f'{c:>17}' for c in columns) + f'{"all":>17}' + (
-        f'{"ms/estimate":>13}' if seconds else '')
-    lines = [header, f'{"":<14}' + ''.join(f'{"n med p90":>17}' for _ in range(len(columns) + 1))]
+    titles = [f'{lo:g}-{hi:g} m' for lo, hi in distance_bins] + [f'tilt {lo:g}-{hi:g} deg' for lo, hi in tilt_bins]
+    columns = [Column('method', 14, align='<'), *(Column(title, 17) for title in [*titles, 'all'])]
+    columns += [Column('ms/estimate', 13, '.1f')] if seconds else []
+    rows: list[list] = [['', *(['n med p90'] * (len(titles) + 1))]]
     for method, error in errors.items():
         cells = binned_statistics(error, distances, distance_bins) + binned_statistics(error, tilts, tilt_bins)
         cells.append(binned_statistics(error, np.zeros(len(error)), [(-1.0, 1.0)])[0])
-        row = f'{method:<14}' + ''.join(f'{c.count:>5d}{c.median:>6.1f}{c.p90:>6.1f}' for c in cells)
-        if seconds:
-            row += f'{1e3 * seconds.get(method, float("nan")):>13.1f}'
-        lines.append(row)
-    return '\n'.join(lines)
+        rows.append([method, *(f'{c.count:>5d}{c.median:>6.1f}{c.p90:>6.1f}' for c in cells),
+                     *([1e3 * seconds.get(method, float('nan'))] if seconds else [])])
+    return text_table(columns, rows, gap='', rule=False)
 
 
 def seconds_per_call(function: Callable[[], object], repeats: int = 3) -> float:

@@ -25,12 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_warping.evaluation import DISTANCE_BINS, angular_errors, binned_statistics, home_vectors_in_map, \
     quiver_plot, tilt_angles, true_home_directions
+from skynav_warping.methods import METHODS, PANORAMA_METHODS
 from skynav_warping.warping3d import WarpingSettings
 
-METHODS = ('3d-warping', '3d-warping-no-compass', '2d-warping', 'min-warping')
-PANORAMA_METHODS = ('2d-warping', 'min-warping')
 EVAL_TILT_BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
 MIN_DISTANCE = 0.05  # m: views nearer the snapshot than this have no defined home direction and are left out
 
@@ -51,8 +51,8 @@ class HomingSnapshot:
 
 
 @dataclass(frozen=True)
-class MethodResult:
-    """One method's home vectors (current camera_link) over the evaluated views, and its CPU time per estimate."""
+class HomingResult:
+    """One homing method's home vectors (current camera_link) over the evaluated views, and its CPU time per estimate."""
 
     name: str
     directions: np.ndarray  # (N, 3) unit vectors
@@ -70,7 +70,7 @@ class HomingEvaluation:
     true_directions: np.ndarray  # (N, 3) in the current camera_link
     distances: np.ndarray  # (N,) m to the snapshot's place
     tilts: np.ndarray  # (N,) degrees of the current camera_link from the vertical
-    results: dict[str, MethodResult]
+    results: dict[str, HomingResult]
     skipped: dict[str, str] = field(default_factory=dict)  # method -> why it did not run
     left_out: int = 0  # views with a pose nearer the snapshot than MIN_DISTANCE
     synthetic: bool = False
@@ -107,20 +107,16 @@ class HomingEvaluation:
         first = self.statistics(next(iter(self.results)))
         labels = list(first)
         width = 15
-        name_width = max(22, max(len(m) for m in self.results) + 2)
-        lines = [f'{"method":<{name_width}}' + ''.join(f'{label:>{width}}' for label in labels)
-                 + f'{"ms/estimate":>{width - 1}}{"confident":>11}',
-                 f'{"":<{name_width}}' + ''.join(f'{f"(n={first[label][0]})":>{width}}' for label in labels)]
+        columns = (Column('method', max(22, max(len(m) for m in self.results) + 2), align='<'),
+                   *(Column(label, width) for label in labels), Column('ms/estimate', width - 1, '.1f'),
+                   Column('confident', 11))
+        rows: list[list] = [['', *(f'(n={first[label][0]})' for label in labels)]]
         for method, result in self.results.items():
-            cells = self.statistics(method)
-            row = f'{method:<{name_width}}'
-            for label in labels:
-                _, median, p90 = cells[label]
-                row += f'{f"{median:.1f} / {p90:.1f}":>{width}}' if np.isfinite(median) else f'{"-":>{width}}'
-            row += f'{1e3 * result.seconds:>{width - 1}.1f}'
+            cells = [self.statistics(method)[label] for label in labels]
             confident = '-' if result.confident is None else f'{100.0 * np.mean(result.confident):.0f} %'
-            lines.append(row + f'{confident:>11}')
-        return '\n'.join(lines)
+            rows.append([method, *(f'{median:.1f} / {p90:.1f}' if np.isfinite(median) else '-'
+                                   for _, median, p90 in cells), 1e3 * result.seconds, confident])
+        return text_table(columns, rows, gap='', rule=False)
 
     def quiver(self, path, title: str) -> str:
         """Save the quiver plot (true and estimated home vectors, map x-y) as PNG at path; return its title."""
@@ -168,12 +164,8 @@ def _timed(function, *args):
 def _prepared(function, snapshot_item, items):
     """Return (snapshot's prepared view, current ones, CPU seconds for all of them)."""
     prepared_snapshot, seconds = _timed(function, snapshot_item)
-    current = []
-    for item in items:
-        value, spent = _timed(function, item)
-        current.append(value)
-        seconds += spent
-    return prepared_snapshot, current, seconds
+    current, spent = _timed_runs(function, items)
+    return prepared_snapshot, current, seconds + spent
 
 
 def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None = None,
@@ -190,8 +182,8 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
     from skynav_warping.planar import min_warping, warping_2d
     from skynav_warping.views import view_from_coefficients
 
-    if unknown := [m for m in methods if m not in METHODS]:
-        raise HomingEvalError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})')
+    if problem := unknown_methods(methods, METHODS):
+        raise HomingEvalError(problem)
     methods = [m for m in METHODS if m in methods]
     snapshot = recording_snapshot(recording) if snapshot is None else snapshot
     if recording.camera is None:
@@ -220,7 +212,7 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
                    if m in PANORAMA_METHODS}
         methods = [m for m in methods if m not in skipped]
 
-    results: dict[str, MethodResult] = {}
+    results: dict[str, HomingResult] = {}
     n = len(views)
     if any(m.startswith('3d-warping') for m in methods):
         def warp_view(coefficients):
@@ -255,29 +247,30 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
         planar = {'2d-warping': lambda band: warping_2d(band_snapshot, band),
                   'min-warping': lambda band: min_warping(band_snapshot, band, unwrapper.elevations)}
         for method in (m for m in methods if m in PANORAMA_METHODS):
-            directions, seconds = [], band_seconds
-            for band in bands:
-                result, spent = _timed(planar[method], band)
-                directions.append(result.direction)
-                seconds += spent
-                if progress is not None:
-                    progress(1)
-            results[method] = MethodResult(method, np.array(directions), seconds / n)
+            estimates, seconds = _timed_runs(planar[method], bands, progress)
+            results[method] = HomingResult(method, np.array([e.direction for e in estimates]),
+                                           (band_seconds + seconds) / n)
     return HomingEvaluation(snapshot=snapshot, positions=poses[:, :3], quaternions=poses[:, 3:],
                             true_directions=true_home_directions(poses[:, :3], poses[:, 3:], snapshot.pose[:3]),
                             distances=distances, tilts=tilt_angles(poses[:, 3:]), results=results, skipped=skipped,
                             left_out=int(np.count_nonzero(~keep)), synthetic=bool(recording.synthetic))
 
 
-def _run_warping(name: str, estimate, n: int, preparation: float, progress) -> MethodResult:
+def _run_warping(name: str, estimate, n: int, preparation: float, progress) -> HomingResult:
     """Return a 3D-warping method's result over n views: estimate(k) -> HomeEstimate, after one untimed warm-up."""
     estimate(0)  # builds the warping tables (cached per settings), as the node's first view would
-    directions, confident, seconds = [], [], preparation
-    for k in range(n):
-        result, spent = _timed(estimate, k)
-        directions.append(result.best_direction)
-        confident.append(result.confident)
+    estimates, seconds = _timed_runs(estimate, range(n), progress)
+    return HomingResult(name, np.array([e.best_direction for e in estimates]), (preparation + seconds) / n,
+                        np.array([e.confident for e in estimates]))
+
+
+def _timed_runs(function, items, progress=None) -> tuple[list, float]:
+    """Return function(item) of every item and the CPU seconds they took together; progress(1) after each."""
+    values, seconds = [], 0.0
+    for item in items:
+        value, spent = _timed(function, item)
+        values.append(value)
         seconds += spent
         if progress is not None:
             progress(1)
-    return MethodResult(name, np.array(directions), seconds / n, np.array(confident))
+    return values, seconds

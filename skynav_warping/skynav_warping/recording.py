@@ -1,8 +1,8 @@
 """A homing grid read from a recording (synthetic or real): snapshot frame 0, current views after it.
 
-Reads a rosbag2 MCAP through skynav_core.bag (imported when called; a workspace sibling, not needed by the
-warping code itself). Frames are paired by header stamp across /ground_truth/pose, /ground_truth/mask and the two
-image topics; the camera comes from /camera/uv/camera_info.
+Reads a rosbag2 MCAP through skynav_core.views.recorded_frames (imported when called: the warping code itself needs
+no recording). Frames are paired by header stamp across /ground_truth/pose, /ground_truth/mask and the two image
+topics; the camera comes from /camera/uv/camera_info.
 """
 
 from __future__ import annotations
@@ -11,11 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-POSE = '/ground_truth/pose'
 MASK = '/ground_truth/mask'
 UV = '/camera/uv/image_raw'
 GREEN = '/camera/green/image_raw'
-INFO = '/camera/uv/camera_info'
 
 
 @dataclass(frozen=True)
@@ -32,49 +30,25 @@ class HomingGrid:
     synthetic: bool
 
 
-def _image(message) -> np.ndarray:
-    """Return the pixels of a sensor_msgs/Image with encoding mono8, mono16 or 32FC1 as an (H, W) array."""
-    dtypes = {'mono8': np.uint8, 'mono16': np.uint16, '32FC1': np.float32}
-    dtype = np.dtype(dtypes[message.encoding])
-    if message.is_bigendian:
-        dtype = dtype.newbyteorder('>')
-    row = np.frombuffer(bytes(message.data), dtype=dtype).reshape(message.height, -1)
-    return row[:, : message.width].astype(dtype.newbyteorder('='))
-
-
 def load_homing_grid(path: str) -> HomingGrid:
     """Return the frames of a homing recording (needs /ground_truth/pose, /ground_truth/mask, camera info)."""
-    import yaml
-
     from skynav_core.bag import open_bag
-    from skynav_core.camera import EquidistantCamera
+    from skynav_core.camera_input import CAMERA_INFO_TOPIC
+    from skynav_core.views import recorded_frames
 
-    by_stamp: dict[int, dict] = {}
-    camera = None
     with open_bag(path) as bag:
-        description = yaml.safe_load(bag.custom_data.get('skynav_sim', '{}') or '{}') or {}
-        for raw in bag.messages([POSE, MASK, UV, GREEN, INFO]):
-            message = bag.deserialize(raw)
-            if raw.topic == INFO:
-                camera = camera or EquidistantCamera.from_camera_info(message)
-                continue
-            stamp = message.header.stamp.sec * 10 ** 9 + message.header.stamp.nanosec
-            entry = by_stamp.setdefault(stamp, {})
-            if raw.topic == POSE:
-                p, q = message.pose.position, message.pose.orientation
-                entry['pose'] = ([p.x, p.y, p.z], [q.x, q.y, q.z, q.w])
-            else:
-                entry[raw.topic] = _image(message)
-    if camera is None:
-        raise ValueError(f'{path}: no {INFO} messages')
-    frames = [by_stamp[s] for s in sorted(by_stamp) if 'pose' in by_stamp[s] and MASK in by_stamp[s]]
-    if len(frames) < 2:
+        recorded = recorded_frames(bag, [MASK, UV, GREEN])
+    if recorded.camera is None:
+        raise ValueError(f'{path}: no {CAMERA_INFO_TOPIC} messages')
+    stamps = sorted(s for s in recorded.poses if s in recorded.images[MASK])
+    if len(stamps) < 2:
         raise ValueError(f'{path}: fewer than two frames with ground-truth pose and mask')
-    labels = tuple(f.get('label', '') for f in description.get('frames', []))[: len(frames)]
+    poses = np.stack([recorded.poses[s] for s in stamps])
 
     def stack(topic: str) -> np.ndarray | None:
-        return np.stack([f[topic] for f in frames]) if all(topic in f for f in frames) else None
+        images = recorded.images[topic]
+        return np.stack([images[s] for s in stamps]) if all(s in images for s in stamps) else None
 
-    return HomingGrid(camera=camera, positions=np.array([f['pose'][0] for f in frames]),
-                      quaternions=np.array([f['pose'][1] for f in frames]), masks=stack(MASK), uv=stack(UV),
-                      green=stack(GREEN), labels=labels, synthetic=bool(description.get('synthetic', False)))
+    return HomingGrid(camera=recorded.camera, positions=poses[:, :3], quaternions=poses[:, 3:], masks=stack(MASK),
+                      uv=stack(UV), green=stack(GREEN), labels=tuple(recorded.labels()[: len(stamps)]),
+                      synthetic=recorded.synthetic)

@@ -215,7 +215,7 @@ def test_target_next_aims_lookahead_snapshots_beyond_the_match(recording, route_
             return feed(graph, sh_message(view, fov))
 
         assert home_after() == []
-        assert node.rejected['no_target'] == 1
+        assert node.rejected['no_match'] == 1
         targets = []
         for index, accepted in ((1, True), (0, False), (3, True), (0, True), (4, True)):
             [home] = home_after(index, accepted)
@@ -227,7 +227,7 @@ def test_target_next_aims_lookahead_snapshots_beyond_the_match(recording, route_
         assert node.set_parameters([Parameter('target', value='match')])[0].successful
         [home] = home_after()
         assert home.snapshot_index == 4
-        assert node.rejected['no_target'] == 1 and node.errors == 0
+        assert node.rejected['no_match'] == 1 and node.errors == 0
 
 
 def test_bad_views_are_rejected_and_the_node_keeps_serving(recording, home_map):
@@ -248,7 +248,7 @@ def test_bad_views_are_rejected_and_the_node_keeps_serving(recording, home_map):
         assert node.rejected['fill'] == 3 and len(good()) == 1
         assert feed(graph, sh_message(view, fov, next(stamps), low, max_degree=8)) == []
         assert feed(graph, sh_message(view, fov, next(stamps), low, max_degree=16)) == []  # size and degree differ
-        assert node.rejected['degree'] == 2 and len(good()) == 1
+        assert node.rejected['degree'] == 1 and node.rejected['malformed'] == 1 and len(good()) == 1
         last = next(stamps)
         assert len(feed(graph, sh_message(view, fov, stamp=last))) == 1
         assert feed(graph, sh_message(view, fov, stamp=last)) == []  # same stamp again

@@ -26,10 +26,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from skynav_core.evaluation import add_methods_argument, add_plots_argument
+
+from ..methods import DEFAULT_METHODS, NODE_METHODS
+
 HELP = 'compass error against ground truth, per method, for pure rotations and moved views'
-METHODS = ('fft-masked', 'fft-masked-any-tilt', 'fft-zero', 'exhaustive-masked', 'exhaustive-zero',
-           'visual-compass-sh', 'visual-compass-panorama', 'features-sift', 'features-orb')  # = RECORDING_METHODS
-DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -38,10 +39,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--map', type=Path, metavar='MAP.db',
                         help="compare against a snapshot of this map (default: the recording's reference frame)")
     parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to compare against (0)')
-    parser.add_argument('--methods', nargs='+', default=list(DEFAULT_METHODS), metavar='METHOD',
-                        help=f'methods to compare (default {" ".join(DEFAULT_METHODS)}; one of {", ".join(METHODS)})')
-    parser.add_argument('--plots', type=Path, default=Path('compass_eval'), metavar='DIR',
-                        help='folder for the plot (default compass_eval)')
+    add_methods_argument(parser, NODE_METHODS, DEFAULT_METHODS)
+    add_plots_argument(parser, 'compass_eval', 'the plot')
     parser.add_argument('--repeats', type=int, default=1, metavar='N',
                         help='time every estimate N times, the least counts (default 1)')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
@@ -52,22 +51,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
-    from skynav_core.cli import CliError
-    from skynav_core.cli import graph_arguments
+    from skynav_core.cli import CliError, graph_arguments
+    from skynav_core.evaluation import check_at_least, check_methods, check_not_negative, check_recordings, plots_folder
 
     from ..evaluation import plot_errors
     from ..recording import EvaluationError, evaluate_recording, format_report
 
-    if unknown := [m for m in args.methods if m not in METHODS]:
-        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})')
-    if args.repeats < 1:
-        raise CliError('--repeats must be at least 1', exit_code=2)
-    if args.index < 0:
-        raise CliError('--index must not be negative', exit_code=2)
+    check_methods(args.methods, NODE_METHODS)
+    check_at_least(args.repeats, 1, '--repeats')
+    check_not_negative(args.index, '--index')
     if args.max_tilt is not None and not 0 < args.max_tilt <= 180:
         raise CliError('--max-tilt must be more than 0 and at most 180 degrees', exit_code=2)
-    if not Path(args.bag).exists():
-        raise CliError(f'{args.bag}: no such recording')
+    check_recordings([args.bag])
     snapshot = None
     if args.map is not None:
         snapshot = map_snapshot(args.map, args.index)
@@ -79,13 +74,10 @@ def run(args: argparse.Namespace) -> int:
     except EvaluationError as exc:
         raise CliError(str(exc)) from None
     print(format_report(evaluation))
-    try:
-        args.plots.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CliError(f'{args.plots}: cannot create the folder for the plot ({exc.strerror})') from None
     stem = Path(args.bag).stem
     path = plot_errors(evaluation.results, evaluation.tilts, evaluation.translations,
-                       args.plots / f'{stem}_errors.png', evaluation.synthetic, f'{stem} against {evaluation.snapshot}')
+                       plots_folder(args.plots) / f'{stem}_errors.png', evaluation.synthetic,
+                       f'{stem} against {evaluation.snapshot}')
     print(f'plot: {path}')
     return 0
 
@@ -101,24 +93,18 @@ def max_tilt(degrees: float | None) -> float:
 
 def map_snapshot(path: Path, index: int):
     """Return the map's snapshot `index` as an ExternalSnapshot (CliError if the map or its pose is unusable)."""
-    from skynav_core.cli import CliError
-    from skynav_core.maps import MapError, MapStore
+    from skynav_core.cli import CliError, open_map
+    from skynav_core.maps import MapError
 
     from ..recording import ExternalSnapshot
 
-    try:
-        store = MapStore.open(path)
-    except MapError as exc:
-        raise CliError(str(exc)) from None
-    try:
-        if not 0 <= index < len(store):
-            raise CliError(f'{path}: no snapshot {index} (the map has {len(store)})')
-        snapshot = store.snapshot(index)
-        name = store.name
-    except MapError as exc:
-        raise CliError(str(exc)) from None
-    finally:
-        store.close()
+    with open_map(path) as store:
+        try:
+            if not 0 <= index < len(store):
+                raise CliError(f'{path}: no snapshot {index} (the map has {len(store)})')
+            snapshot, name = store.snapshot(index), store.name
+        except MapError as exc:
+            raise CliError(str(exc)) from None
     if snapshot.pose is None:
         raise CliError(f'{path}: snapshot {index} has no ground-truth pose, so the true rotation is unknown')
     return ExternalSnapshot(snapshot.coefficients, snapshot.pose, f'snapshot {index} of map {name!r}')

@@ -15,6 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.evaluation import add_methods_argument, add_plots_argument
+
 HELP = 'precision-recall of localization methods against ground truth'
 
 
@@ -25,81 +27,86 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
     parser.add_argument('--map', required=True, type=Path, metavar='MAP.db',
                         help='map of the teach drive (built with --baselines to compare with the baselines)')
-    parser.add_argument('--methods', nargs='+', default=list(METHODS), metavar='METHOD',
-                        help=f'methods to compare (default all: {", ".join(METHODS)})')
+    add_methods_argument(parser, list(METHODS))
     parser.add_argument('--tolerance', type=float, default=1.0, metavar='M',
                         help='a match is correct within this distance (default 1 m)')
-    parser.add_argument('--plots', type=Path, default=Path('localization_eval'), metavar='DIR',
-                        help='folder for the plots (default localization_eval)')
+    add_plots_argument(parser, 'localization_eval')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
 
 
 def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
+    from skynav_core.cli import CliError, graph_arguments, open_map
+    from skynav_core.evaluation import check_methods, check_positive, check_recordings, plots_folder
+    from skynav_core.maps import MapError
+
+    from ..localizer import BASELINES_HINT, METHODS, missing_descriptors
+
+    check_methods(args.methods, METHODS)
+    check_positive(args.tolerance, '--tolerance')
+    check_recordings(args.bags)
+    ros_args = graph_arguments(args.params, None)
+    with open_map(args.map) as store:
+        if not store.has_poses:
+            raise CliError(f'{args.map}: the map has no ground-truth poses; evaluation needs them')
+        try:
+            lacking = {name: missing_descriptors(store, name) for name in args.methods}
+        except MapError as exc:
+            raise CliError(str(exc)) from None
+        methods = [name for name in args.methods if not lacking[name]]
+        if not methods:
+            raise CliError(f'{args.map} holds no descriptors of {", ".join(args.methods)} ({BASELINES_HINT})')
+        if skipped := [name for name in args.methods if lacking[name]]:
+            print(f'skynav eval localization: {args.map} holds no descriptors of {", ".join(skipped)}: their rows '
+                  f'are left out ({BASELINES_HINT})', file=sys.stderr)
+        plots_folder(args.plots)
+        for bag in args.bags:
+            evaluate_bag(bag, store, methods, args.tolerance, args.plots, ros_args)
+    return 0
+
+
+def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: Path, ros_args: list[str]) -> None:
+    """Match every view of one repeat drive against the map with each method; print the table, save the plots."""
     import numpy as np
 
     from skynav_core.cli import CliError
-    from skynav_core.cli import graph_arguments
+    from skynav_core.maps import MapError
     from skynav_core.views import recording_views
 
     from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
-    from ..localizer import BASELINES_HINT, METHODS, Localizer, missing_descriptors
-    from skynav_core.maps import MapError, MapStore
+    from ..localizer import METHODS, Localizer
 
-    if unknown := [m for m in args.methods if m not in METHODS]:
-        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
-    try:
-        store = MapStore.open(args.map)
-    except MapError as exc:
-        raise CliError(str(exc)) from None
-    if not store.has_poses:
-        raise CliError(f'{args.map}: the map has no ground-truth poses; evaluation needs them')
-    try:
-        lacking = {name: missing_descriptors(store, name) for name in args.methods}
-    except MapError as exc:
-        raise CliError(str(exc)) from None
-    methods = [name for name in args.methods if not lacking[name]]
-    if not methods:
-        raise CliError(f'{args.map} holds no descriptors of {", ".join(args.methods)} ({BASELINES_HINT})')
-    if skipped := [name for name in args.methods if lacking[name]]:
-        print(f'skynav eval localization: {args.map} holds no descriptors of {", ".join(skipped)}: their rows are '
-              f'left out ({BASELINES_HINT})', file=sys.stderr)
     needs_images = any(METHODS[name].source == 'uv' for name in methods)
-    args.plots.mkdir(parents=True, exist_ok=True)
-    for bag in args.bags:
-        recording = recording_views(bag, graph_arguments(args.params, None), images=needs_images)
-        views = [v for v in recording.views if v.pose is not None]
-        if not views:
-            raise CliError(f'{bag}: no ground-truth poses to evaluate against')
-        coefficients = np.stack([v.coefficients[: (store.max_degree + 1) ** 2] for v in views])
-        uvs = np.stack([v.uv for v in views]) if needs_images else None
-        positions = np.stack([v.pose[:3] for v in views])
-        circle = recording.camera.image_circle()
-        results, all_matches = [], {}
-        for name in methods:
-            try:
-                localizer = Localizer(store, name, circle=circle)
-            except MapError as exc:
-                raise CliError(str(exc)) from None
-            matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs,
-                                               field_of_view=views[0].field_of_view, fill=views[0].fill)
-            all_matches[name] = matches
-            results.append(evaluate(METHODS[name].label, matches.index, matches.score, positions,
-                                    store.positions(), args.tolerance, accepted=matches.accepted))
-        kind = 'synthetic ' if recording.synthetic else ''
-        print(f'\n{Path(bag).name}: {len(views)} {kind}queries against map {store.name!r} '
-              f'({len(store)} snapshots); a match is correct within {args.tolerance:g} m')
-        print(format_table(results))
-        stem = Path(bag).stem
-        title = f'{stem} against map {store.name}'
-        plot_pr_curves(results, title, recording.synthetic, args.plots / f'{stem}_pr.png')
-        shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else methods[0]
-        matches = all_matches[shown]
-        plot_matches_along_route(store.positions(), positions, matches.index,
-                                 correct_matches(matches.index, positions, store.positions(), args.tolerance),
-                                 matches.accepted, f'{title}: {shown}', recording.synthetic,
-                                 args.plots / f'{stem}_matches.png')
-        print(f'plots: {args.plots / (stem + "_pr.png")}, {args.plots / (stem + "_matches.png")} '
-              f'(matches of {shown})')
-    store.close()
-    return 0
+    recording = recording_views(bag, ros_args, images=needs_images)
+    views = [v for v in recording.views if v.pose is not None]
+    if not views:
+        raise CliError(f'{bag}: no ground-truth poses to evaluate against')
+    coefficients = np.stack([v.coefficients[: (store.max_degree + 1) ** 2] for v in views])
+    uvs = np.stack([v.uv for v in views]) if needs_images else None
+    positions = np.stack([v.pose[:3] for v in views])
+    circle = recording.camera.image_circle()
+    results, all_matches = [], {}
+    for name in methods:
+        try:
+            localizer = Localizer(store, name, circle=circle)
+        except MapError as exc:
+            raise CliError(str(exc)) from None
+        matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs,
+                                           field_of_view=views[0].field_of_view, fill=views[0].fill)
+        all_matches[name] = matches
+        results.append(evaluate(METHODS[name].label, matches.index, matches.score, positions,
+                                store.positions(), tolerance, accepted=matches.accepted))
+    kind = 'synthetic ' if recording.synthetic else ''
+    print(f'\n{Path(bag).name}: {len(views)} {kind}queries against map {store.name!r} '
+          f'({len(store)} snapshots); a match is correct within {tolerance:g} m')
+    print(format_table(results))
+    stem = Path(bag).stem
+    title = f'{stem} against map {store.name}'
+    plot_pr_curves(results, title, recording.synthetic, plots / f'{stem}_pr.png')
+    shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else methods[0]
+    matches = all_matches[shown]
+    plot_matches_along_route(store.positions(), positions, matches.index,
+                             correct_matches(matches.index, positions, store.positions(), tolerance),
+                             matches.accepted, f'{title}: {shown}', recording.synthetic,
+                             plots / f'{stem}_matches.png')
+    print(f'plots: {plots / (stem + "_pr.png")}, {plots / (stem + "_matches.png")} (matches of {shown})')

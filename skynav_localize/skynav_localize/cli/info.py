@@ -15,16 +15,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the description; return the exit code."""
-    from skynav_core.cli import CliError
+    from skynav_core.cli import open_map
 
-    from skynav_core.maps import MapError, MapStore
-
-    try:
-        store = MapStore.open(args.map)
-    except MapError as exc:
-        raise CliError(str(exc)) from None
-    info = store.info()
-    store.close()
+    with open_map(args.map) as store:
+        info = store.info()
     per_snapshot = f', {info["file_bytes"] / info["snapshots"]:.0f} bytes per snapshot' if info['snapshots'] else ''
     rows = [('Map', info.get('name', '')),
             ('File', f'{info["path"]} ({info["file_bytes"] / 2**20:.2f} MiB{per_snapshot})'),

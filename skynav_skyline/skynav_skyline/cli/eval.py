@@ -15,16 +15,18 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.evaluation import Column, add_methods_argument, text_table
+
+from ..segment import METHODS
+
 HELP = 'classification rate per method, world and time of day'
-ALL_METHODS = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav skyline eval`."""
     parser.add_argument('bags', nargs='+', metavar='BAG', help='recordings with /ground_truth/mask')
     parser.add_argument('--params', metavar='FILE', help='skyline node parameters (default: the shipped ones)')
-    parser.add_argument('--methods', nargs='+', default=list(ALL_METHODS), metavar='METHOD',
-                        help=f'methods to compare (default: all of {", ".join(ALL_METHODS)})')
+    add_methods_argument(parser, METHODS)
     parser.add_argument('--channels', nargs='+', default=['uv', 'uv-green'], choices=('uv', 'uv-green'),
                         help='channel modes to compare (default both)')
     parser.add_argument('--plot', default='skyline_eval.png', metavar='FILE.png',
@@ -38,12 +40,12 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from skynav_core.cli import CliError
+    from skynav_core.evaluation import check_methods, check_recordings
 
     from ..parameters import defaults, load_parameter_file, skyline_params
-    from ..segment import METHODS
 
-    if unknown := [m for m in args.methods if m not in METHODS]:
-        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
+    check_methods(args.methods, METHODS)
+    check_recordings(args.bags)
     plot = Path(args.plot)
     if not plot.parent.is_dir():
         raise CliError(f'{plot.parent}: no such directory')
@@ -129,28 +131,35 @@ def report(rates: dict, values: dict) -> str:
     times = [t for t in (*TIME_LABELS, 'all') if any(time == t for _, time, _ in first)]
     lines = [f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
              f'{values.get("channels", "?")}; structure: the structure steps (enclosed ground, ground ring)']
-    header = f'{"method":20s}{"channels":10s}{"structure":>10s}'
     for world in worlds:
         count = sum(1 for w, _, _ in first if w == world)
-        lines.append('')
-        lines.append(f'{world} ({count} exposures)')
-        lines.append(header + ''.join(f'{t:>10s}' for t in times) + f'{"mean":>10s}{"worst":>10s}')
-        for (method, channels, structure), values_ in rates.items():
+        rows = []
+        for key, values_ in rates.items():
             mine = [(t, r) for w, t, r in values_ if w == world]
             cells = [np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan
                      for t in times]
-            everything = [r for _, r in mine]
-            lines.append(f'  {method:18s}{channels:10s}{structure:>10s}' + ''.join(f'{100 * c:10.2f}' for c in cells)
-                         + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
-    lines.append('')
-    lines.append('all worlds')
-    lines.append(header + ''.join(f'{w:>10s}' for w in worlds) + f'{"mean":>10s}{"worst":>10s}')
-    for (method, channels, structure), values_ in rates.items():
-        per_world = [np.mean([r for w, _, r in values_ if w == world]) for world in worlds]
-        everything = [r for _, _, r in values_]
-        lines.append(f'  {method:18s}{channels:10s}{structure:>10s}' + ''.join(f'{100 * c:10.2f}' for c in per_world)
-                     + f'{100 * np.mean(everything):10.2f}{100 * np.min(everything):10.2f}')
+            rows.append(rate_row(key, cells, [r for _, r in mine]))
+        lines += ['', f'{world} ({count} exposures)', rate_table(times, rows)]
+    rows = [rate_row(key, [np.mean([r for w, _, r in values_ if w == world]) for world in worlds],
+                     [r for _, _, r in values_]) for key, values_ in rates.items()]
+    lines += ['', 'all worlds', rate_table(worlds, rows)]
     return '\n'.join(lines)
+
+
+def rate_row(key: tuple[str, str, str], cells: list[float], everything: list[float]) -> list:
+    """Return a table row: method, channels, structure, the rates (%) of the cells, their mean and worst (%)."""
+    import numpy as np
+
+    method, channels, structure = key
+    return [f'  {method}', channels, structure, *(100 * c for c in cells), 100 * np.mean(everything),
+            100 * np.min(everything)]
+
+
+def rate_table(titles: list[str], rows: list[list]) -> str:
+    """Return a table of classification rates (%): method, channels, structure, one column per title, mean, worst."""
+    columns = [Column('method', 20, align='<'), Column('channels', 10, align='<'), Column('structure', 10),
+               *(Column(title, 10, '.2f') for title in [*titles, 'mean', 'worst'])]
+    return text_table(columns, rows, gap='', rule=False)
 
 
 def structure_report(rates: dict) -> str:
@@ -163,14 +172,16 @@ def structure_report(rates: dict) -> str:
     method, channels = sorted(pairs)[0]
     off, on = rates[(method, channels, 'off')], rates[(method, channels, 'on')]
     worlds = list(dict.fromkeys(world for world, _, _ in off))
-    lines = ['', f'{method} {channels} without -> with the structure steps',
-             f'{"world":20s}{"exposures":>10s}{"mean off":>10s}{"mean on":>10s}{"worst off":>10s}{"worst on":>10s}']
+    rows = []
     for world in [*worlds, 'all worlds']:
         before = [r for w, _, r in off if world in (w, 'all worlds')]
         after = [r for w, _, r in on if world in (w, 'all worlds')]
-        lines.append(f'  {world:18s}{len(before):10d}{100 * np.mean(before):10.2f}{100 * np.mean(after):10.2f}'
-                     f'{100 * np.min(before):10.2f}{100 * np.min(after):10.2f}')
-    return '\n'.join(lines)
+        rows.append([f'  {world}', len(before), 100 * np.mean(before), 100 * np.mean(after), 100 * np.min(before),
+                     100 * np.min(after)])
+    columns = [Column('world', 20, align='<'), Column('exposures', 10, 'd'),
+               *(Column(title, 10, '.2f') for title in ('mean off', 'mean on', 'worst off', 'worst on'))]
+    return '\n'.join(['', f'{method} {channels} without -> with the structure steps',
+                      text_table(columns, rows, gap='', rule=False)])
 
 
 def draw_histogram(path, samples: dict, values: dict, synthetic: bool) -> None:

@@ -25,8 +25,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.evaluation import add_methods_argument, add_plots_argument
+
+from ..methods import METHODS
+
 HELP = 'angular error of home vectors (3D-, 2D-, min-warping) against ground truth'
-METHOD_NAMES = ('3d-warping', '3d-warping-no-compass', '2d-warping', 'min-warping')  # homing_eval.METHODS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -35,10 +38,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--map', type=Path, metavar='MAP.db',
                         help="home to a snapshot of this map (default: the recording's snapshot frame)")
     parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to home to (default 0)')
-    parser.add_argument('--methods', nargs='+', default=list(METHOD_NAMES), metavar='METHOD',
-                        help=f'methods to compare (default all: {", ".join(METHOD_NAMES)})')
-    parser.add_argument('--plots', type=Path, default=Path('homing_eval'), metavar='DIR',
-                        help='folder for the quiver plot (default homing_eval)')
+    add_methods_argument(parser, list(METHODS))
+    add_plots_argument(parser, 'homing_eval', 'the quiver plot')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
 
 
@@ -47,33 +48,22 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from skynav_core.bag import open_bag
-    from skynav_core.cli import CliError
-    from skynav_core.cli import graph_arguments
+    from skynav_core.cli import CliError, graph_arguments, open_map
+    from skynav_core.evaluation import check_methods, check_not_negative, check_recordings, plots_folder
     from skynav_core.views import recording_views
 
-    from ..homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
+    from ..homing_eval import HomingEvalError, evaluate_homing, map_snapshot
 
-    if unknown := [m for m in args.methods if m not in METHODS]:
-        raise CliError(f'unknown method {", ".join(unknown)} (one of {", ".join(METHODS)})', exit_code=2)
-    if args.index < 0:
-        raise CliError('--index must not be negative', exit_code=2)
-    store = None
-    if args.map is not None:
-        from skynav_core.maps import MapError, MapStore
-
-        try:
-            store = MapStore.open(args.map)
-        except MapError as exc:
-            raise CliError(str(exc)) from None
+    check_methods(args.methods, METHODS)
+    check_not_negative(args.index, '--index')
+    check_recordings([args.bag])
+    store = None if args.map is None else open_map(args.map)
     try:
         if store is not None:
             map_snapshot(store, args.index)  # fail before the nodes run
         with open_bag(args.bag) as bag:
             inputs = sum(t.count for name, t in bag.topics.items() if name.startswith('/camera/'))
-        try:
-            args.plots.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise CliError(f'{args.plots}: cannot create the plot folder ({exc.strerror or exc})') from None
+        plots_folder(args.plots)
         with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
             recording = recording_views(args.bag, graph_arguments(args.params, None), images=False, masks=True,
                                         progress=bar.update)
