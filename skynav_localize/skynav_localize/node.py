@@ -44,6 +44,11 @@ class LocalizeNode(SkynavNode):
         self.parameter('max_view_ratio', math.nan, "acceptance of sequences: the newest view's own best / runner-up "
                                                    "ratio at the matched snapshot at most this; NaN: the method's")
         self.parameter('max_distance', math.inf, 'acceptance: best descriptor distance at most this')
+        self.parameter('max_self_similarity', math.nan,
+                       "acceptance where the route looks alike: a match whose snapshot's self-similarity (the "
+                       "route's step there over the distance to its nearest look-alike elsewhere on the route) "
+                       'exceeds this is accepted only after views that vouched for a steady drive (sequences); '
+                       "NaN: the method's")
         self.parameter('candidates', 5, 'runners-up in each match')
         self.parameter('max_degree', DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut '
                                                         'to it)')
@@ -64,6 +69,8 @@ class LocalizeNode(SkynavNode):
             raise ValueError('max_degree must be within 1..64')
         if values['sequence_length'] < 1 or values['candidates'] < 1:
             raise ValueError('sequence_length and candidates must be at least 1')
+        if values['max_self_similarity'] < 0:  # NaN (the method's) passes
+            raise ValueError('max_self_similarity must be at least 0 (NaN: the method\'s)')
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -71,7 +78,10 @@ class LocalizeNode(SkynavNode):
         method_acceptance = METHODS[values['method']].acceptance
         ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
         view = method_acceptance.max_view_score if math.isnan(values['max_view_ratio']) else values['max_view_ratio']
-        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view)
+        alike = method_acceptance.max_self_similarity if math.isnan(values['max_self_similarity']) else \
+            values['max_self_similarity']
+        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view,
+                                method_acceptance.motion_slack, alike)
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
         self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
                                    candidates=values['candidates'], degree=values['max_degree'])
