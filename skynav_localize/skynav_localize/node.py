@@ -5,7 +5,8 @@ best snapshot of the map given by the `map` parameter, its descriptor distance, 
 the acceptance test, and the runners-up. Setting `map` at run time switches maps; a map that cannot
 be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
 A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
-nor is a match on a snapshot without one.
+nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
+only if it moves along the route with the robot (matching, the module notes).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ route changes the view less than the light, the clouds and the tilt of a repeat 
 alike. A teach drive and a repeat drive of it (as tools/landscape_evals.sh renders them, 320x240, seed 1; the views
 synthetic renderings of the real horizon under the synthetic sky) go through the skyline and SH nodes. Before the
 tests of a route that looks alike (matching: self-similarity and motion), the default method accepted 16 matches
-on this drive, 14 of them 1.6-5.9 m from the view's place: sequences at the route's end matched its start by
+on this drive, 14 of them 2.0-5.9 m from the view's place: sequences at the route's end matched its start by
 ratios of 0.33-0.40. The localize node must say "not sure" there rather than guess. The test skips with one line
 where the package cannot be fetched.
 """
