@@ -202,11 +202,15 @@ def test_motion_of_a_stalled_or_jittering_sequence_is_neither():
 
 
 def test_motion_refuses_a_jump_back_from_what_views_vouched_for_but_not_a_return_after_a_detour():
-    indices = np.array([10, 11, 12, 13, 14, 15, 30, 31, 32, 33], float)  # jumps 15 snapshots ahead after view 5
+    indices = np.array([30, 31, 32, 33, 34, 35, 10, 11, 12, 13], float)  # jumps 25 snapshots back after view 5
     vouched = np.ones(10, bool)
     consistent, _ = motion_tests(indices, vouched, PARAMS)
-    assert np.all(consistent[:6]) and not consistent[6]
-    backwards = indices[::-1].copy()  # a view per snapshot backwards: within the slack for two views, not three
+    assert np.all(consistent[:6]) and not np.any(consistent[6:])
+    # the same jump after views that did not vouch (off the route), or ahead (a robot faster than the sequence
+    # assumes: the view's choice within the place follows it), contradicts nothing
+    assert np.all(motion_tests(indices, np.arange(10) >= 6, PARAMS)[0])
+    assert np.all(motion_tests(indices[::-1] + 3 * np.arange(10), vouched, PARAMS)[0])
+    backwards = np.arange(33, 23, -1, dtype=float)  # a view per snapshot backwards: within the slack for two views
     assert not np.any(motion_tests(backwards, vouched, PARAMS)[0][3:])
     # after a detour no view vouched for its snapshot: the first view back is judged on its own
     rejoin = np.array([50, 44, 46, 52, 38, 40, 12, 13, 14, 15], float)
