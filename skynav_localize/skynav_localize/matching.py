@@ -23,6 +23,19 @@ place descriptors of skynav and the baselines share one code path.
   route's likeliest stretch. The newest view corrects the lag and is not fooled by the history.
 - Acceptance: accepted when score <= max_score, the reported distance <= max_distance and, where a view test is
   set (max_view_score), the newest view's ratio at the matched snapshot <= max_view_score.
+- Where the route looks alike (skynav's sequence methods): a view biased by the light or the tilt can land nearer
+  another stretch of a route whose places hardly differ, and every test above then vouches for the wrong place. Two
+  more tests guard against it. The map's own *self-similarity* at a snapshot is the route's step there (median
+  distance between successive snapshots within `exclusion` of it) over the distance to its nearest look-alike (the
+  nearest snapshot more than `exclusion` away): low on a route whose places stand out, near or above 1 where the
+  route elsewhere looks as much like the place as its next snapshot does. The *motion* of the matches: the views
+  whose own ratio passed (they vouched for their snapshots) name snapshots that a robot driving at least
+  min_speed snapshots per view leaves behind in turn (motion_tests). A match is accepted only where it falls
+  behind none of the snapshots the last views vouched for (within MOTION_SLACK; motion_window), and either its
+  snapshot's self-similarity is at most max_self_similarity or at least three quarters of the sequence's views
+  vouched for snapshots that advance steadily (least-squares slope within the speed range). The first alternative
+  keeps a robot that rejoins a distinct route after a detour localized at once; the second refuses a sequence
+  that stalls or jitters in place where the route looks alike, while a steady drive there still earns its matches.
 """
 
 from __future__ import annotations
@@ -39,6 +52,10 @@ DEFAULT_EXCLUSION = 10
 DEFAULT_CANDIDATES = 5
 #: Lower bound of a local standard deviation (distance units) in contrast normalisation: guards flat rows.
 MIN_LOCAL_STD = 1e-12
+#: Snapshots by which the newest view's choice within a place may lag a steady drive in the motion tests: on the
+#: bundled repeat drives its choice jitters by 1-3 snapshots about the true one, and the robot covers 0.45-0.65
+#: snapshots per view there, at the edge of the default speed range.
+MOTION_SLACK = 3
 
 
 @dataclass(frozen=True)
@@ -51,6 +68,10 @@ class Acceptance:
     # sequences: the newest view's single-frame ratio at the matched snapshot, which it chooses within the sequence's
     # place (view_in_place); None: the sequence's match as SeqSLAM gives it (the baselines)
     max_view_score: float | None = None
+    # sequences: the motion tests (snapshots of slack; None: none, the match is judged without the earlier views)
+    motion_slack: float | None = None
+    # the matched snapshot's self-similarity, unless the sequence's views vouched for a steady drive; None: no bound
+    max_self_similarity: float | None = None
 
     def accepts(self, score: np.ndarray | float, distance: np.ndarray | float,
                 view_score: np.ndarray | float | None = None) -> np.ndarray | bool:
@@ -59,6 +80,21 @@ class Acceptance:
         if self.max_view_score is not None and view_score is not None:
             passed = passed & (np.asarray(view_score) <= self.max_view_score)
         return passed
+
+    def vouches(self, score: np.ndarray | float, view_score: np.ndarray | float | None = None) -> np.ndarray | bool:
+        """Return whether views vouch for their snapshots: their own ratio (view score, or score) passes."""
+        if self.max_view_score is not None and view_score is not None:
+            return np.asarray(view_score) <= self.max_view_score
+        return np.asarray(score) <= self.max_score
+
+    def passes_place_tests(self, consistent: np.ndarray, steady: np.ndarray,
+                           self_similarity: np.ndarray) -> np.ndarray:
+        """Return whether matches pass the tests of a route that looks alike (vectorised; see the module notes)."""
+        distinct = np.ones(np.shape(self_similarity), dtype=bool) if self.max_self_similarity is None else \
+            np.asarray(self_similarity) <= self.max_self_similarity
+        if self.motion_slack is None:
+            return distinct
+        return np.asarray(consistent, dtype=bool) & (distinct | np.asarray(steady, dtype=bool))
 
 
 @dataclass(frozen=True)
@@ -291,3 +327,69 @@ def view_in_place(distances: np.ndarray, place: np.ndarray, exclusion: int = DEF
     index = np.argmin(rows, axis=1)
     distance = distances[np.arange(distances.shape[0]), index]
     return index, distance, distance_ratio(distance, runner_up(distances, index, exclusion)), rows
+
+
+# --- where the route looks alike ----------------------------------------------------------------------------------
+
+def local_steps(steps: np.ndarray, exclusion: int) -> np.ndarray:
+    """Return per snapshot (N,) the route's step there: the median of the distances `steps` (N - 1,) between
+    successive snapshots within `exclusion` snapshots of it (distance units; 0 for a map of one snapshot)."""
+    steps = np.asarray(steps, dtype=float)
+    n = steps.size + 1
+    if steps.size == 0:
+        return np.zeros(n)
+    pad = max(int(exclusion), 1)
+    padded = np.concatenate([np.full(pad, np.nan), steps, np.full(pad, np.nan)])
+    width = 2 * pad
+    windows = np.lib.stride_tricks.sliding_window_view(padded, width)[:n]  # steps j - exclusion .. j + exclusion - 1
+    return np.nanmedian(windows, axis=1)
+
+
+def self_similarity(local_step: np.ndarray, look_alike: np.ndarray) -> np.ndarray:
+    """Return the route's step over the distance to the nearest look-alike (snapshots, (N,)): 0 with none, 1 when
+    both are 0; lower = a place that stands out."""
+    return distance_ratio(local_step, look_alike)
+
+
+def motion_window(params: SequenceParams, slack: float = MOTION_SLACK) -> int:
+    """Return how many views back the motion tests look: a sequence's, and at least twice the views over which the
+    slack hides a robot that stands still (2 slack / min_speed)."""
+    back = params.length - 1
+    if params.min_speed <= 0:
+        return back
+    return max(back, math.ceil(2.0 * slack / params.min_speed - 1e-9))
+
+
+def motion_tests(indices: np.ndarray, vouched: np.ndarray, params: SequenceParams,
+                 slack: float = MOTION_SLACK) -> tuple[np.ndarray, np.ndarray]:
+    """Return per view (Q,), from the matched snapshot indices (Q,) and which views vouched for theirs, in order:
+    (consistent, steady), each bool (Q,).
+
+    consistent: the view's index lies at least min_speed k - slack snapshots ahead of the index of each vouched
+    view k = 1 .. motion_window() views before it (no upper bound: a robot may drive faster than a sequence
+    assumes, and the view's choice within a place follows it). steady: with the length - 1 views before it, at
+    least three quarters of a sequence's views vouched, and the least-squares slope of their indices over time lies
+    within min_speed..max_speed (snapshots per view). A view with fewer views before it is consistent with what
+    there is, and not steady.
+    """
+    indices = np.asarray(indices, dtype=float)
+    vouched = np.asarray(vouched, dtype=bool)
+    count = indices.size
+    consistent = np.ones(count, dtype=bool)
+    for k in range(1, min(motion_window(params, slack), count - 1) + 1):  # each lag over all views at once
+        step = indices[k:] - indices[:-k]
+        consistent[k:] &= (step >= params.min_speed * k - slack) | ~vouched[:-k]
+    back = params.length - 1
+    steady = np.zeros(count, dtype=bool)
+    if back >= 1 and count > back:
+        # each window: the views of a sequence ending at one view; the slope fitted to its vouched ones
+        weights = np.lib.stride_tricks.sliding_window_view(vouched, back + 1).astype(float)
+        values = np.lib.stride_tricks.sliding_window_view(indices, back + 1)
+        frames = np.arange(back + 1, dtype=float)
+        total = weights.sum(axis=1)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            centred = frames[None, :] - ((weights @ frames) / total)[:, None]
+            slope = np.sum(weights * centred * values, axis=1) / np.sum(weights * centred * centred, axis=1)
+        enough = 4 * total >= 3 * (back + 1)
+        steady[back:] = enough & (slope >= params.min_speed) & (slope <= params.max_speed)
+    return consistent, steady

@@ -5,7 +5,8 @@ best snapshot of the map given by the `map` parameter, its descriptor distance, 
 the acceptance test, and the runners-up. Setting `map` at run time switches maps; a map that cannot
 be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
 A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
-nor is a match on a snapshot without one.
+nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
+only if it moves along the route with the robot (matching, the module notes).
 
 Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the node cannot use
 ('malformed', 'non_finite', 'degree': below the descriptors' degree, checked with a map;
@@ -60,6 +61,8 @@ class LocalizeNode(SkynavNode):
             raise ValueError('max_degree must be within 1..64')
         if values['sequence_length'] < 1 or values['candidates'] < 1:
             raise ValueError('sequence_length and candidates must be at least 1')
+        if values['max_self_similarity'] < 0:  # NaN (the method's) passes
+            raise ValueError('max_self_similarity must be at least 0 (NaN: the method\'s)')
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -67,7 +70,10 @@ class LocalizeNode(SkynavNode):
         method_acceptance = METHODS[values['method']].acceptance
         ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
         view = method_acceptance.max_view_score if math.isnan(values['max_view_ratio']) else values['max_view_ratio']
-        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view)
+        alike = method_acceptance.max_self_similarity if math.isnan(values['max_self_similarity']) else \
+            values['max_self_similarity']
+        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view,
+                                method_acceptance.motion_slack, alike)
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
         self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
                                    candidates=values['candidates'], degree=values['max_degree'])

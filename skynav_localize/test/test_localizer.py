@@ -9,6 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
+from skynav_localize.matching import Acceptance
 from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
 from skynav_core.maps import MapError, MapStore
 
@@ -75,6 +76,39 @@ def test_off_route_views_are_not_accepted(store, make_route, make_view, name):
     assert not np.any(matches.accepted)
     single = Localizer(store, name)
     assert not any(single.query(make_view(DEGREE, rng)).accepted for _ in range(20))
+
+
+@pytest.mark.parametrize('name', ['amplitude-seq', 'bispectrum-seq'])
+def test_where_every_place_looks_alike_only_a_steady_drive_is_accepted(make_view, tmp_path, name):
+    # a route whose snapshots are all one view plus noise: the nearest snapshot elsewhere on the route is as close
+    # as the next one, and no place stands out. Views taken exactly at the snapshots still single each one out
+    from skynav_sh.basis import degree_order
+
+    rng = np.random.default_rng(3)
+    degree_scale = 1.0 + degree_order(DEGREE)[0]
+    alike = make_view(DEGREE, rng) + 0.05 * rng.standard_normal((80, (DEGREE + 1) ** 2)) / degree_scale
+    with create_map(tmp_path / 'alike.db', 'alike', DEGREE) as writer:
+        for i, coefficients in enumerate(alike):
+            writer.add_snapshot(coefficients, i)
+    store = MapStore.open(writer.path)
+    localizer = Localizer(store, name)
+    assert np.min(localizer.self_similarity(np.arange(len(alike)))) > METHODS[name].acceptance.max_self_similarity
+    noise = 0.002 * rng.standard_normal((40, alike.shape[1])) / degree_scale
+    # driving along it, one snapshot per view: accepted once a whole sequence of views vouched for the drive
+    steady = 5 + np.arange(40)
+    offline = localizer.match_sequence(alike[steady] + noise)
+    np.testing.assert_array_equal(offline.accepted, np.arange(40) >= localizer.sequence.length - 1)
+    assert np.all(np.abs(offline.index - steady) <= 2)
+    online = Localizer(store, name)
+    np.testing.assert_array_equal([online.query(v).accepted for v in alike[steady] + noise], offline.accepted)
+    # standing at one place (or views biased onto it while the robot drives): the matches never move along the
+    # route as a sequence assumes, and nothing is accepted; the ratio tests alone accepted some of them
+    stalled = 40 + np.tile([0, 1, -1, 0], 10)
+    assert not np.any(Localizer(store, name).match_sequence(alike[stalled] + noise).accepted)
+    ratios = METHODS[name].acceptance
+    only_ratios = Acceptance(ratios.max_score, max_view_score=ratios.max_view_score)
+    assert np.count_nonzero(Localizer(store, name, acceptance=only_ratios).match_sequence(
+        alike[stalled] + noise).accepted) >= 2
 
 
 def test_empty_map_and_missing_baseline_data(tmp_path, route):

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_localize.matching import (Acceptance, SequenceBuffer, SequenceParams, best_candidates,
-                                      contrast_normalise, distance_ratio, runner_up, sequence_match,
-                                      sequence_scores, single_frame, trajectory_scores, view_in_place)
+from skynav_localize.matching import (MOTION_SLACK, Acceptance, SequenceBuffer, SequenceParams, best_candidates,
+                                      contrast_normalise, distance_ratio, local_steps, motion_tests, motion_window,
+                                      runner_up, self_similarity, sequence_match, sequence_scores, single_frame,
+                                      trajectory_scores, view_in_place)
 
 SNAPSHOTS = 200
 QUERIES = 60
@@ -151,3 +152,85 @@ def test_the_newest_view_chooses_its_snapshot_within_the_sequence_place():
     assert np.all(np.isinf(place[0, :5])) and np.all(np.isinf(place[0, 26:])) and place[0, 12] == pytest.approx(0.2)
     row[40] = 0.8  # without the better place elsewhere the view vouches for its snapshot: ratio 0.2 / 0.8
     assert view_in_place(row[None, :], np.array([15]), exclusion=10)[2][0] == pytest.approx(0.25)
+
+
+def test_the_route_step_is_the_median_between_successive_snapshots_within_the_place():
+    steps = np.array([1.0, 1.0, 1.0, 9.0, 1.0, 2.0, 2.0])  # between snapshots 0-1, ..., 6-7
+    # exclusion 1: the steps on either side of a snapshot (one at the ends); exclusion 2: up to four of them
+    np.testing.assert_allclose(local_steps(steps, 1), [1.0, 1.0, 1.0, 5.0, 5.0, 1.5, 2.0, 2.0])
+    np.testing.assert_allclose(local_steps(steps, 2), [1.0, 1.0, 1.0, 1.0, 1.5, 2.0, 2.0, 2.0])
+    assert local_steps(np.zeros(0), 10).shape == (1,)
+    # a place whose nearest look-alike is three steps away, one as close as its next snapshot, one with none
+    np.testing.assert_allclose(self_similarity(np.array([1.0, 1.0, 1.0]), np.array([3.0, 1.0, np.inf])),
+                               [1 / 3, 1.0, 0.0])
+
+
+PARAMS = SequenceParams(length=10, min_speed=0.5, max_speed=2.0)
+
+
+def test_motion_of_a_steady_drive_is_consistent_and_steady():
+    indices = 5 + np.round(0.7 * np.arange(30))  # 0.7 snapshots per view, as the bundled repeat drives
+    consistent, steady = motion_tests(indices, np.ones(30, bool), PARAMS)
+    assert np.all(consistent)
+    np.testing.assert_array_equal(steady, np.arange(30) >= PARAMS.length - 1)  # a full sequence behind the view
+    # every fifth view not vouching (two of a sequence's ten) changes nothing; every third (three or four) leaves it
+    # unsure: too few views vouched for the drive
+    assert np.all(motion_tests(indices, np.arange(30) % 5 != 1, PARAMS)[1][PARAMS.length - 1:])
+    assert not np.any(motion_tests(indices, np.arange(30) % 3 != 1, PARAMS)[1])
+
+
+def test_motion_of_a_stalled_or_jittering_sequence_is_neither():
+    # a sequence stuck near one snapshot while the robot drives (views biased onto another stretch of a route that
+    # looks alike): its vouched snapshots jitter about 3 by one, never advancing
+    indices = 3 + np.tile([0, 1, -1], 10)
+    consistent, steady = motion_tests(indices, np.ones(30, bool), PARAMS)
+    assert not np.any(steady)
+    assert not np.any(consistent[PARAMS.length - 1:])  # 4.5 snapshots of travel expected over 9 views
+    assert np.all(consistent[:3])  # a few views cannot tell a stall from the slack
+    # the same against views that did not vouch: nothing to contradict
+    assert np.all(motion_tests(indices, np.zeros(30, bool), PARAMS)[0])
+    # standing still for ten views, then two snapshots on within the slack (a robot leaving the route sideways):
+    # the slack hides a stall for 6 views, so the test looks back twice as far
+    assert motion_window(PARAMS) == 12
+    stall_and_jump = np.array([8] * 12 + [9, 10], float)
+    assert not motion_tests(stall_and_jump, np.ones(14, bool), PARAMS)[0][-1]
+    # random jitter by up to two snapshots: never steady, and mostly inconsistent
+    rng = np.random.default_rng(4)
+    jitter = 3 + rng.integers(-2, 3, 30)
+    consistent, steady = motion_tests(jitter, np.ones(30, bool), PARAMS)
+    assert not np.any(steady) and np.mean(consistent[PARAMS.length - 1:]) < 0.2
+
+
+def test_motion_refuses_a_jump_back_from_what_views_vouched_for_but_not_a_return_after_a_detour():
+    indices = np.array([30, 31, 32, 33, 34, 35, 10, 11, 12, 13], float)  # jumps 25 snapshots back after view 5
+    vouched = np.ones(10, bool)
+    consistent, _ = motion_tests(indices, vouched, PARAMS)
+    assert np.all(consistent[:6]) and not np.any(consistent[6:])
+    # the same jump after views that did not vouch (off the route), or ahead (a robot faster than the sequence
+    # assumes: the view's choice within the place follows it), contradicts nothing
+    assert np.all(motion_tests(indices, np.arange(10) >= 6, PARAMS)[0])
+    assert np.all(motion_tests(indices[::-1] + 3 * np.arange(10), vouched, PARAMS)[0])
+    backwards = np.arange(33, 23, -1, dtype=float)  # a view per snapshot backwards: within the slack for two views
+    assert not np.any(motion_tests(backwards, vouched, PARAMS)[0][3:])
+    # after a detour no view vouched for its snapshot: the first view back is judged on its own
+    rejoin = np.array([50, 44, 46, 52, 38, 40, 12, 13, 14, 15], float)
+    vouched_rejoin = np.arange(10) >= 6
+    consistent, steady = motion_tests(rejoin, vouched_rejoin, PARAMS)
+    assert np.all(consistent[6:]) and not np.any(steady)
+    assert MOTION_SLACK == 3
+
+
+def test_acceptance_where_the_route_looks_alike():
+    acceptance = Acceptance(max_score=0.4, max_view_score=0.45, motion_slack=3, max_self_similarity=0.3)
+    consistent = np.array([True, True, True, False, False])
+    steady = np.array([False, True, False, True, False])
+    alike = np.array([0.5, 0.5, 0.1, 0.1, 0.1])  # the place looks like another stretch, or stands out
+    np.testing.assert_array_equal(acceptance.passes_place_tests(consistent, steady, alike),
+                                  [False, True, True, False, False])
+    # without motion tests (single frames) only the place counts; without a bound every place stands out
+    np.testing.assert_array_equal(Acceptance(0.45, max_self_similarity=0.3).passes_place_tests(
+        consistent, steady, alike), [False, False, True, True, True])
+    assert np.all(Acceptance(0.45).passes_place_tests(consistent, steady, alike))
+    # a view vouches by its own ratio at the snapshot it chose (sequences), or by the match's ratio (single frames)
+    np.testing.assert_array_equal(acceptance.vouches(np.array([0.1, 0.9]), np.array([0.5, 0.3])), [False, True])
+    np.testing.assert_array_equal(Acceptance(0.45).vouches(np.array([0.1, 0.9])), [True, False])

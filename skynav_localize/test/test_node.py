@@ -91,6 +91,23 @@ def test_views_it_cannot_use_are_rejected_by_the_shared_reasons(garden_map):
         assert [m.index for m in feed(graph, bad[2:], start=10**18)] == [-1] and not graph.nodes[0].rejected
 
 
+def test_self_similarity_bound_is_a_parameter(garden_map):
+    # at 0 no place of the route counts as standing out, so every match waits for a sequence of views that vouched
+    # for a steady drive: at the start of the detour drive and when it rejoins the route, where the default (0.3,
+    # which every garden snapshot meets) accepts at once
+    views = recording_views(BAGS / 'synthetic_garden_detour.mcap', images=False).views
+    with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        default = [m.accepted for m in feed(graph, views, start=10**18)]
+        refused = node.set_parameters([Parameter('max_self_similarity', value=-0.1)])[0]
+        assert not refused.successful and 'max_self_similarity' in refused.reason
+        assert node.set_parameters([Parameter('max_self_similarity', value=0.0)])[0].successful
+        strict = [m.accepted for m in feed(graph, views, start=2 * 10**18)]
+    assert all(default[:10]) and not any(strict[:9])
+    assert set(np.flatnonzero(strict)) < set(np.flatnonzero(default))
+
+
 def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
     foreign = tmp_path / 'foreign.db'
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
