@@ -39,9 +39,10 @@ import numpy as np
 
 from skynav_compass.compass import MAX_TILT
 from skynav_compass.refine import within_tilt
+from skynav_core.rotations import rotation_angle, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
-from skynav_warping.shbatch import apply_sparse, quarter_turn_matrices, rotate_columns, rotate_zyz_columns, \
-    z_factors, z_index, zyz_from_matrices
+from skynav_sh.rotation import quarter_turn_sparse, z_rotation_index
+from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
 
@@ -97,7 +98,7 @@ class DegreeTables:
 
         self.degree = L = int(degree)
         self.n = n_coefficients(L)
-        self.forward, self.backward = quarter_turn_matrices(L)
+        self.forward, self.backward = quarter_turn_sparse(L)
         _, m = degree_order(L)
         # per |m|: flat indices of orders +m and -m (degrees |m|..L), shape (2, L + 1 - |m|); one row for m = 0
         self.order_index = [np.flatnonzero(m == 0)[None]] + [
@@ -298,7 +299,7 @@ def paired_costs(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray
     p = len(directions)
     theta, phi, frame = _direction_frames(directions)
     # one batch of rotations: the current view by R_u^T for every direction, the snapshot by R_u^T R^T per turn
-    alpha, beta, gamma = zyz_from_matrices(np.swapaxes(frame[turn_direction], 1, 2) @ np.swapaxes(turn_rotation, 1, 2))
+    alpha, beta, gamma = zyz_angles(np.swapaxes(frame[turn_direction], 1, 2) @ np.swapaxes(turn_rotation, 1, 2))
     n_turns = len(turn_rotation)
     stack = np.concatenate([np.broadcast_to(current.T[:, :, None], (tables.n, 3, p)),
                             np.broadcast_to(snapshot.T[:, :, None], (tables.n, 3, n_turns))], axis=-1)
@@ -428,7 +429,7 @@ def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndar
                        np.swapaxes(turns, 1, 2))  # the snapshot turned by (R0 T)^T: (n, 3, K)
     # <a, Z(-psi) c> = sum over |m| of cos(|m| psi) P_|m| + sin(|m| psi) Q_|m| with
     # P = sum a_i c_i and Q = sum sign(m_i) a_i c_partner(i) over the indices of that |m|
-    order, sign, partner = z_index(tables.coarse.degree)
+    order, sign, partner = z_rotation_index(tables.coarse.degree)
     group = (order[None, :] == np.arange(tables.coarse.degree + 1)[:, None]).astype(float)  # (L + 1, n)
     left = np.stack([current[2], -2.0 * current[1], current[0]], axis=1)  # as _pair: [X2, -2 X1, X0] vs [S0, S1, S2]
     m_sign = -sign  # +1 for m > 0, -1 for m < 0 (0 for m = 0, whose partner is itself)
@@ -452,8 +453,6 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     rotational pre-alignment over tilt and a whole turn of yaw. full_turn: coarse yaw corrections over the whole
     turn instead of +- settings.yaw_window.
     """
-    from skynav_compass import rotation_angle
-
     tables = warping_tables(settings)
     L, Lc = settings.degree, settings.coarse_degree
     if min(current.degree, snapshot.degree) < L:
