@@ -15,8 +15,7 @@ from typing import TYPE_CHECKING
 from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
-    'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation', 'rotation_angle',
-                'zyz_matrices'),
+    'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation'),
     'estimate': ('CompassEstimate', 'Hypothesis'),
     'views': ('CompassView', 'cap_visibility'),
     'cost': ('COSTS', 'CostProblem', 'PreparedSnapshot', 'build_problem', 'cost_channels', 'prepare_snapshot'),
