@@ -20,7 +20,7 @@ _EXPORTS = {
     'views': ('CompassView', 'cap_visibility'),
     'cost': ('COSTS', 'CostProblem', 'PreparedSnapshot', 'build_problem', 'cost_channels', 'prepare_snapshot'),
     'so3': ('EulerGrid', 'so3_correlation', 'correlation_products', 'wigner_small_d_table', 'generators',
-            'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded', 'rotate_padded'),
+            'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded'),
     'refine': ('refine', 'newton_prediction', 'within_tilt'),
     'verify': ('Verification', 'verify', 'recovered_masks'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),

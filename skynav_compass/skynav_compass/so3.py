@@ -101,18 +101,6 @@ def rotate_z_padded(padded: np.ndarray, alpha: float | np.ndarray) -> np.ndarray
     return np.cos(angle) * padded + (sign * np.sin(angle)) * padded[..., ::-1]
 
 
-def _rotate_y_padded(padded: np.ndarray, beta: float) -> np.ndarray:
-    """Return D(Ry(beta)) applied to padded coefficients (..., L+1, 2L+1) as J Z(beta) J^T."""
-    turn = quarter_turn_padded(padded.shape[-2] - 1)
-    back = np.matmul(padded[..., None, :], turn)[..., 0, :]  # J^T c, as the row vector c^T J
-    return np.matmul(turn, rotate_z_padded(back, beta)[..., None])[..., 0]
-
-
-def rotate_padded(padded: np.ndarray, alpha: float, beta: float, gamma: float) -> np.ndarray:
-    """Return D(Rz(alpha) Ry(beta) Rz(gamma)) applied to padded coefficients (..., L+1, 2L+1) (angles in rad)."""
-    return rotate_z_padded(_rotate_y_padded(rotate_z_padded(padded, gamma), beta), alpha)
-
-
 def _zyz_steps(matrix: np.ndarray, max_degree: int) -> tuple[np.ndarray, np.ndarray]:
     """Return cos and signed sin (K, 3, 2L+1) per padded column of the z-steps gamma, beta, alpha of K rotations."""
     # the ZYZ angles of all K rotations (..., 3, 3) in one batched call

@@ -13,7 +13,7 @@ import os
 from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Protocol, Self, Union
+from typing import Self, Union
 
 import numpy as np
 
@@ -34,23 +34,6 @@ def angles_from_directions(directions: np.ndarray) -> tuple[np.ndarray, np.ndarr
     theta = np.arctan2(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
     phi = np.arctan2(d[..., 1], d[..., 0])
     return theta, phi
-
-
-class CameraModel(Protocol):
-    """What every camera model provides."""
-
-    width: int
-    height: int
-
-    @property
-    def theta_max(self) -> float:
-        """Polar angle (rad) of the image circle's edge: directions up to it are seen."""
-
-    def project(self, directions: np.ndarray) -> np.ndarray:
-        """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3)."""
-
-    def unproject(self, pixels: np.ndarray) -> np.ndarray:
-        """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v)."""
 
 
 class _PixelCamera:

@@ -16,7 +16,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 RotationLike = Union[Rotation, np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
-Z_AXIS = np.array([0.0, 0.0, 1.0])
 
 
 def as_matrix(rotation: RotationLike) -> np.ndarray:
