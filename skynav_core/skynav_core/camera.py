@@ -42,6 +42,12 @@ class _PixelCamera:
     width: int
     height: int
     fov_limit: float  # full field of view (rad) the model's theta_max is capped to
+    theta_max: float  # polar angle (rad) of the image circle's edge: directions up to it are seen
+
+    @property
+    def field_of_view(self) -> float:
+        """Full opening angle (rad) of the image circle."""
+        return 2 * self.theta_max
 
     def unproject(self, pixels: np.ndarray) -> np.ndarray:
         """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v) (each model's own)."""
@@ -122,11 +128,6 @@ class EquidistantCamera(_PixelCamera):
             (self.height - 1 - self.cy) / self.fy,
         )
         return float(min(self.undistort(np.array(theta_d_max)), self.fov_limit / 2))
-
-    @property
-    def field_of_view(self) -> float:
-        """Full opening angle (rad) of the image circle."""
-        return 2 * self.theta_max
 
     def project(self, directions: np.ndarray) -> np.ndarray:
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3); theta past 90 degrees included."""
@@ -253,11 +254,6 @@ class OCamCamera(_PixelCamera):
             np.stack([np.zeros_like(v), v], -1), np.stack([np.full_like(v, self.width - 1), v], -1)])
         theta, _ = angles_from_directions(self.unproject(border))
         return float(min(theta.min(), self.fov_limit / 2))
-
-    @property
-    def field_of_view(self) -> float:
-        """Full opening angle (rad) of the image circle."""
-        return 2 * self.theta_max
 
     def project(self, directions: np.ndarray) -> np.ndarray:
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3) in camera_link (OCamCalib's world2cam)."""

@@ -17,7 +17,7 @@ _EXPORTS = {
     'basis': ('SPHERE_AREA', 'degree_from_size', 'degree_order', 'degree_slices', 'lm_index', 'n_coefficients',
               'normalised_legendre', 'real_sh', 'real_sh_directions'),
     'transform': ('GaussLegendreGrid', 'analysis', 'grid', 'synthesis', 'synthesis_at'),
-    'fisheye': ('FILLS', 'FisheyeTransform', 'image_values'),
+    'fisheye': ('FILLS', 'FisheyeTransform', 'camera_image_values', 'image_values'),
     'rotation': ('quarter_turn', 'quarter_turn_sparse', 'rotate', 'rotate_y', 'rotate_z', 'rotate_zyz', 'wigner_d',
                  'wigner_d_matrix', 'wigner_d_recurrence', 'wigner_small_d', 'y_rotation_block', 'z_rotation_blocks',
                  'z_rotation_index'),
