@@ -24,7 +24,7 @@ _EXPORTS = {
     'refine': ('refine', 'newton_prediction', 'within_tilt'),
     'verify': ('Verification', 'verify', 'recovered_masks'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
-    'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
+    'yaw': ('PanoramicCompass', 'YawCompass'),
     'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
     'evaluation': ('ErrorStatistics', 'MethodResult', 'angular_error', 'error_statistics', 'format_table',
                    'heading_error', 'plot_errors', 'relative_tilt', 'roc_auc', 'summary_rows'),

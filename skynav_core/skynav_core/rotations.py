@@ -39,11 +39,22 @@ def as_quaternion(rotation: RotationLike) -> np.ndarray:
 
 def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
     """Return the matrices Rz(alpha) Ry(beta) Rz(gamma) (..., 3, 3) of ZYZ angles (rad; arrays broadcast)."""
-    ca, sa, cb, sb, cg, sg = (f(np.asarray(x, dtype=float)) for x in (alpha, beta, gamma) for f in (np.cos, np.sin))
+    angles = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (alpha, beta, gamma)))
+    ca, sa, cb, sb, cg, sg = (f(x) for x in angles for f in (np.cos, np.sin))
     return np.stack([
-        np.stack(np.broadcast_arrays(ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb), -1),
-        np.stack(np.broadcast_arrays(sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb), -1),
-        np.stack(np.broadcast_arrays(-sb * cg, sb * sg, cb), -1)], -2)
+        np.stack([ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb], -1),
+        np.stack([sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb], -1),
+        np.stack([-sb * cg, sb * sg, cb], -1)], -2)
+
+
+def yaw_matrix(angle) -> np.ndarray:
+    """Return Rz(angle) (..., 3, 3): the turn by angle (rad) about +z, counter-clockwise seen from +z."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(np.shape(c) + (3, 3))
+    out[..., 0, 0] = out[..., 1, 1] = c
+    out[..., 0, 1], out[..., 1, 0] = -s, s
+    out[..., 2, 2] = 1.0
+    return out
 
 
 def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -39,7 +39,7 @@ import numpy as np
 
 from skynav_compass.compass import MAX_TILT
 from skynav_compass.refine import within_tilt
-from skynav_core.rotations import rotation_angle, zyz_angles
+from skynav_core.rotations import rotation_angle, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_sh.rotation import quarter_turn_sparse, z_rotation_index
 from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
@@ -411,12 +411,6 @@ def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypo
     return spent
 
 
-def _yaw(angle: float) -> np.ndarray:
-    """Return Rz(angle) (rad)."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, rotation: np.ndarray) \
         -> tuple[np.ndarray, float]:
     """Return the best pure rotation R = rotation T Rz(psi) over the tilt cap T and a turn of yaw psi, and its cost.
@@ -442,7 +436,7 @@ def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndar
     cos, sin = np.cos(angles), np.sin(angles)
     costs = _costs(p_num.T @ cos + q_num.T @ sin, p_den.T @ cos + q_den.T @ sin, _overlap_floor(snapshot))  # (K, n_az)
     k, q = np.unravel_index(np.argmin(costs), costs.shape)
-    return turns[k] @ _yaw(tables.azimuths[q]), float(costs[k, q])
+    return turns[k] @ yaw_matrix(tables.azimuths[q]), float(costs[k, q])
 
 
 def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray | None = None,
@@ -536,9 +530,9 @@ def _coarse_hypotheses(tables: WarpingTables, current: np.ndarray, snapshot: np.
         if any(np.dot(u, h.direction) > np.cos(1.5 * tables.step) for h in hypotheses):
             continue
         slot, q = np.unravel_index(best_cell[ring, j], (n_slots, n_az))
-        hypotheses.append(Hypothesis(u.copy(), settings.coarse_ratios[slot], r0 @ _yaw(tables.yaw[q]),
+        hypotheses.append(Hypothesis(u.copy(), settings.coarse_ratios[slot], r0 @ yaw_matrix(tables.yaw[q]),
                                      float(best_cost.flat[index]), 0.5 * tables.step, start=r0))
     q0 = int(np.argmin(still))
-    reference = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, r0 @ _yaw(tables.yaw[q0]), float(still[q0]),
+    reference = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, r0 @ yaw_matrix(tables.yaw[q0]), float(still[q0]),
                            0.5 * tables.step, translate=False, start=r0)
     return hypotheses, reference, costs.size + still.size
