@@ -79,7 +79,9 @@ def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def rotation_angle(first: RotationLike, second: RotationLike) -> np.ndarray | float:
     """Return the angle (rad) of first^T second: how far apart two rotations (or two stacks of them) are."""
     a, b = as_matrix(first), as_matrix(second)
-    cosine = (np.einsum('...ij,...ij->...', a, b) - 1.0) / 2.0  # trace(A^T B) = 1 + 2 cos(angle)
+    # trace(A^T B) = 1 + 2 cos(angle), summed elementwise: the compass's and the exhaustive search's separation of
+    # grid rotations exactly whole steps apart depends on this rounding (an einsum moves figures of the baseline)
+    cosine = (np.sum(a * b, axis=(-2, -1)) - 1.0) / 2.0
     angle = np.arccos(np.clip(cosine, -1.0, 1.0))
     return float(angle) if np.ndim(angle) == 0 else angle
 
