@@ -10,30 +10,40 @@ camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes
 
 from __future__ import annotations
 
-from typing import Union
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-RotationLike = Union[Rotation, np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
+RotationLike = Union['Rotation', np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
+
+
+def _scipy_rotation() -> type[Rotation]:
+    """Return scipy's Rotation class."""
+    # imported on first use: scipy.spatial takes some 0.2 s to load, which every node's start would pay
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 def as_matrix(rotation: RotationLike) -> np.ndarray:
     """Return the rotation matrices (..., 3, 3) of a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)."""
-    if isinstance(rotation, Rotation):
+    if not isinstance(rotation, (np.ndarray, tuple, list)) and isinstance(rotation, _scipy_rotation()):
         return rotation.as_matrix()
     array = np.asarray(rotation, dtype=float)
     if array.shape[-2:] == (3, 3):
         return array
     if array.shape[-1:] == (4,):
-        return Rotation.from_quat(array.reshape(-1, 4)).as_matrix().reshape(array.shape[:-1] + (3, 3))
+        return _scipy_rotation().from_quat(array.reshape(-1, 4)).as_matrix().reshape(array.shape[:-1] + (3, 3))
     raise ValueError(f'a rotation must be 3x3 matrices or quaternions (x, y, z, w), got shape {array.shape}')
 
 
 def as_quaternion(rotation: RotationLike) -> np.ndarray:
     """Return the unit quaternions (..., 4) (x, y, z, w) of rotations, w >= 0."""
     matrices = as_matrix(rotation)
-    quaternions = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_quat(canonical=True)
+    quaternions = _scipy_rotation().from_matrix(matrices.reshape(-1, 3, 3)).as_quat(canonical=True)
     return quaternions.reshape(matrices.shape[:-2] + (4,))
 
 

@@ -1,5 +1,8 @@
 """Property tests of the rotation helpers against scipy's independent implementation, flat and batched."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -107,3 +110,9 @@ def test_yaw_matrix_is_the_turn_about_z_one_angle_or_many(seed):
     np.testing.assert_allclose(yaw_matrix(angles), by_scipy, atol=1e-15)
     np.testing.assert_array_equal(yaw_matrix(angles)[1, 2], yaw_matrix(angles[1, 2]))
     np.testing.assert_allclose(yaw_matrix(angles), zyz_matrix(angles, 0.0, 0.0), atol=1e-15)
+
+
+def test_importing_the_rotations_leaves_scipy_spatial_unloaded():
+    # the stage nodes import this module at start-up; scipy.spatial loads on the first quaternion instead
+    check = "import sys, skynav_core.rotations; sys.exit('scipy.spatial' in sys.modules)"
+    assert subprocess.run([sys.executable, '-c', check]).returncode == 0
