@@ -76,7 +76,8 @@ def check_conversion(degree: int) -> float:
     import ducc0
     from scipy.spatial.transform import Rotation
 
-    from skynav_sh import grid, rotate, zyz_angles
+    from skynav_core.rotations import zyz_angles
+    from skynav_sh import grid, rotate
 
     rng = np.random.default_rng(degree)
     coefficients = rng.standard_normal((degree + 1) ** 2)
@@ -96,7 +97,7 @@ def check_conversion(degree: int) -> float:
 
 def skyline_mask(camera) -> np.ndarray:
     """A 640x480 uint8 mask (255 sky) of a rippled skyline, labelled at pixel centres."""
-    from skynav_sh import angles_from_directions
+    from skynav_core.camera import angles_from_directions
 
     theta, phi = angles_from_directions(camera.pixel_directions())
     skyline = np.pi / 2 - (0.25 + 0.1 * np.sin(3 * phi) + 0.05 * np.cos(7 * phi + 1.0))
@@ -112,8 +113,10 @@ def main() -> None:
     import ducc0
     from scipy.spatial.transform import Rotation
 
-    from skynav_sh import (EquidistantCamera, FisheyeTransform, MaskedView, amplitude_spectrum, bispectrum,
-                           bispectrum_size, grid, masked_distance_views, quarter_turn, rotate, zyz_angles)
+    from skynav_core.camera import EquidistantCamera
+    from skynav_core.rotations import zyz_angles
+    from skynav_sh import (FisheyeTransform, MaskedView, amplitude_spectrum, bispectrum, bispectrum_size, grid,
+                           masked_distance_views, quarter_turn, rotate)
 
     def measure(function: Callable[[], object]) -> float:
         return seconds_per_call(function, min_seconds)

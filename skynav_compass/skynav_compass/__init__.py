@@ -15,17 +15,16 @@ from typing import TYPE_CHECKING
 from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
-    'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation', 'rotation_angle',
-                'zyz_matrices'),
+    'compass': ('Compass', 'CompassConfig', 'MAX_TILT', 'any_tilt_config', 'estimate_rotation'),
     'estimate': ('CompassEstimate', 'Hypothesis'),
     'views': ('CompassView', 'cap_visibility'),
     'cost': ('COSTS', 'CostProblem', 'PreparedSnapshot', 'build_problem', 'cost_channels', 'prepare_snapshot'),
     'so3': ('EulerGrid', 'so3_correlation', 'correlation_products', 'wigner_small_d_table', 'generators',
-            'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded', 'rotate_padded'),
+            'so3_correlation_cells', 'rotate_degree_major', 'to_padded', 'from_padded'),
     'refine': ('refine', 'newton_prediction', 'within_tilt'),
     'verify': ('Verification', 'verify', 'recovered_masks'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
-    'yaw': ('PanoramicCompass', 'YawCompass', 'yaw_matrix'),
+    'yaw': ('PanoramicCompass', 'YawCompass'),
     'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
     'evaluation': ('CompassResult', 'ErrorStatistics', 'angular_error', 'error_statistics', 'format_table',
                    'heading_error', 'plot_errors', 'relative_tilt', 'roc_auc', 'summary_rows'),

@@ -37,6 +37,7 @@ from skynav_compass.refine import Refined, newton_prediction, refine
 from skynav_compass.so3 import EulerGrid
 from skynav_compass.verify import current_masks, is_binary, verify
 from skynav_compass.views import CompassView
+from skynav_core.rotations import as_matrix, rotation_angle, zyz_matrix
 
 View = Union[CompassView, np.ndarray]
 Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by Compass.prepare
@@ -75,21 +76,6 @@ def any_tilt_config(**changes) -> CompassConfig:
     """Return the settings of a compass without the ground robot's prior: the whole of SO(3), refused overlap below
     a quarter, three hypotheses ranked by the SH cost alone (as the default was before the tilt bound)."""
     return CompassConfig(**{'max_tilt': None, 'verify': False, 'hypotheses': 3, 'min_overlap': 0.25, **changes})
-
-
-def rotation_angle(first: np.ndarray, second: np.ndarray) -> float:
-    """Return the angle (rad) of the rotation first^T second between two 3x3 rotations."""
-    cosine = (float(np.sum(np.asarray(first) * np.asarray(second))) - 1.0) / 2.0  # trace(first^T second)
-    return float(np.arccos(np.clip(cosine, -1.0, 1.0)))
-
-
-def zyz_matrices(alpha: np.ndarray, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
-    """Return the matrices Rz(alpha) Ry(beta) Rz(gamma) (..., 3, 3) of ZYZ angle arrays (rad)."""
-    ca, sa, cb, sb, cg, sg = (f(x) for x in (alpha, beta, gamma) for f in (np.cos, np.sin))
-    return np.stack([
-        np.stack([ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb], -1),
-        np.stack([sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb], -1),
-        np.stack([-sb * cg, sb * sg, cb], -1)], -2)
 
 
 def neighbourhood_minimum(costs: np.ndarray) -> np.ndarray:
@@ -158,8 +144,6 @@ class Compass:
 
     def cost(self, snapshot: Snapshot, current: View, rotation) -> float:
         """Return the cost of a rotation R (scipy Rotation, 3x3 or quaternion x, y, z, w; d_s = R d_c)."""
-        from skynav_sh.rotation import as_matrix
-
         return self.problem(snapshot, current).cost(as_matrix(rotation))
 
     def grid_costs(self, snapshot: Snapshot, current: View) -> np.ndarray:
@@ -181,7 +165,7 @@ class Compass:
         if not minima:
             return failed
         angles = np.array([self.grid.angles(index) for index in minima])
-        matrices = zyz_matrices(angles[:, 0], angles[:, 1], angles[:, 2])
+        matrices = zyz_matrix(*angles.T)
         # cos of the angle between two rotations is (trace(A^T B) - 1) / 2; keep minima 2 grid steps apart
         close = np.einsum('aij,bij->ab', matrices, matrices) > 1.0 + 2.0 * np.cos(2 * self.grid.step)
         kept: list[int] = []

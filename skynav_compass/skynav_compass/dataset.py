@@ -11,15 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
+from skynav_core.rotations import as_quaternion, relative_rotation
+
 IMAGE_TOPICS = {'uv': '/camera/uv/image_raw', 'green': '/camera/green/image_raw', 'mask': '/ground_truth/mask'}
 
 
 def true_rotation(snapshot_orientation: np.ndarray, current_orientations: np.ndarray) -> np.ndarray:
     """Return the true compass rotations Q_s^-1 Q_c as quaternions (..., 4) (x, y, z, w) from map orientations."""
-    from scipy.spatial.transform import Rotation
-
-    q_s = Rotation.from_quat(np.asarray(snapshot_orientation, dtype=float))
-    return (q_s.inv() * Rotation.from_quat(np.asarray(current_orientations, dtype=float))).as_quat()
+    return as_quaternion(relative_rotation(snapshot_orientation, current_orientations))
 
 
 @dataclass(frozen=True)

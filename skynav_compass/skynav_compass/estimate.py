@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_core.rotations import as_quaternion, zyz_angles
+
 
 @dataclass(frozen=True)
 class Hypothesis:
@@ -47,12 +49,9 @@ class CompassEstimate:
     @property
     def quaternion(self) -> np.ndarray:
         """Return R as a unit quaternion (x, y, z, w) with w >= 0 (ROS and scipy order)."""
-        q = self.rotation.as_quat()
-        return -q if q[3] < 0 else q
+        return as_quaternion(self.matrix)
 
     @property
     def euler_zyz(self) -> tuple[float, float, float]:
         """Return (alpha, beta, gamma) in rad with R = Rz(alpha) Ry(beta) Rz(gamma); beta is the relative tilt."""
-        from skynav_sh.rotation import zyz_angles
-
         return zyz_angles(self.matrix)

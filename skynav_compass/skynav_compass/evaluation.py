@@ -13,37 +13,25 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from skynav_core.evaluation import Column, text_table
+from skynav_core.rotations import RotationLike, as_matrix, rotation_angle, tilt
 
 ERROR_THRESHOLD_DEG = 2.0  # the share of estimates under this error is reported
 RIGHT_DEG = 5.0  # an estimate within this error (deg) counts as right when judging how its confidence ranks it
 
 
-def _as_rotation(rotations):  # -> scipy Rotation (stack)
-    """Return a scipy Rotation from quaternions (..., 4), matrices (..., 3, 3) or a Rotation."""
-    from scipy.spatial.transform import Rotation
-
-    if isinstance(rotations, Rotation):
-        return rotations
-    array = np.asarray(rotations, dtype=float)
-    if array.shape[-2:] == (3, 3):
-        return Rotation.from_matrix(array.reshape(-1, 3, 3) if array.ndim > 2 else array)
-    return Rotation.from_quat(array)
-
-
-def angular_error(estimated, true) -> np.ndarray:
+def angular_error(estimated: RotationLike, true: RotationLike) -> np.ndarray:
     """Return the angle (deg) of R_true^-1 R_est per estimate: the full 3D rotation error."""
-    return np.degrees((_as_rotation(true).inv() * _as_rotation(estimated)).magnitude())
+    return np.degrees(rotation_angle(true, estimated))
 
 
-def relative_tilt(rotations) -> np.ndarray:
+def relative_tilt(rotations: RotationLike) -> np.ndarray:
     """Return the tilt (deg) of compass rotations: the angle between R z and z (the Euler beta of ZYZ)."""
-    z = _as_rotation(rotations).apply(np.array([0.0, 0.0, 1.0]))
-    return np.degrees(np.arccos(np.clip(z[..., 2], -1.0, 1.0)))
+    return np.degrees(tilt(rotations))
 
 
-def heading(rotations) -> np.ndarray:
+def heading(rotations: RotationLike) -> np.ndarray:
     """Return the heading (deg) of compass rotations: the azimuth of R x projected on the snapshot's xy-plane."""
-    x = _as_rotation(rotations).apply(np.array([1.0, 0.0, 0.0]))
+    x = as_matrix(rotations)[..., :, 0]
     return np.degrees(np.arctan2(x[..., 1], x[..., 0]))
 
 

@@ -14,11 +14,12 @@ from typing import Union
 
 import numpy as np
 
-from skynav_compass.compass import UNITS, rotation_angle, zyz_matrices
+from skynav_compass.compass import UNITS
 from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, prepare_snapshot
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 from skynav_compass.so3 import quarter_turn_padded, rotate_z_padded
 from skynav_compass.views import CompassView
+from skynav_core.rotations import rotation_angle, zyz_matrix
 
 View = Union[CompassView, np.ndarray]
 Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by ExhaustiveCompass.prepare
@@ -149,7 +150,7 @@ class ExhaustiveCompass:
         units = UNITS[c.cost, c.normalise]
         if not candidates:
             return CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, units)
-        hypotheses = [Hypothesis(zyz_matrices(*np.array(angles)), cost) for cost, angles in candidates]
+        hypotheses = [Hypothesis(zyz_matrix(*angles), cost) for cost, angles in candidates]
         distinct = [h for k, h in enumerate(hypotheses)
                     if all(rotation_angle(h.matrix, other.matrix) > np.radians(5) for other in hypotheses[:k])]
         margin = distinct[1].cost - distinct[0].cost if len(distinct) > 1 else float('inf')
@@ -169,7 +170,7 @@ class ExhaustiveCompass:
                 break
             i, j, k = np.unravel_index(flat, costs.shape)
             angles = (float(alphas[i]), float(betas[j]), float(gammas[k]))
-            matrix = zyz_matrices(*np.array(angles))
+            matrix = zyz_matrix(*angles)
             if all(rotation_angle(matrix, other) > separation for other in matrices):
                 out.append((cost, angles))
                 matrices.append(matrix)

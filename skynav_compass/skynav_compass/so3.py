@@ -12,12 +12,12 @@ turns Z(alpha) into diag(exp(i m alpha)) and D_l(Ry(beta)) into Wigner's small d
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
 
+from skynav_core.rotations import zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order
 
 
@@ -101,16 +101,13 @@ def rotate_z_padded(padded: np.ndarray, alpha: float | np.ndarray) -> np.ndarray
     return np.cos(angle) * padded + (sign * np.sin(angle)) * padded[..., ::-1]
 
 
-def _rotate_y_padded(padded: np.ndarray, beta: float) -> np.ndarray:
-    """Return D(Ry(beta)) applied to padded coefficients (..., L+1, 2L+1) as J Z(beta) J^T."""
-    turn = quarter_turn_padded(padded.shape[-2] - 1)
-    back = np.matmul(padded[..., None, :], turn)[..., 0, :]  # J^T c, as the row vector c^T J
-    return np.matmul(turn, rotate_z_padded(back, beta)[..., None])[..., 0]
-
-
-def rotate_padded(padded: np.ndarray, alpha: float, beta: float, gamma: float) -> np.ndarray:
-    """Return D(Rz(alpha) Ry(beta) Rz(gamma)) applied to padded coefficients (..., L+1, 2L+1) (angles in rad)."""
-    return rotate_z_padded(_rotate_y_padded(rotate_z_padded(padded, gamma), beta), alpha)
+def _zyz_steps(matrix: np.ndarray, max_degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return cos and signed sin (K, 3, 2L+1) per padded column of the z-steps gamma, beta, alpha of K rotations."""
+    # the ZYZ angles of all K rotations (..., 3, 3) in one batched call
+    angles = np.stack(zyz_angles(matrix.reshape(-1, 3, 3))[::-1], axis=-1)  # (K, 3): gamma, beta, alpha
+    order, sign = _z_factors(max_degree)
+    phases = angles[:, :, None] * order
+    return np.cos(phases), sign * np.sin(phases)
 
 
 def rotate_by_matrix(padded: np.ndarray, matrix: np.ndarray) -> np.ndarray:
@@ -118,17 +115,12 @@ def rotate_by_matrix(padded: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 
     A stack of K matrices (K, 3, 3) gives (K, ..., L+1, 2L+1), every input turned by every R.
     """
-    from skynav_sh.rotation import zyz_angles
-
     matrix = np.asarray(matrix, dtype=float)
     batch = matrix.shape[:-2]
-    angles = np.array([zyz_angles(m) for m in matrix.reshape(-1, 3, 3)])[:, ::-1]  # (K, 3): gamma, beta, alpha
     L = padded.shape[-2] - 1
-    order, sign = _z_factors(L)
     turn = quarter_turn_padded(L)
-    phases = angles[:, :, None] * order  # the three z-steps of every rotation at once
     expand = (slice(None),) + (None,) * (padded.ndim - 1)
-    cos, sin = np.cos(phases), sign * np.sin(phases)
+    cos, sin = _zyz_steps(matrix, L)
     x = cos[:, 0][expand] * padded + sin[:, 0][expand] * padded[..., ::-1]
     x = np.matmul(x[..., None, :], turn)[..., 0, :]  # J^T x, as the row x^T J
     x = cos[:, 1][expand] * x + sin[:, 1][expand] * x[..., ::-1]
@@ -145,18 +137,6 @@ def _quarter_turn_transposed(max_degree: int) -> np.ndarray:
     return out
 
 
-def _zyz(matrix: np.ndarray) -> tuple[float, float, float]:
-    """Return ZYZ angles (alpha, beta, gamma) of a 3x3 rotation, as skynav_sh.rotation.zyz_angles, in plain floats."""
-    (r00, r01, r02), (r10, r11, r12), (_, _, r22) = matrix.tolist()
-    alpha = math.atan2(r12, r02)
-    beta = math.atan2(math.hypot(r02, r12), r22)
-    if r22 >= 0:
-        gamma = math.atan2(r10 - r01, r00 + r11) - alpha
-    else:
-        gamma = alpha - math.atan2(-(r10 + r01), -(r00 - r11))
-    return alpha, beta, (gamma + math.pi) % (2 * math.pi) - math.pi
-
-
 def rotate_degree_major(stack: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """Return D(R) applied to functions laid out degree first, (L+1, r, 2L+1) [l, function, m + L].
 
@@ -165,11 +145,8 @@ def rotate_degree_major(stack: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """
     matrix = np.asarray(matrix, dtype=float)
     batch = matrix.shape[:-2]
-    angles = np.array([_zyz(m) for m in matrix.reshape(-1, 3, 3)])[:, ::-1]  # (K, 3): gamma, beta, alpha
     L = stack.shape[-3] - 1
-    order, sign = _z_factors(L)
-    phases = angles[:, :, None] * order  # the three z-steps of every rotation at once, (K, 3, 2L+1)
-    cos, sin = np.cos(phases)[:, :, None, None, :], (sign * np.sin(phases))[:, :, None, None, :]
+    cos, sin = (factor[:, :, None, None, :] for factor in _zyz_steps(matrix, L))
     x = cos[:, 0] * stack + sin[:, 0] * stack[..., ::-1]
     x = x @ quarter_turn_padded(L)  # J^T x, as the rows x^T J
     x = cos[:, 1] * x + sin[:, 1] * x[..., ::-1]
@@ -209,11 +186,6 @@ def stacked_generators(max_degree: int):  # -> scipy.sparse.csr_matrix
         matrix.eliminate_zeros()
         parts.append(matrix)
     return vstack(parts, format='csr')
-
-
-def apply_blocks(blocks: np.ndarray, padded: np.ndarray) -> np.ndarray:
-    """Return per-degree matrices (..., L+1, 2L+1, 2L+1) applied to padded coefficients (..., L+1, 2L+1)."""
-    return np.matmul(blocks, padded[..., None])[..., 0]
 
 
 # --- Wigner small d on an Euler-angle grid and the SO(3) correlation by FFT ---------------------------------

@@ -18,12 +18,7 @@ from skynav_compass.compass import UNITS
 from skynav_compass.cost import build_problem
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 from skynav_compass.views import CompassView
-
-
-def yaw_matrix(psi: float) -> np.ndarray:
-    """Return Rz(psi), psi in rad (camera_link, counter-clockwise seen from +z)."""
-    c, s = np.cos(psi), np.sin(psi)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+from skynav_core.rotations import yaw_matrix
 
 
 def _parabola_offset(left: float, centre: float, right: float) -> float:

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_compass import (Compass, CompassView, angular_error, error_statistics, load_compass_set, relative_tilt,
-                            rotation_angle)
+from skynav_compass import Compass, CompassView, angular_error, error_statistics, load_compass_set, relative_tilt
+from skynav_core.rotations import rotation_angle
 from skynav_sh.fisheye import FisheyeTransform
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass import (Compass, CompassConfig, CompassView, build_problem, cap_visibility, estimate_rotation,
-                            rotation_angle)
+from skynav_compass import Compass, CompassConfig, CompassView, build_problem, cap_visibility, estimate_rotation
 from skynav_compass.evaluation import heading, relative_tilt
 from skynav_compass.refine import refine
+from skynav_core.rotations import rotation_angle
 from skynav_sh.basis import degree_order
 from skynav_sh.rotation import rotate
 

@@ -10,10 +10,10 @@ pixel centres. A model maps unit directions (..., 3) to pixel coordinates
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Protocol, Union
+from typing import Self, Union
 
 import numpy as np
 
@@ -36,25 +36,39 @@ def angles_from_directions(directions: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return theta, phi
 
 
-class CameraModel(Protocol):
-    """What every camera model provides."""
+class _PixelCamera:
+    """What the camera models share on top of their own projection: the pixel grid and a narrower field of view."""
 
     width: int
     height: int
+    fov_limit: float  # full field of view (rad) the model's theta_max is capped to
+    theta_max: float  # polar angle (rad) of the image circle's edge: directions up to it are seen
 
     @property
-    def theta_max(self) -> float:
-        """Polar angle (rad) of the image circle's edge: directions up to it are seen."""
-
-    def project(self, directions: np.ndarray) -> np.ndarray:
-        """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3)."""
+    def field_of_view(self) -> float:
+        """Full opening angle (rad) of the image circle."""
+        return 2 * self.theta_max
 
     def unproject(self, pixels: np.ndarray) -> np.ndarray:
-        """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v)."""
+        """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v) (each model's own)."""
+        raise NotImplementedError
+
+    def pixel_grid(self) -> np.ndarray:
+        """Return the (u, v) coordinates of every pixel centre, shape (height, width, 2)."""
+        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(float)
+        return np.stack([u, v], axis=-1)
+
+    def pixel_directions(self) -> np.ndarray:
+        """Return the view direction of every pixel centre, shape (height, width, 3)."""
+        return self.unproject(self.pixel_grid())
+
+    def with_fov_limit(self, fov: float) -> Self:
+        """Return this camera with its field of view narrowed to `fov` (rad, full angle); never widened."""
+        return replace(self, fov_limit=min(self.fov_limit, fov))
 
 
 @dataclass(frozen=True)
-class EquidistantCamera:
+class EquidistantCamera(_PixelCamera):
     """OpenCV's fisheye (Kannala-Brandt) model as CameraInfo `equidistant` carries it, valid past 90 degrees.
 
     r(theta) = f * theta_d with theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
@@ -115,11 +129,6 @@ class EquidistantCamera:
         )
         return float(min(self.undistort(np.array(theta_d_max)), self.fov_limit / 2))
 
-    @property
-    def field_of_view(self) -> float:
-        """Full opening angle (rad) of the image circle."""
-        return 2 * self.theta_max
-
     def project(self, directions: np.ndarray) -> np.ndarray:
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3); theta past 90 degrees included."""
         theta, phi = angles_from_directions(directions)
@@ -135,25 +144,11 @@ class EquidistantCamera:
         b = (pixels[..., 1] - self.cy) / self.fy
         return directions_from_angles(self.undistort(np.hypot(a, b)), np.arctan2(b, a))
 
-    def pixel_grid(self) -> np.ndarray:
-        """Return the (u, v) coordinates of every pixel centre, shape (height, width, 2)."""
-        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(float)
-        return np.stack([u, v], axis=-1)
-
-    def pixel_directions(self) -> np.ndarray:
-        """Return the view direction of every pixel centre, shape (height, width, 3)."""
-        return self.unproject(self.pixel_grid())
-
     def image_circle(self) -> np.ndarray:
         """Return a (height, width) bool mask of the pixels whose centre lies inside the image circle."""
         v, u = np.mgrid[0 : self.height, 0 : self.width].astype(float)
         radius = np.hypot((u - self.cx) / self.fx, (v - self.cy) / self.fy)  # theta_d of each pixel centre
         return radius <= self.distort(np.array(self.theta_max)) * (1 + 1e-12)
-
-    def with_fov_limit(self, fov: float) -> EquidistantCamera:
-        """Return this camera with its field of view narrowed to `fov` (rad, full angle); never widened."""
-        return EquidistantCamera(self.width, self.height, self.fx, self.fy, self.cx, self.cy, self.k,
-                                 min(self.fov_limit, fov))
 
     def camera_info_fields(self) -> dict:
         """Return the sensor_msgs/CameraInfo fields that describe this camera."""
@@ -208,7 +203,7 @@ def _polynomial(coefficients: tuple[float, ...], x: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class OCamCamera:
+class OCamCamera(_PixelCamera):
     """Scaramuzza's omnidirectional model as OCamCalib's calib_results.txt stores it (pol, invpol, centre, affine).
 
     OCamCalib's frame has x along image rows, y along columns and the optical axis along -z; its pixel is
@@ -249,11 +244,6 @@ class OCamCamera:
                    float(centre[0]) - centre_origin, float(centre[1]) - centre_origin,
                    *(float(v) for v in affine[:3]))
 
-    def polar_angle_of_radius(self, rho: np.ndarray) -> np.ndarray:
-        """Return theta (rad, from the optical axis) of the ray at undistorted radius rho (px) from the centre."""
-        rho = np.asarray(rho, dtype=float)
-        return np.arctan2(rho, -_polynomial(self.pol, rho))
-
     @cached_property
     def theta_max(self) -> float:
         """Polar angle (rad) of the image circle: the least theta over the image's border pixels."""
@@ -264,11 +254,6 @@ class OCamCamera:
             np.stack([np.zeros_like(v), v], -1), np.stack([np.full_like(v, self.width - 1), v], -1)])
         theta, _ = angles_from_directions(self.unproject(border))
         return float(min(theta.min(), self.fov_limit / 2))
-
-    @property
-    def field_of_view(self) -> float:
-        """Full opening angle (rad) of the image circle."""
-        return 2 * self.theta_max
 
     def project(self, directions: np.ndarray) -> np.ndarray:
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3) in camera_link (OCamCalib's world2cam)."""
@@ -293,24 +278,10 @@ class OCamCamera:
         ray = np.stack([y, x, -z], axis=-1)
         return ray / np.linalg.norm(ray, axis=-1, keepdims=True)
 
-    def pixel_grid(self) -> np.ndarray:
-        """Return the (u, v) coordinates of every pixel centre, shape (height, width, 2)."""
-        v, u = np.mgrid[0 : self.height, 0 : self.width].astype(float)
-        return np.stack([u, v], axis=-1)
-
-    def pixel_directions(self) -> np.ndarray:
-        """Return the view direction of every pixel centre, shape (height, width, 3)."""
-        return self.unproject(self.pixel_grid())
-
     def image_circle(self) -> np.ndarray:
         """Return a (height, width) bool mask of the pixels whose ray lies within theta_max."""
         theta, _ = angles_from_directions(self.pixel_directions())
         return theta <= self.theta_max
-
-    def with_fov_limit(self, fov: float) -> OCamCamera:
-        """Return this camera with its field of view narrowed to `fov` (rad, full angle); never widened."""
-        return OCamCamera(self.width, self.height, self.pol, self.invpol, self.xc, self.yc, self.c, self.d, self.e,
-                          min(self.fov_limit, fov))
 
 
 Camera = Union[EquidistantCamera, OCamCamera]

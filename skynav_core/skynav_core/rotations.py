@@ -10,41 +10,61 @@ camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes
 
 from __future__ import annotations
 
-from typing import Union
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-RotationLike = Union[Rotation, np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
-Z_AXIS = np.array([0.0, 0.0, 1.0])
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
+RotationLike = Union['Rotation', np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
+
+
+def _scipy_rotation() -> type[Rotation]:
+    """Return scipy's Rotation class."""
+    # imported on first use: scipy.spatial takes some 0.2 s to load, which every node's start would pay
+    from scipy.spatial.transform import Rotation
+
+    return Rotation
 
 
 def as_matrix(rotation: RotationLike) -> np.ndarray:
     """Return the rotation matrices (..., 3, 3) of a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)."""
-    if isinstance(rotation, Rotation):
+    if not isinstance(rotation, (np.ndarray, tuple, list)) and isinstance(rotation, _scipy_rotation()):
         return rotation.as_matrix()
     array = np.asarray(rotation, dtype=float)
     if array.shape[-2:] == (3, 3):
         return array
     if array.shape[-1:] == (4,):
-        return Rotation.from_quat(array.reshape(-1, 4)).as_matrix().reshape(array.shape[:-1] + (3, 3))
+        return _scipy_rotation().from_quat(array.reshape(-1, 4)).as_matrix().reshape(array.shape[:-1] + (3, 3))
     raise ValueError(f'a rotation must be 3x3 matrices or quaternions (x, y, z, w), got shape {array.shape}')
 
 
 def as_quaternion(rotation: RotationLike) -> np.ndarray:
     """Return the unit quaternions (..., 4) (x, y, z, w) of rotations, w >= 0."""
     matrices = as_matrix(rotation)
-    quaternions = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_quat(canonical=True)
+    quaternions = _scipy_rotation().from_matrix(matrices.reshape(-1, 3, 3)).as_quat(canonical=True)
     return quaternions.reshape(matrices.shape[:-2] + (4,))
 
 
 def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
     """Return the matrices Rz(alpha) Ry(beta) Rz(gamma) (..., 3, 3) of ZYZ angles (rad; arrays broadcast)."""
-    ca, sa, cb, sb, cg, sg = (f(np.asarray(x, dtype=float)) for x in (alpha, beta, gamma) for f in (np.cos, np.sin))
+    angles = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (alpha, beta, gamma)))
+    ca, sa, cb, sb, cg, sg = (f(x) for x in angles for f in (np.cos, np.sin))
     return np.stack([
-        np.stack(np.broadcast_arrays(ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb), -1),
-        np.stack(np.broadcast_arrays(sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb), -1),
-        np.stack(np.broadcast_arrays(-sb * cg, sb * sg, cb), -1)], -2)
+        np.stack([ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb], -1),
+        np.stack([sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb], -1),
+        np.stack([-sb * cg, sb * sg, cb], -1)], -2)
+
+
+def yaw_matrix(angle) -> np.ndarray:
+    """Return Rz(angle) (..., 3, 3): the turn by angle (rad) about +z, counter-clockwise seen from +z."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(np.shape(c) + (3, 3))
+    out[..., 0, 0] = out[..., 1, 1] = c
+    out[..., 0, 1], out[..., 1, 0] = -s, s
+    out[..., 2, 2] = 1.0
+    return out
 
 
 def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -69,7 +89,9 @@ def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def rotation_angle(first: RotationLike, second: RotationLike) -> np.ndarray | float:
     """Return the angle (rad) of first^T second: how far apart two rotations (or two stacks of them) are."""
     a, b = as_matrix(first), as_matrix(second)
-    cosine = (np.einsum('...ij,...ij->...', a, b) - 1.0) / 2.0  # trace(A^T B) = 1 + 2 cos(angle)
+    # trace(A^T B) = 1 + 2 cos(angle), summed elementwise: the compass's and the exhaustive search's separation of
+    # grid rotations exactly whole steps apart depends on this rounding (an einsum moves figures of the baseline)
+    cosine = (np.sum(a * b, axis=(-2, -1)) - 1.0) / 2.0
     angle = np.arccos(np.clip(cosine, -1.0, 1.0))
     return float(angle) if np.ndim(angle) == 0 else angle
 

@@ -168,11 +168,11 @@ def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int 
 
     import numpy as np
     import yaml
-    from scipy.spatial.transform import Rotation
 
     from skynav_core.camera import EquidistantCamera
 
     from .bag import BagWriter, open_bag
+    from .rotations import as_matrix
     from .typestore import typestore
 
     if kind not in FEATURELESS_KINDS:
@@ -200,7 +200,7 @@ def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int 
                 kept.append(stamp)
             if topic in ('/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask'):
                 if kind == 'open-field':
-                    up = Rotation.from_quat(poses[stamp]).apply(directions.reshape(-1, 3))[:, 2]
+                    up = directions.reshape(-1, 3) @ as_matrix(poses[stamp])[2]  # z in map of every pixel's ray
                     sky = up.reshape(circle.shape) > np.sin(np.radians(OPEN_FIELD_HORIZON))
                 else:
                     sky = np.full(circle.shape, kind == 'sky')

@@ -1,5 +1,8 @@
 """Property tests of the rotation helpers against scipy's independent implementation, flat and batched."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -7,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from skynav_core.rotations import (as_matrix, as_quaternion, home_direction, relative_rotation, rotation_angle,
-                                   tilt, zyz_angles, zyz_matrix)
+                                   tilt, yaw_matrix, zyz_angles, zyz_matrix)
 
 seeds = st.integers(0, 2**32 - 1)
 
@@ -97,3 +100,19 @@ def test_home_direction_points_at_the_snapshot_in_the_current_view(seed):
 def test_a_rotation_of_the_wrong_shape_is_refused_in_one_line():
     with pytest.raises(ValueError, match='3x3 matrices or quaternions'):
         as_matrix(np.zeros(3))
+
+
+@settings(max_examples=25, deadline=None)
+@given(seeds)
+def test_yaw_matrix_is_the_turn_about_z_one_angle_or_many(seed):
+    angles = np.random.default_rng(seed).uniform(-2 * np.pi, 2 * np.pi, (4, 5))
+    by_scipy = Rotation.from_euler('z', angles.reshape(-1, 1)).as_matrix().reshape(4, 5, 3, 3)
+    np.testing.assert_allclose(yaw_matrix(angles), by_scipy, atol=1e-15)
+    np.testing.assert_array_equal(yaw_matrix(angles)[1, 2], yaw_matrix(angles[1, 2]))
+    np.testing.assert_allclose(yaw_matrix(angles), zyz_matrix(angles, 0.0, 0.0), atol=1e-15)
+
+
+def test_importing_the_rotations_leaves_scipy_spatial_unloaded():
+    # the stage nodes import this module at start-up; scipy.spatial loads on the first quaternion instead
+    check = "import sys, skynav_core.rotations; sys.exit('scipy.spatial' in sys.modules)"
+    assert subprocess.run([sys.executable, '-c', check]).returncode == 0

@@ -26,7 +26,6 @@ BOW_MAX_SAMPLES = 10000  # ORB descriptors (at most) that train the vocabulary
 BOW_ITERATIONS = 20  # k-means iterations
 VOCABULARY_WORDS = 'bow-orb.words'  # map artifact: (K, 256) float32 word centres (bit space)
 VOCABULARY_IDF = 'bow-orb.idf'  # map artifact: (K,) float64 inverse document frequencies
-ORB_BITS = 256  # bits of one ORB descriptor (32 bytes)
 
 
 def image_as_float(image: np.ndarray) -> np.ndarray:

@@ -56,11 +56,6 @@ def amplitude_descriptor(coefficients: np.ndarray, max_degree: int | None = None
     return _unit_rows(amplitude_spectrum(_truncate(coefficients, max_degree))[..., 1:])
 
 
-def amplitude_size(max_degree: int) -> int:
-    """Return the length of the amplitude descriptor of degree L (L)."""
-    return int(max_degree)
-
-
 def _bispectrum_rows(max_degree: int) -> np.ndarray:
     """Return the positions, among skynav_sh's bispectrum triples of degree L, of those with l1 >= 1."""
     from skynav_sh.spectra import bispectrum_triples

@@ -39,6 +39,14 @@ def image_values(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32, copy=False)
 
 
+def camera_image_values(image: np.ndarray, camera: Camera) -> np.ndarray:
+    """Return image_values of an image taken by `camera`; ValueError if its size is not the camera's."""
+    values = image_values(image)
+    if values.shape != (camera.height, camera.width):
+        raise ValueError(f'image of shape {values.shape} does not fit the camera ({camera.height}, {camera.width})')
+    return values
+
+
 class FisheyeTransform:
     """Fish-eye image (H, W) -> SH coefficients of degree L; built once per (camera, L, fill, sampling)."""
 
@@ -153,10 +161,7 @@ class FisheyeTransform:
         """Return the area-averaged, filled grid samples (n_theta, n_phi) of an (H, W) image (mask: sky 1)."""
         import cv2
 
-        values = image_values(image)
-        if values.shape != (self.camera.height, self.camera.width):
-            raise ValueError(f'image of shape {values.shape} does not fit the camera '
-                             f'({self.camera.height}, {self.camera.width})')
+        values = camera_image_values(image, self.camera)
         return self._cell_means(cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR,
                                           borderMode=cv2.BORDER_CONSTANT, borderValue=0.0))
 

@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_core.rotations import RotationLike
 from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
 from skynav_sh.coupling import real_gaunt
-from skynav_sh.rotation import RotationLike, rotate
+from skynav_sh.rotation import rotate
 
 
 def product_grid_degree(degree_f: int, degree_g: int, degree_out: int) -> int:

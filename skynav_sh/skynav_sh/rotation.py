@@ -4,55 +4,18 @@ Convention: rotate(c, R) returns the coefficients of g(d) = f(R^T d), the functi
 (so if d_snapshot = R d_current, the compass convention, then f_snapshot = rotate(f_current, R)).
 The per-degree matrices D_l(R) of this action satisfy D(R1 R2) = D(R1) D(R2) and are orthogonal.
 A rotation is given as a scipy Rotation, a 3x3 matrix or a quaternion (x, y, z, w) as ROS and scipy order it;
-ZYZ Euler angles (alpha, beta, gamma) mean R = Rz(alpha) Ry(beta) Rz(gamma) (scipy 'ZYZ', intrinsic).
+ZYZ Euler angles (alpha, beta, gamma) mean R = Rz(alpha) Ry(beta) Rz(gamma) (scipy 'ZYZ', intrinsic). The rotation
+maths itself (matrices, quaternions, ZYZ angles) lives in skynav_core.rotations.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Union
 
 import numpy as np
 
+from skynav_core.rotations import RotationLike, as_matrix, zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order, degree_slices
-
-RotationLike = Union['Rotation', np.ndarray, tuple, list]  # noqa: F821 (scipy Rotation, matrix or quaternion)
-
-
-def as_matrix(rotation: RotationLike) -> np.ndarray:
-    """Return the 3x3 rotation matrix of a scipy Rotation, a 3x3 matrix or a quaternion (x, y, z, w)."""
-    from scipy.spatial.transform import Rotation
-
-    if isinstance(rotation, Rotation):
-        return rotation.as_matrix()
-    array = np.asarray(rotation, dtype=float)
-    if array.shape == (3, 3):
-        return array
-    if array.shape == (4,):
-        return Rotation.from_quat(array).as_matrix()
-    raise ValueError(f'a rotation must be a 3x3 matrix or a quaternion (x, y, z, w), got shape {array.shape}')
-
-
-def zyz_angles(rotation: RotationLike) -> tuple[float, float, float]:
-    """Return ZYZ Euler angles (alpha, beta, gamma) in rad, R = Rz(alpha) Ry(beta) Rz(gamma), exact near gimbal lock."""
-    # scipy's as_euler loses ~1e-8 of the rotation near beta = 0 or pi. Here alpha comes from the third column and
-    # gamma from the well-conditioned sum (beta <= pi/2) or difference (beta > pi/2) of the angles read off the
-    # upper-left 2x2 block, so the matrix rebuilt from the angles matches R to rounding.
-    r = as_matrix(rotation)
-    alpha = float(np.arctan2(r[1, 2], r[0, 2]))
-    beta = float(np.arctan2(np.hypot(r[0, 2], r[1, 2]), r[2, 2]))
-    if r[2, 2] >= 0:  # 1 + cos(beta) >= 1: (R10 - R01, R00 + R11) = (1 + cos beta)(sin, cos)(alpha + gamma)
-        gamma = float(np.arctan2(r[1, 0] - r[0, 1], r[0, 0] + r[1, 1])) - alpha
-    else:  # 1 - cos(beta) > 1: (R10 + R01, R00 - R11) = (cos beta - 1)(sin, cos)(alpha - gamma)
-        gamma = alpha - float(np.arctan2(-(r[1, 0] + r[0, 1]), -(r[0, 0] - r[1, 1])))
-    return alpha, beta, float(np.remainder(gamma + np.pi, 2 * np.pi) - np.pi)
-
-
-def matrix_from_zyz(alpha: float, beta: float, gamma: float) -> np.ndarray:
-    """Return the 3x3 matrix Rz(alpha) Ry(beta) Rz(gamma) (angles in rad)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_euler('ZYZ', [alpha, beta, gamma]).as_matrix()
 
 
 # --- Ivanic-Ruedenberg recurrence (J. Phys. Chem. 100, 6342 (1996), with the 1998 erratum) ---------------
@@ -181,11 +144,6 @@ def y_rotation_block(degree: int, beta: float) -> np.ndarray:
     return block
 
 
-# Q = Rx(-90 deg) turns +z onto +y, so Ry(beta) = Q Rz(beta) Q^T and D(Ry(beta)) = J Z(beta) J^T with J = D(Q);
-# Q = Rz(-90 deg) Ry(-90 deg) Rz(90 deg), so J_l = Z_l(-pi/2) D_l(Ry(pi/2))^T Z_l(pi/2).
-QUARTER_TURN = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
-
 def _quarter_z_step(block: np.ndarray, sign: int) -> np.ndarray:
     """Return Z_l(sign * pi/2) @ block exactly: cos(m pi/2), sin(m pi/2) are 0 or +-1, so rows only swap and flip."""
     l = (block.shape[0] - 1) // 2
@@ -198,6 +156,8 @@ def _quarter_z_step(block: np.ndarray, sign: int) -> np.ndarray:
 @lru_cache(maxsize=8)
 def quarter_turn(max_degree: int) -> tuple[np.ndarray, ...]:
     """Return the cached J_l = D_l(Rx(-90 deg)) (the turn of +z onto +y) for l = 0..L, read-only, stable to high L."""
+    # Q = Rx(-90 deg) turns +z onto +y, so Ry(beta) = Q Rz(beta) Q^T and D(Ry(beta)) = J Z(beta) J^T with J = D(Q);
+    # Q = Rz(-90 deg) Ry(-90 deg) Rz(90 deg), so J_l = Z_l(-pi/2) D_l(Ry(pi/2))^T Z_l(pi/2)
     blocks = []
     for l in range(int(max_degree) + 1):
         m = np.arange(-l, l + 1)
@@ -216,7 +176,7 @@ def quarter_turn(max_degree: int) -> tuple[np.ndarray, ...]:
 
 
 @lru_cache(maxsize=16)
-def _z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (|m|, sign, partner index) for every flat index: the z-step pairs c_l,m with c_l,-m."""
     l, m = degree_order(max_degree)
     # a' = a cos - b sin (a = c_l,m with m > 0), b' = a sin + b cos (b = c_l,-m): sign -1 on the cos-type entries
@@ -225,7 +185,7 @@ def _z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 def _z_rotation_factors(max_degree: int, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (cos(|m| alpha), signed sin(|m| alpha), partner index) for every flat index of degree <= L."""
-    order, sign, partner = _z_rotation_index(max_degree)
+    order, sign, partner = z_rotation_index(max_degree)
     angle = np.arange(max_degree + 1) * alpha
     return np.cos(angle)[order], sign * np.sin(angle)[order], partner
 
@@ -237,8 +197,8 @@ def rotate_z(coefficients: np.ndarray, alpha: float) -> np.ndarray:
     return cos * coefficients + sin * coefficients[..., partner]
 
 
-@lru_cache(maxsize=8)
-def _quarter_turn_sparse(max_degree: int):  # -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix]
+@lru_cache(maxsize=16)
+def quarter_turn_sparse(max_degree: int):  # -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix]
     """Return the block-diagonal J = diag(J_0..J_L) and J^T as sparse matrices (about a quarter of J_l is non-zero)."""
     from scipy.sparse import block_diag
 
@@ -256,7 +216,7 @@ def _apply_sparse(matrix, coefficients: np.ndarray) -> np.ndarray:
 def rotate_y(coefficients: np.ndarray, beta: float) -> np.ndarray:
     """Return the coefficients of f turned by beta (rad) about +y, by J Z(beta) J^T (fixed quarter turns)."""
     coefficients = np.asarray(coefficients, dtype=float)
-    forward, backward = _quarter_turn_sparse(degree_from_size(coefficients.shape[-1]))
+    forward, backward = quarter_turn_sparse(degree_from_size(coefficients.shape[-1]))
     return _apply_sparse(forward, rotate_z(_apply_sparse(backward, coefficients), beta))
 
 

@@ -21,13 +21,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from skynav_core.graph import in_process
 from skynav_core.images import fill_image
 from skynav_core.node import SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_core.camera import EquidistantCamera
+from skynav_core.rotations import as_matrix
 
 from .recording import CAMERA_FRAME, start_stamp
 from .render import Renderer
@@ -153,10 +153,10 @@ def route_direction(pose, compass) -> np.ndarray:
     """Return the taught route's direction at the compass's snapshot, on the ground in map (unit x, y).
 
     The snapshot was taken driving along its camera's +x; R (d_snapshot = R d_current) carries that
-    axis into the current view as R^T e_x.
+    axis into the current view as R^T e_x, the first row of R.
     """
     q = compass.rotation
-    return ground_direction(pose, Rotation.from_quat([q.x, q.y, q.z, q.w]).inv().apply([1.0, 0.0, 0.0]))
+    return ground_direction(pose, as_matrix([q.x, q.y, q.z, q.w])[0])
 
 
 def drive(simulation: Simulation, robot: SimRobotNode, start: np.ndarray, heading: float, goal: np.ndarray,
@@ -260,12 +260,6 @@ def random_starts(world: World, goal: np.ndarray, count: int, min_distance: floa
         if world.is_free(*place):
             starts.append((place, float(rng.uniform(0, 2 * np.pi))))
     return starts
-
-
-def heading_of(rotation: Rotation) -> float:
-    """Return the heading (rad from +x) of a frame's x axis projected on the ground."""
-    x = rotation.apply([1.0, 0.0, 0.0])
-    return float(np.arctan2(x[1], x[0]))
 
 
 ROUTE_LOOKAHEAD = 6  # snapshots ahead of the matched one that route following homes to (0.6-1.2 m here)

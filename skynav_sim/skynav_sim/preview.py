@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from skynav_core.rotations import as_matrix
+
 from .world import YARD_RADIUS, World
 
 KIND_COLOURS = {'tree': '#2e7d32', 'bush': '#66bb6a', 'building': '#8d6e63', 'wall': '#9e9e9e',
@@ -79,7 +81,7 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
         draw_world(figure, top, world, extent)
     top.plot(all_positions[:, 0], all_positions[:, 1], '.', color='#1565c0', markersize=3, label='all poses')
     for frame in frames:
-        forward = Rotation.from_quat(frame.quaternion).apply([1.0, 0.0, 0.0])
+        forward = as_matrix(frame.quaternion)[:, 0]  # camera_link x (the robot's forward) in map
         top.annotate('', frame.position[:2] + 0.8 * forward[:2], frame.position[:2],
                      arrowprops={'arrowstyle': '->', 'color': '#d32f2f', 'linewidth': 1.5})
         top.text(*(frame.position[:2] + [0.3, 0.3]), str(frame.index), color='#d32f2f', fontsize=9)

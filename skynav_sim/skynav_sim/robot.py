@@ -55,8 +55,3 @@ def bump(rng: np.random.Generator, most: float) -> Rotation | None:
     axis_angle = rng.uniform(0, 2 * np.pi)
     angle = np.radians(most) * np.sqrt(rng.uniform())
     return Rotation.from_rotvec(angle * np.array([np.cos(axis_angle), np.sin(axis_angle), 0.0]))
-
-
-def tilt(rotation: Rotation) -> float:
-    """Return the angle (rad) between a frame's z axis and the world's vertical."""
-    return float(np.arccos(np.clip(rotation.apply([0.0, 0.0, 1.0])[2], -1.0, 1.0)))

@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from skynav_core.rotations import tilt
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE, Surface
 from skynav_sim.primitives import ConvexPolytope, Cylinder, Ellipsoid
-from skynav_sim.robot import bump, camera_pose, tilt
+from skynav_sim.robot import bump, camera_pose
 from skynav_sim.scenarios import ScenarioParameters, build, describe
 from skynav_sim.sensor import Sensor
 from skynav_sim.sky import TIMES_OF_DAY, Sky

@@ -24,7 +24,7 @@ _EXPORTS = {
               'view_from_fisheye', 'view_from_samples'),
     'warping3d': ('WarpResult', 'WarpingSettings', 'align_rotation', 'coarse_costs', 'hypothesis_costs',
                   'tilt_hypotheses', 'warp_home_vector', 'warping_tables'),
-    'homing': ('HomeEstimate', 'estimate_home_vector', 'rotation_matrix'),
+    'homing': ('HomeEstimate', 'estimate_home_vector'),
     'panorama': ('DEFAULT_ELEVATIONS', 'PanoramaUnwrapper'),
     'planar': ('PlanarResult', 'horizon_profile', 'min_warping', 'min_warping_costs', 'scale_planes',
                'warping_2d'),

@@ -15,35 +15,32 @@ from dataclasses import dataclass
 import numpy as np
 
 from skynav_core.evaluation import Column, text_table
+from skynav_core.rotations import as_matrix, home_direction, relative_rotation, rotation_angle, tilt
 
 DISTANCE_BINS = ((0.5, 1.0), (1.0, 2.0), (2.0, 4.0))  # m
 TILT_BINS = ((0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
 
 
-def _rotations(quaternions: np.ndarray):
-    """Return a scipy Rotation of quaternions (..., 4) as (x, y, z, w)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(np.asarray(quaternions, dtype=float).reshape(-1, 4))
+def _orientations(quaternions: np.ndarray) -> np.ndarray:
+    """Return the rotation matrices (N, 3, 3) of one or N quaternions (..., 4) as (x, y, z, w)."""
+    return as_matrix(np.asarray(quaternions, dtype=float).reshape(-1, 4))
 
 
 def true_home_directions(current_positions: np.ndarray, current_quaternions: np.ndarray,
                          snapshot_position: np.ndarray) -> np.ndarray:
     """Return unit home vectors (N, 3) in each current camera_link: Q_c^-1 (p_s - p_c) normalised."""
     positions = np.asarray(current_positions, dtype=float).reshape(-1, 3)
-    vectors = _rotations(current_quaternions).inv().apply(np.asarray(snapshot_position, dtype=float) - positions)
-    return vectors / np.linalg.norm(vectors, axis=-1, keepdims=True)
+    return home_direction(snapshot_position, positions, _orientations(current_quaternions))
 
 
 def true_rotations(snapshot_quaternion: np.ndarray, current_quaternions: np.ndarray) -> np.ndarray:
     """Return the true compass rotations R = Q_s^-1 Q_c (N, 3, 3): d_snapshot = R d_current."""
-    return (_rotations(snapshot_quaternion).inv() * _rotations(current_quaternions)).as_matrix()
+    return relative_rotation(snapshot_quaternion, _orientations(current_quaternions))
 
 
 def tilt_angles(quaternions: np.ndarray) -> np.ndarray:
     """Return the tilt (degrees) of camera_link: the angle between its +z and the map's vertical, (N,)."""
-    up = _rotations(quaternions).apply([0.0, 0.0, 1.0])
-    return np.degrees(np.arccos(np.clip(up[:, 2], -1.0, 1.0)))
+    return np.degrees(tilt(_orientations(quaternions)))
 
 
 def angular_errors(estimated: np.ndarray, true: np.ndarray) -> np.ndarray:
@@ -57,9 +54,7 @@ def angular_errors(estimated: np.ndarray, true: np.ndarray) -> np.ndarray:
 
 def rotation_errors(estimated: np.ndarray, true: np.ndarray) -> np.ndarray:
     """Return the angle (degrees) of R_est^T R_true for rotation matrices (N, 3, 3)."""
-    relative = np.swapaxes(np.asarray(estimated, dtype=float), -1, -2) @ np.asarray(true, dtype=float)
-    trace = np.trace(relative, axis1=-2, axis2=-1)
-    return np.degrees(np.arccos(np.clip((trace - 1) / 2, -1.0, 1.0)))
+    return np.degrees(rotation_angle(estimated, true))
 
 
 @dataclass(frozen=True)
@@ -115,7 +110,8 @@ def seconds_per_call(function: Callable[[], object], repeats: int = 3) -> float:
 
 def home_vectors_in_map(directions: np.ndarray, current_quaternions: np.ndarray) -> np.ndarray:
     """Return home vectors (N, 3) of the current camera_link expressed in map: Q_c d."""
-    return _rotations(current_quaternions).apply(np.asarray(directions, dtype=float).reshape(-1, 3))
+    vectors = np.asarray(directions, dtype=float).reshape(-1, 3)
+    return np.einsum('nij,nj->ni', _orientations(current_quaternions), vectors)
 
 
 def quiver_plot(path: str, current_positions: np.ndarray, snapshot_position: np.ndarray, true_map: np.ndarray,

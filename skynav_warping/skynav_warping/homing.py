@@ -15,8 +15,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from skynav_sh.product import seen_mean, shows_skyline
 from skynav_compass.refine import within_tilt
+from skynav_core.rotations import RotationLike, as_matrix, as_quaternion
+from skynav_sh.product import seen_mean, shows_skyline
 from skynav_warping.views import WarpView
 from skynav_warping.warping3d import WarpingSettings, WarpResult, warp_home_vector
 
@@ -37,10 +38,8 @@ class HomeEstimate:
 
     @property
     def quaternion(self) -> np.ndarray:
-        """Return the rotation as a quaternion (x, y, z, w), as geometry_msgs/Quaternion orders it."""
-        from scipy.spatial.transform import Rotation
-
-        return Rotation.from_matrix(self.rotation).as_quat()
+        """Return the rotation as a unit quaternion (x, y, z, w) with w >= 0, as geometry_msgs/Quaternion orders it."""
+        return as_quaternion(self.rotation)
 
 
 def sky_share(view: WarpView) -> float:
@@ -48,14 +47,7 @@ def sky_share(view: WarpView) -> float:
     return float(seen_mean(view.terms[1], view.terms[0]))
 
 
-def rotation_matrix(rotation) -> np.ndarray:
-    """Return a 3x3 matrix from a 3x3 matrix, a quaternion (x, y, z, w) or a scipy Rotation."""
-    from skynav_sh.rotation import as_matrix
-
-    return as_matrix(rotation)
-
-
-def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
+def estimate_home_vector(current: WarpView, snapshot: WarpView, compass: RotationLike | None = None,
                          settings: WarpingSettings = WarpingSettings()) -> HomeEstimate:
     """Return the home vector (current camera_link) from the current view to the snapshot's place.
 
@@ -63,7 +55,7 @@ def estimate_home_vector(current: WarpView, snapshot: WarpView, compass=None,
     Rotation, used as the start of the rotation search (refined there) unless it tilts the views further apart than
     settings.max_relative_tilt; None: a rotational pre-alignment over tilt and a whole turn of yaw starts it instead.
     """
-    start = None if compass is None else rotation_matrix(compass)
+    start = None if compass is None else as_matrix(compass)
     result = warp_home_vector(current, snapshot, start, settings)
     if not (shows_skyline(sky_share(current)) and shows_skyline(sky_share(snapshot))):
         result = replace(result, direction=np.zeros(3), confidence=0.0, confident=False)

@@ -51,12 +51,9 @@ class PanoramaUnwrapper:
         """Return the panoramic band (n_elevation, n_azimuth) float32 of an image or mask (uint8 / max, bool 0/1)."""
         import cv2
 
-        from skynav_sh.fisheye import image_values
+        from skynav_sh.fisheye import camera_image_values
 
-        values = image_values(image)
-        if values.shape != (self.camera.height, self.camera.width):
-            raise ValueError(f'image of shape {values.shape} does not fit the camera '
-                             f'({self.camera.height}, {self.camera.width})')
+        values = camera_image_values(image, self.camera)
         sub = cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE)
         if self.supersampling == 1:

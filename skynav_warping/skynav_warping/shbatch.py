@@ -14,15 +14,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from skynav_core.rotations import zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order
-from skynav_sh.rotation import quarter_turn
-
-
-@lru_cache(maxsize=16)
-def z_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (|m|, sign of the sine term, partner index l*l + l - m) for every flat index of degree L."""
-    l, m = degree_order(max_degree)
-    return np.abs(m), np.where(m > 0, -1.0, 1.0), l * l + l - m
+from skynav_sh.rotation import quarter_turn_sparse, z_rotation_index
 
 
 @lru_cache(maxsize=16)
@@ -33,20 +27,10 @@ def _signed_order(max_degree: int) -> np.ndarray:
     return np.where(m > 0, max_degree + m, -m)
 
 
-@lru_cache(maxsize=16)
-def quarter_turn_matrices(max_degree: int):  # -> tuple[csr_matrix, csr_matrix]
-    """Return the block-diagonal quarter turn J and its transpose as sparse CSR matrices (degree L)."""
-    from scipy.sparse import block_diag
-
-    forward = block_diag(quarter_turn(max_degree), format='csr')
-    forward.eliminate_zeros()
-    return forward, forward.T.tocsr()
-
-
 def z_factors(max_degree: int, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return cos(|m| a) and signed sin(|m| a), shape (n,) + angles.shape, and the partner index; angles in rad."""
     L = int(max_degree)
-    order, _, partner = z_index(L)
+    order, _, partner = z_rotation_index(L)
     multiple = np.arange(L + 1).reshape((-1,) + (1,) * np.ndim(angles)) * np.asarray(angles, dtype=float)
     sin = np.sin(multiple)
     # one gather per table (no full-size temporaries): the signs sit in the small table
@@ -72,23 +56,11 @@ def apply_sparse(matrix, c: np.ndarray) -> np.ndarray:
 
 def rotate_zyz_columns(c: np.ndarray, alpha: np.ndarray, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
     """Return c (n, ..., M) with column i turned by Rz(alpha_i) Ry(beta_i) Rz(gamma_i) (rad; skynav_sh convention)."""
-    forward, backward = quarter_turn_matrices(degree_from_size(c.shape[0]))
+    forward, backward = quarter_turn_sparse(degree_from_size(c.shape[0]))
     c = apply_sparse(backward, rotate_z_columns(np.asarray(c, dtype=float), gamma))
     return rotate_z_columns(apply_sparse(forward, rotate_z_columns(c, beta)), alpha)
 
 
-def zyz_from_matrices(matrices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return ZYZ angles (alpha, beta, gamma) in rad of rotation matrices (M, 3, 3): R = Rz(a) Ry(b) Rz(g)."""
-    r = np.asarray(matrices, dtype=float)
-    alpha = np.arctan2(r[:, 1, 2], r[:, 0, 2])
-    beta = np.arctan2(np.hypot(r[:, 0, 2], r[:, 1, 2]), r[:, 2, 2])
-    # gamma from the well-conditioned sum (beta <= 90 degrees) or difference (beta > 90 degrees) of the angles
-    total = np.arctan2(r[:, 1, 0] - r[:, 0, 1], r[:, 0, 0] + r[:, 1, 1])
-    difference = np.arctan2(-(r[:, 1, 0] + r[:, 0, 1]), -(r[:, 0, 0] - r[:, 1, 1]))
-    gamma = np.where(r[:, 2, 2] >= 0, total - alpha, alpha - difference)
-    return alpha, beta, gamma
-
-
 def rotate_columns(c: np.ndarray, matrices: np.ndarray) -> np.ndarray:
     """Return c (n, ..., M) with column i turned by the rotation matrix matrices[i] (coefficients of f(R_i^T d))."""
-    return rotate_zyz_columns(c, *zyz_from_matrices(matrices))
+    return rotate_zyz_columns(c, *zyz_angles(matrices))

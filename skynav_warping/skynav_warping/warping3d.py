@@ -39,9 +39,10 @@ import numpy as np
 
 from skynav_compass.compass import MAX_TILT
 from skynav_compass.refine import within_tilt
+from skynav_core.rotations import rotation_angle, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
-from skynav_warping.shbatch import apply_sparse, quarter_turn_matrices, rotate_columns, rotate_zyz_columns, \
-    z_factors, z_index, zyz_from_matrices
+from skynav_sh.rotation import quarter_turn_sparse, z_rotation_index
+from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
 
@@ -97,7 +98,7 @@ class DegreeTables:
 
         self.degree = L = int(degree)
         self.n = n_coefficients(L)
-        self.forward, self.backward = quarter_turn_matrices(L)
+        self.forward, self.backward = quarter_turn_sparse(L)
         _, m = degree_order(L)
         # per |m|: flat indices of orders +m and -m (degrees |m|..L), shape (2, L + 1 - |m|); one row for m = 0
         self.order_index = [np.flatnonzero(m == 0)[None]] + [
@@ -298,7 +299,7 @@ def paired_costs(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray
     p = len(directions)
     theta, phi, frame = _direction_frames(directions)
     # one batch of rotations: the current view by R_u^T for every direction, the snapshot by R_u^T R^T per turn
-    alpha, beta, gamma = zyz_from_matrices(np.swapaxes(frame[turn_direction], 1, 2) @ np.swapaxes(turn_rotation, 1, 2))
+    alpha, beta, gamma = zyz_angles(np.swapaxes(frame[turn_direction], 1, 2) @ np.swapaxes(turn_rotation, 1, 2))
     n_turns = len(turn_rotation)
     stack = np.concatenate([np.broadcast_to(current.T[:, :, None], (tables.n, 3, p)),
                             np.broadcast_to(snapshot.T[:, :, None], (tables.n, 3, n_turns))], axis=-1)
@@ -410,12 +411,6 @@ def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypo
     return spent
 
 
-def _yaw(angle: float) -> np.ndarray:
-    """Return Rz(angle) (rad)."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, rotation: np.ndarray) \
         -> tuple[np.ndarray, float]:
     """Return the best pure rotation R = rotation T Rz(psi) over the tilt cap T and a turn of yaw psi, and its cost.
@@ -428,7 +423,7 @@ def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndar
                        np.swapaxes(turns, 1, 2))  # the snapshot turned by (R0 T)^T: (n, 3, K)
     # <a, Z(-psi) c> = sum over |m| of cos(|m| psi) P_|m| + sin(|m| psi) Q_|m| with
     # P = sum a_i c_i and Q = sum sign(m_i) a_i c_partner(i) over the indices of that |m|
-    order, sign, partner = z_index(tables.coarse.degree)
+    order, sign, partner = z_rotation_index(tables.coarse.degree)
     group = (order[None, :] == np.arange(tables.coarse.degree + 1)[:, None]).astype(float)  # (L + 1, n)
     left = np.stack([current[2], -2.0 * current[1], current[0]], axis=1)  # as _pair: [X2, -2 X1, X0] vs [S0, S1, S2]
     m_sign = -sign  # +1 for m > 0, -1 for m < 0 (0 for m = 0, whose partner is itself)
@@ -441,7 +436,7 @@ def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndar
     cos, sin = np.cos(angles), np.sin(angles)
     costs = _costs(p_num.T @ cos + q_num.T @ sin, p_den.T @ cos + q_den.T @ sin, _overlap_floor(snapshot))  # (K, n_az)
     k, q = np.unravel_index(np.argmin(costs), costs.shape)
-    return turns[k] @ _yaw(tables.azimuths[q]), float(costs[k, q])
+    return turns[k] @ yaw_matrix(tables.azimuths[q]), float(costs[k, q])
 
 
 def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray | None = None,
@@ -452,8 +447,6 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     rotational pre-alignment over tilt and a whole turn of yaw. full_turn: coarse yaw corrections over the whole
     turn instead of +- settings.yaw_window.
     """
-    from skynav_compass import rotation_angle
-
     tables = warping_tables(settings)
     L, Lc = settings.degree, settings.coarse_degree
     if min(current.degree, snapshot.degree) < L:
@@ -537,9 +530,9 @@ def _coarse_hypotheses(tables: WarpingTables, current: np.ndarray, snapshot: np.
         if any(np.dot(u, h.direction) > np.cos(1.5 * tables.step) for h in hypotheses):
             continue
         slot, q = np.unravel_index(best_cell[ring, j], (n_slots, n_az))
-        hypotheses.append(Hypothesis(u.copy(), settings.coarse_ratios[slot], r0 @ _yaw(tables.yaw[q]),
+        hypotheses.append(Hypothesis(u.copy(), settings.coarse_ratios[slot], r0 @ yaw_matrix(tables.yaw[q]),
                                      float(best_cost.flat[index]), 0.5 * tables.step, start=r0))
     q0 = int(np.argmin(still))
-    reference = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, r0 @ _yaw(tables.yaw[q0]), float(still[q0]),
+    reference = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, r0 @ yaw_matrix(tables.yaw[q0]), float(still[q0]),
                            0.5 * tables.step, translate=False, start=r0)
     return hypotheses, reference, costs.size + still.size

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from skynav_core.rotations import zyz_angles, zyz_matrix
 from skynav_sh.basis import n_coefficients
-from skynav_sh.rotation import matrix_from_zyz, rotate, rotate_z
-from skynav_warping.shbatch import rotate_columns, rotate_z_columns, zyz_from_matrices
+from skynav_sh.rotation import rotate, rotate_z
+from skynav_warping.shbatch import rotate_columns, rotate_z_columns
 
 
 def test_each_column_turns_as_skynav_sh_rotates():
@@ -33,5 +34,5 @@ def test_z_steps_per_column():
 
 def test_zyz_angles_rebuild_the_matrices():
     matrices = Rotation.random(20, random_state=6).as_matrix()
-    for matrix, angles in zip(matrices, zip(*zyz_from_matrices(matrices))):
-        np.testing.assert_allclose(matrix_from_zyz(*angles), matrix, atol=1e-12)
+    for matrix, angles in zip(matrices, zip(*zyz_angles(matrices))):
+        np.testing.assert_allclose(zyz_matrix(*angles), matrix, atol=1e-12)

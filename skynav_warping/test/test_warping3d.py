@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from skynav_core.rotations import yaw_matrix
 from skynav_warping import WarpingSettings, angular_errors, coarse_costs, estimate_home_vector, hypothesis_costs, \
     warp_home_vector, warping_tables
 from skynav_warping.synthetic import blob_scene, render_equal_distance_view
-from skynav_warping.warping3d import _yaw
 
 SETTINGS = WarpingSettings()
 
@@ -108,7 +108,7 @@ def test_coarse_grid_costs_equal_single_hypothesis_costs(scene, snapshot):
     for _ in range(6):
         slot, ring, j, q = (rng.integers(n) for n in costs.shape)
         direction = tables.ring_directions[ring, j]
-        rotation = start @ _yaw(tables.yaw[q])
+        rotation = start @ yaw_matrix(tables.yaw[q])
         single = hypothesis_costs(tables.coarse, x, s, direction[None], np.array([SETTINGS.coarse_ratios[slot]]),
                                   rotation[None])
         assert single[0] == pytest.approx(costs[slot, ring, j, q], rel=1e-9)

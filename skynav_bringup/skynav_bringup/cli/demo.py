@@ -149,9 +149,8 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
 
 
 def ground_truth_poses(recording: Path) -> dict:
-    """Return {stamp (ns): (position (3,) m, orientation Rotation)} of camera_link in map from /ground_truth/pose."""
+    """Return {stamp (ns): (position (3,) m, quaternion (x, y, z, w))} of camera_link in map from /ground_truth/pose."""
     import numpy as np
-    from scipy.spatial.transform import Rotation
 
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
@@ -161,7 +160,7 @@ def ground_truth_poses(recording: Path) -> dict:
         for raw in bag.messages(['/ground_truth/pose']):
             message = bag.deserialize(raw)
             p, q = message.pose.position, message.pose.orientation
-            poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), Rotation.from_quat([q.x, q.y, q.z, q.w]))
+            poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
     return poses
 
 
@@ -205,12 +204,12 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
 def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     """Print the compass's rotation errors and the home vectors' direction errors against ground truth `poses`."""
     import numpy as np
-    from scipy.spatial.transform import Rotation
 
     from skynav_core.maps import MapStore
 
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
+    from skynav_core.rotations import home_direction, relative_rotation, rotation_angle
 
     with open_bag(run_bag) as bag:
         compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]
@@ -225,16 +224,16 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     rotation_errors = []
     for estimate in compass:
         _, current = poses[stamp_ns(estimate.header)]
-        truth = Rotation.from_quat(snapshots[estimate.snapshot_index, 3:]).inv() * current  # d_snapshot = R d_current
+        truth = relative_rotation(snapshots[estimate.snapshot_index, 3:], current)  # d_snapshot = R d_current
         q = estimate.rotation
-        rotation_errors.append(np.degrees((Rotation.from_quat([q.x, q.y, q.z, q.w]) * truth.inv()).magnitude()))
+        rotation_errors.append(np.degrees(rotation_angle(truth, [q.x, q.y, q.z, q.w])))
     print(f'\ncompass (/compass/orientation) against the matched snapshot: {len(compass)} estimates; '
           f'3D rotation error {percentiles(rotation_errors)}')
     direction_errors, distances, residuals = [], [], []
     for vector in homing:
         position, current = poses[stamp_ns(vector.header)]
         offset = snapshots[vector.snapshot_index, :3] - position
-        truth = current.inv().apply(offset / np.linalg.norm(offset))  # in the current camera_link
+        truth = home_direction(snapshots[vector.snapshot_index, :3], position, current)  # in the current camera_link
         direction = np.array([vector.direction.x, vector.direction.y, vector.direction.z])
         direction_errors.append(np.degrees(np.arccos(np.clip(direction @ truth, -1.0, 1.0))))
         distances.append(np.linalg.norm(offset))

@@ -63,10 +63,10 @@ def _from_scenario(args):
     import numpy as np
 
     from skynav_core.cli import CliError
+    from skynav_core.rotations import tilt
 
     from ..preview import SheetFrame
     from ..recording import captures
-    from ..robot import tilt
     from . import options
 
     try:
