@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # skynav: `make test` and `make demo` are the two commands a newcomer needs;
 # both run `make setup` first, which does nothing when nothing changed.
 SHELL := /bin/bash

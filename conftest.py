@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Fixtures for every test of the repository.
 
 Each test run gets a ROS domain of its own (so concurrent runs never cross) and

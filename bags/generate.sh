@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Regenerate the bundled synthetic recordings: bags/generate.sh [OUTPUT_DIR]
 # Every file is rendered by skynav_sim from the seeds below; the same commands
 # give the same bytes. See bags/README.md for what each one is for.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: the visual 3D compass against the exhaustive baseline and its peers, on one thread.
 
     .venv/bin/python bench/compass.py [--quick] [--repeats N] [--degrees 16 32] [--plots DIR] [--bags BAG ...]

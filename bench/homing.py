@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: homing on the bundled synthetic grid, 3D-warping against min-warping and 2D-warping, one thread.
 
     .venv/bin/python bench/homing.py [--bag BAG] [--repeats N] [--plot OUT.png]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: loading a map and one localization query against maps of 1,000 and 10,000 snapshots, on one thread.
 
     .venv/bin/python bench/localize_query.py [--degree L] [--sizes 1000 10000] [--quick]

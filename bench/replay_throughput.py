@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: `skynav replay --rate 0` of 640x480 mono16 UV+green pairs, and what `skynav record` keeps.
 
     .venv/bin/python bench/replay_throughput.py [--pairs N]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: skynav_sh transforms, fish-eye path, rotation and descriptors against ducc0, on one thread.
 
     .venv/bin/python bench/sh_transform.py [--quick]

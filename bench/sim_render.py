@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: rendering one synthetic UV+green fish-eye frame (ray casting, shading, sensor), per world style.
 
     .venv/bin/python bench/sim_render.py [--frames N]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Benchmark: one skyline mask at 640x480 per method, on one core, against OpenCV's Otsu threshold.
 
     .venv/bin/python bench/skyline_mask.py [--encoding mono8|mono16|32FC1]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Injected with -DCMAKE_PROJECT_INCLUDE when skynav_msgs is built against the
 # ROS 2 wheels from PyPI. Those wheels were built in a manylinux container and
 # their exported *__rosidl_generator_py targets still list include directories

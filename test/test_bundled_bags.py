@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Every bundled recording: synthetic by name, readable by rosbags and by skynav, the contract's topics."""
 
 from pathlib import Path

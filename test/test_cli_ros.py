@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The `skynav` tools against a live graph: echo, bad bags for replay, and launching a node."""
 
 import signal

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A featureless view (all sky, all ground, an open field) is a normal input everywhere in the chain.
 
 Cores: the skyline segmentation gives a mask or one clear ValueError; the SH transform and the place descriptors

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Every package imports only along the edges of docs/architecture.md: nothing upward, nothing sideways."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Every message type of a recording crosses processes intact: replayed by `skynav replay`, received typed.
 
 The sender serialises with rosbags (from the bag), the receiver deserialises

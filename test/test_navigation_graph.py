@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The running graph localizes a replayed repeat drive on the map of its teach drive, and steers along it.
 
 `skynav launch --map` starts every node (skyline, sh, localize, compass, warping), `skynav replay`

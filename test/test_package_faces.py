@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Lazy public names: importing a package loads no submodule, and every exported name resolves."""
 
 import subprocess

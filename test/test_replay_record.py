@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`skynav replay` -> `skynav record` across processes keeps every message; a stopped recorder leaves a whole bag."""
 
 import signal

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The running skyline node: masks of a replayed recording against ground truth, and bad input survived."""
 
 import math

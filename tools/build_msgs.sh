@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Build the skynav_msgs interface package with plain CMake and install it into
 # a virtualenv that holds the ROS 2 Jazzy wheels from PyPI.
 #

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Print the pip-installed distributions of this interpreter as pinned constraints.
 
 Unlike `pip freeze`, skip the egg-info records that the ROS 2 wheels carry inside

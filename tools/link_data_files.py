@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Symlink the data_files of ament_python packages into an install prefix.
 
     python tools/link_data_files.py PREFIX PACKAGE_DIR...

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Render the synthetic skyline training set behind the shipped skyline parameters:
 #   tools/skyline_training_set.sh [OUTPUT_DIR]     (default build/skyline_training)
 # then: skynav skyline train OUTPUT_DIR/*.mcap --out params.yaml

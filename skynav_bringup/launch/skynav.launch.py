@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Start the skynav node graph on a full ROS 2 install.
 
     ros2 launch skynav_bringup skynav.launch.py [params_file:=/path/to/params.yaml]

@@ -1,1 +1,2 @@
+# SPDX-License-Identifier: Apache-2.0
 """Launch, parameters and the `skynav` command."""

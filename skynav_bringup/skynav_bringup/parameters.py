@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The shipped parameter file: every installed node's parameter table, with its defaults and meanings.
 
 `skynav_bringup/config/skynav.yaml` is generated from the nodes' tables (`tools/write_parameters.py`) and a test

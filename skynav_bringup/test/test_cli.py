@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The `skynav` command line: help everywhere, exit codes users expect, no tracebacks for bad input."""
 
 import pytest

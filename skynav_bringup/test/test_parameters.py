@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The shipped parameter file is the nodes' parameter tables, and every node declares exactly its table."""
 
 import yaml

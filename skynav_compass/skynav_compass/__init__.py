@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The visual 3D compass: full 3D rotation between a current view and a snapshot, from the skyline, in the SH basis.
 
 Convention (CONTRACT.md, camera_link): every estimate is R with d_snapshot = R d_current for any view direction d,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The default visual 3D compass: SO(3) correlation on a ZYZ Euler grid by FFTs, then Newton refinement.
 
 For two views (snapshot and current) the cost of every rotation R = Rz(alpha) Ry(beta) Rz(gamma) on the grid

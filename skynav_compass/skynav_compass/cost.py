@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Compass costs as functions of SO(3) correlations, on an Euler grid and with derivatives at one rotation.
 
 Every cost of a rotation R (d_snapshot = R d_current) is a formula in correlations c_k(R) = <a_k, D(R) b_k>

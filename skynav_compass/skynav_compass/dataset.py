@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Compass sets from recordings: images, masks, camera and ground-truth poses of camera_link in map.
 
 A compass set (skynav sim bag compass) holds a reference view (frame 0, the snapshot) and views rotated and/or

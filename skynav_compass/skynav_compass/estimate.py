@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The result of every compass method: rotation R with d_snapshot = R d_current (camera_link), residual, hypotheses."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Evaluation of compass estimates against ground truth: angular errors, statistics, tables and plots.
 
 Rotations are compass rotations R (d_snapshot = R d_current, camera_link) given as quaternions (..., 4) in

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The source method as baseline: exhaustive coarse-to-fine search over ZYZ Euler angles with fast z/y rotations.
 
 Every candidate R = Rz(alpha) Ry(beta) Rz(gamma) is scored with the same cost as the default compass (cost.py):

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Peer: a feature compass. ORB or SIFT on the fish-eye images, unit bearings, RANSAC, rotation.
 
 Keypoints inside the image circle are matched (Lowe's ratio test, mutual best), turned into unit bearing vectors

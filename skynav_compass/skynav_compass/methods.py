@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass and its peers as they are evaluated, in one registry: what each method compares, with which compass.
 
 A method compares one view of a frame (VIEWS) with one compass and its settings. The frames of a compass set

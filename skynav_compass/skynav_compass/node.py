@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass node: how is the camera turned, in all three axes, against a snapshot?
 
 Subscribes /skyline/sh and /localization/match; publishes /compass/orientation

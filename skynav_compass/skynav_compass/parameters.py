@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass node's parameters: names, defaults and meaning (skynav_core.parameters)."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass measured on a recording as the node graph sees it: the skyline and SH nodes' output, ground truth.
 
 `evaluate_recording` runs the installed skyline and SH nodes over a recording in this process (skynav_core.views,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Local refinement of a compass rotation: safeguarded Newton steps on the rotation vector of R = R0 exp(w)."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Run compass methods on frames: one prepared view per frame, one estimate per query against a snapshot.
 
 A Method (built from an entry of the registry, methods.METHODS) turns a frame into its prepared view (SH

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """SO(3) machinery on real SH coefficients (camera_link): padded layout, Wigner tables, rotations, generators.
 
 Padded layout: coefficients (..., (L+1)^2) in the contract's flat order become (..., L+1, 2L+1) arrays with

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Verification of compass hypotheses on sphere samples of the two skyline masks, recovered from their SH.
 
 The SH cost compares band-limited functions: v f, v f^2 and v cut to degree L. Where a skyline runs close to the

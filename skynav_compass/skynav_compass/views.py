@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Views prepared for the compass: SH coefficients of v f, v f^2 and v (camera_link, contract order and basis).
 
 f is the view's value (a skyline mask: sky 1, ground 0; or a grey value), v its visibility (the seen share of

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Peer: the classic visual compass, yaw only (rotation about the camera's +z), on panoramas or on the SH.
 
 Panoramic: both fish-eye images are unwrapped to panoramas (rows: polar angle theta from the zenith to the

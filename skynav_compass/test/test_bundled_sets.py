@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass on the rendered views of the bundled (synthetic) compass sets, ground-truth masks -> SH (L = 16).
 
 Bounds. The project's targets are median < 1 deg and 95 % < 3 deg for pure rotations (tilt up to 30 deg) and median

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`skynav eval compass` and the evaluation behind it, on the views the skyline and SH nodes make of a bundled set.
 
 The numbers come from skynav_compass.recording (the command only prints them), measured on the output of the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The default compass on band-limited functions: exact recovery, identity, single-axis signs, costs, hypotheses.
 
 Views of a function g fixed in the world, seen from camera orientations Q (camera_link in map), are

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Evaluation functions: angular error, statistics, tables, plots, ground truth from poses, the method runner."""
 
 from __future__ import annotations

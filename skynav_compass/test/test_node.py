@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass node in the in-process graph: estimates against a map snapshot and a live reference, bad input.
 
 The current views are the SH coefficients of bags/synthetic_garden_compass.mcap as the installed skyline and SH

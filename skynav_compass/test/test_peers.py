@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The exhaustive baseline, the yaw-only visual compass and the feature compass; view construction."""
 
 from __future__ import annotations

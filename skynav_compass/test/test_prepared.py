@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A snapshot prepared once (Compass.prepare, ExhaustiveCompass.prepare) gives the same estimates as the raw view.
 
 Also the pieces the prepared path uses: the degree-first rotation against rotate_by_matrix, and the runner's

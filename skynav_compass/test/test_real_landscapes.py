@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The compass on real skylines: Debian's stellarium-data landscapes under the synthetic sky, rendered at test time.
 
 For each real landscape a compass set (seed 2, held out from the choices made on seed 1: the tilt bound, the sample

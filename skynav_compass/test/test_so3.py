@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """SO(3) machinery against skynav_sh: padded layout, rotations, Wigner small d, generators, the FFT correlation."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The foundation every skynav package builds on: nodes, messages, recordings, cameras, geometry and errors.
 
 Nothing here knows a stage (skyline, SH, localize, compass, warping) or the `skynav` command: stages and

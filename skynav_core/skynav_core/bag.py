@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Read and write recordings: rosbag2 directories and bare rosbag2 MCAP files, as raw CDR bytes.
 
 Reading goes through rosbags' unified reader (rosbag2 directories with mcap or

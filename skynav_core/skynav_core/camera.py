@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Fish-eye camera models: pixels <-> view directions in camera_link (equidistant/Kannala-Brandt, OCamCalib).
 
 Conventions (CONTRACT.md): camera_link looks up along +z; polar angle theta from

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Camera geometry for a node from /camera/uv/camera_info: the latest model, and inputs held until the first.
 
 Logic only (no rclpy): the node passes in camera info messages and the inputs that need a camera.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What every `skynav` subcommand shares, whichever package adds it: its error, and the node graph's arguments.
 
 A package adds a subcommand through a ``skynav.commands`` entry point (see skynav_bringup.cli); its ``run`` raises

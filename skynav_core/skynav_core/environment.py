@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The process environment that ROS 2 from the PyPI wheels needs, applied by skynav itself.
 
 Every entry point (`skynav`, each node, the test fixtures) calls

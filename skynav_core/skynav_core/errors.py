@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The one base class of skynav's errors: each package derives its own, and every one reads as one line."""
 
 from __future__ import annotations

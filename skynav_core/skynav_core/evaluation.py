@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What every evaluation command shares: the choice of methods, the checks of its arguments, its text tables.
 
 Each stage keeps one registry of its methods, in the order its tables list them (localization:

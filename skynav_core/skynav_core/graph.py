@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The node graph in one process, driven by a recording: what `skynav run` (and the offline tools) use.
 
 The real node classes are created with a router instead of DDS. Each recorded input is delivered to

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """sensor_msgs/Image <-> numpy for the encodings of the contract, with checks that name what is wrong.
 
 Works with rclpy and rosbags message objects alike (only their fields are used).

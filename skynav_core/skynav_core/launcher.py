@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Start nodes one process each, relay their output with a name prefix, and stop them cleanly.
 
 This is what `skynav launch` runs where the ROS 2 `launch` tools are not

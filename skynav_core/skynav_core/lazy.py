@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Public names of a package loaded from its submodules on first use (PEP 562), so importing it stays light."""
 
 from __future__ import annotations

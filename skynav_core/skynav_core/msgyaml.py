@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Messages as YAML, the way `ros2 topic echo` prints them, with long arrays abbreviated."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What every skynav node shares: inputs and outputs that run live or in-process, bad-input accounting, diagnostics.
 
 A skynav node is an ordinary rclpy node with three habits:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The skynav nodes installed in this environment, found through the `skynav.nodes` entry points.
 
 A package adds its node to the graph by declaring, in its setup.py, its node class

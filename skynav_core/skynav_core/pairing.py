@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Pairing the UV and green frames of one exposure by their stamps."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Node parameters defined once: a table per node that the node declares, the offline tools read and the shipped
 parameter file is generated from.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Publish a recording's messages on their topics with the recorded timing, as the stored CDR bytes."""
 
 from __future__ import annotations

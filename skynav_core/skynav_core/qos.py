@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Quality of service for replaying, recording and echoing topics.
 
 A publisher that offers RELIABLE matches subscribers asking for either

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Record live topics, as received CDR bytes, into a bag."""
 
 from __future__ import annotations

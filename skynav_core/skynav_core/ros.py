@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Small rclpy helpers shared by the `skynav` tools and the nodes.
 
 Import this module only after :func:`skynav_core.environment.apply_ros_environment`

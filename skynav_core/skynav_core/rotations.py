@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotations in skynav's conventions, for one rotation or a stack: matrices, quaternions, ZYZ angles, tilt.
 
 Conventions (docs/interfaces.md, "Frames and angles"): a rotation acts on column vectors; quaternions are

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Run one node in a process of its own: ``python -m skynav_core.run_node MODULE:CLASS [--ros-args ...]``.
 
 `skynav launch` starts every node this way.

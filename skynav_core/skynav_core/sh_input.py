@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The /skyline/sh messages (skynav_msgs/ShCoefficients) as the localize, compass and warping nodes take them.
 
 One check with one set of reasons for a message a node cannot use, counted in /diagnostics as rejected_<reason>

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Which map snapshot a node compares the current view against, and the views of snapshots, built once.
 
 The compass (its `reference`) and the warping node (its `target`) choose alike, by a rule:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Helpers for tests that run ROS: a ROS domain of their own, and the `skynav` command as a subprocess."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Message definitions for (de)serialising CDR without rclpy: rosbags' Jazzy store plus installed interfaces.
 
 The store starts with every standard Jazzy type that rosbags knows. Any other

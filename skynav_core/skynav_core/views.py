@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The views of a recording as the node graph sees them: SH coefficients of each exposure, with its ground truth.
 
 For offline tools (map building, evaluations): the installed skyline and SH nodes run in this process

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Recordings: round trips, atomic writes, and one clear error for every kind of damaged file."""
 
 import json

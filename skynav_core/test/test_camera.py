@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Camera models: pixel -> ray -> pixel round trips, axis conventions, OCamCalib files."""
 
 from __future__ import annotations

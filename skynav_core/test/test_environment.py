@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The ROS environment skynav applies: defaults where the user set nothing, the user's values kept."""
 
 import sys

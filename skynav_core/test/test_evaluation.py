@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The helpers every evaluation command shares: methods, argument checks, text tables."""
 
 from __future__ import annotations

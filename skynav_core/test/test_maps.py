@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The SQLite map store: round trip, atomic build, durability under SIGKILL, and a clear error for bad files."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Messages as YAML: every field in definition order, long arrays abbreviated."""
 
 import math

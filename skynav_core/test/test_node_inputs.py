@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """What the localize, compass and warping nodes share: the check of /skyline/sh messages and the snapshot choice."""
 
 from __future__ import annotations

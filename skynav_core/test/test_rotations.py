@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Property tests of the rotation helpers against scipy's independent implementation, flat and batched."""
 
 import subprocess

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotation-invariant place recognition on a taught route, with SQLite maps.
 
 Typical use (no ROS needed)::

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Baselines users would pick instead: SeqSLAM on down-sampled raw UV images, and a bag of ORB visual words.
 
 - raw UV (SeqSLAM's own front end): the fish-eye UV image, area-averaged down to RAW_UV_SIZE pixels, each

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotation-invariant place descriptors of a skyline's SH coefficients, and distances vectorised over a map.
 
 Normalisation (the same for every map, so distances are comparable across maps and degrees):

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Evaluation of place recognition on a route with ground truth: precision-recall, recall@1, and plots.
 
 Definitions (one match per query; lower score = more confident):

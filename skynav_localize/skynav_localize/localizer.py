@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Place recognition against one map with one named method: online (query by query) and offline (whole sequence).
 
 Methods (METHODS): skynav's rotation-invariant SH descriptors, single frame and with SeqSLAM sequences

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Building a map: which frames become snapshots, the descriptors stored with each, and the map's creation.
 
 A map holds what the product uses: each snapshot's SH coefficients (and pose). skynav's descriptors (amplitude

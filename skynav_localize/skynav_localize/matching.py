@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Matching a query against a route's snapshots: nearest snapshot, SeqSLAM sequences, the acceptance test.
 
 Everything works on distances from queries to snapshots, lower = more alike, whatever the descriptor, so the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The localize node: where on the taught route is the current view?
 
 Subscribes /skyline/sh; publishes /localization/match (skynav_msgs/PlaceMatch) for every view: the

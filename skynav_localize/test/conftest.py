@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Shared test data: synthetic SH routes, and the bundled synthetic recordings turned into SH coefficients.
 
 The recordings are read through skynav_core.bag; SH coefficients come from the ground-truth sky masks

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Baselines: SeqSLAM's patch-normalised raw UV image and the ORB bag of words."""
 
 from __future__ import annotations

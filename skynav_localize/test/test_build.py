@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`skynav map build` and `skynav eval localization`: maps hold what the product uses; featureless drives are normal.
 
 A map of skynav's own holds each snapshot's SH coefficients and pose, nothing else; the baselines' descriptors come

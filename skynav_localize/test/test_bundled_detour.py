@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The bundled detour drive: a repeat of the garden route that leaves it for a loop up to 4.3 m away, then comes back.
 
 Measured with `skynav eval localization bags/synthetic_garden_detour.mcap --map garden.db` (synthetic; 76 queries,

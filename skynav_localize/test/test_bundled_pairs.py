@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The bundled teach/repeat pairs end to end: `skynav map build --baselines`, then every method on the repeat drive.
 
 Bounds from `skynav eval localization` on these recordings (synthetic; repeat drives at another time

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """End to end on the bundled synthetic garden pair: teach map -> repeat drive, every method, same evaluation.
 
 SH coefficients come from the ground-truth masks (L = 16), so this measures place recognition alone. Figures

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Place descriptors: exact rotation invariance, the documented normalisation, and vectorised distances."""
 
 from __future__ import annotations

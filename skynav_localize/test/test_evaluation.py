@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Evaluation metrics against hand-computed examples, and the plots."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The Localizer on a synthetic route: rotated queries found, off-route queries rejected, online = offline."""
 
 from __future__ import annotations

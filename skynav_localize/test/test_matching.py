@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Matching: nearest snapshot with the ratio test, SeqSLAM trajectories, online = offline."""
 
 from __future__ import annotations

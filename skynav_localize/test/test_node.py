@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The localize node in the in-process graph: matches on the route, none accepted off it, unusable maps."""
 
 from pathlib import Path

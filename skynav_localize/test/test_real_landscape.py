@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Place-match acceptance on a real skyline: Debian's stellarium-data landscape `geneva`, rendered at test time.
 
 geneva's horizon is a measured line 0-3.5 degrees high all round (an open field with one low hill): 1 m along the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real spherical harmonics of fish-eye views: transform, rotation, spectra, translation.
 
 The public names below are loaded on first use (PEP 562), so `import skynav_sh` stays light; every table

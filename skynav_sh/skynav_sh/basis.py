@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real spherical harmonics of the contract (CONTRACT.md): index helpers, Legendre values, basis values.
 
 Order: index l*l + l + m for l = 0..L, m = -l..l. Basis without Condon-Shortley phase:

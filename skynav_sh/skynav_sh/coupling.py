@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real Gaunt coefficients: G(l1 m1, l2 m2, l3 m3) = integral over the sphere of Y_l1m1 Y_l2m2 Y_l3m3.
 
 They couple real SH the way Clebsch-Gordan coefficients couple complex ones (G is the CG coupling of the real

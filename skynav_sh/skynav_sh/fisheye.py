@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Fish-eye image -> real SH coefficients through precomputed remap tables (camera_link).
 
 The image is read on a Gauss-Legendre grid `oversampling` times finer than degree L needs and analysed up to L

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The SH node: the skyline mask in, its real spherical-harmonic coefficients out.
 
 Subscribes /skyline/mask (mono8, 255 sky) and /camera/uv/camera_info; publishes /skyline/sh

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Products of SH functions in the SH domain and the masked distance of two partly seen views (camera_link).
 
 The product h = f g of degrees Lf, Lg has degree Lf + Lg; h_l3m3 = sum G(l1 m1, l2 m2, l3 m3) f_l1m1 g_l2m2 with the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotations of real SH coefficients (camera_link): real Wigner-D matrices, fast z- and y-rotations.
 
 Convention: rotate(c, R) returns the coefficients of g(d) = f(R^T d), the function f turned by R

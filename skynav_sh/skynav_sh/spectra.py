@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotation-invariant descriptors of real SH coefficients and distances between views.
 
 Amplitude spectrum A_l = ||c_l|| (one number per degree). Bispectrum over the degree triples

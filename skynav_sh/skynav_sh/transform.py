@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Exact real SH transforms on a Gauss-Legendre x equiangular grid (camera_link, theta from +z).
 
 Samples are arrays (..., n_theta, n_phi) over the grid's nodes: theta ascending from the zenith (Gauss-Legendre

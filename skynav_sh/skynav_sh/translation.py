@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Translation of a view on the SH coefficients, for a scene at one distance rho from the camera (camera_link).
 
 Moving the camera by t moves the scene point seen in direction d to the direction normalise(d - tau), tau = t / rho

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Basis values against scipy, orthonormality, index helpers."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Fish-eye mask -> coefficients against the direct transform of the analytic sky region.
 
 Error bound used here (per degree l, coefficient vector c_l):

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The SH node in the in-process graph: a mask in, the library's coefficients out; bad masks rejected."""
 
 import math

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Gaunt coefficients, SH products and the masked distance against the quadrature grid."""
 
 from __future__ import annotations

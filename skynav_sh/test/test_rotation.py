@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real Wigner-D matrices and rotations of coefficients against resampling the rotated function."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Rotation invariance of the amplitude spectrum and bispectrum; the distances."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Exactness of the Gauss-Legendre transforms."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Translation operator against resampling the translated view."""
 
 from __future__ import annotations

@@ -1,1 +1,2 @@
+# SPDX-License-Identifier: Apache-2.0
 """Synthetic UV/green fish-eye recordings with ground truth."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Closed-loop homing and route following in the simulator, with the real skynav nodes in the loop.
 
 A simulated robot is a node of the in-process graph: each cycle it renders the view from its pose

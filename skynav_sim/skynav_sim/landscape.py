@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real skylines: photographed Stellarium landscapes as the backdrop of a synthetic world.
 
 Debian's `stellarium-data` package (GPL) ships landscape panoramas of real places

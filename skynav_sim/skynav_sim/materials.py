@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Surface materials with their ultraviolet (~360 nm) and green (~530 nm) reflectance.
 
 Ranges are typical values of spectral libraries for these surface classes

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A simulated camera: publishes a synthetic scenario on the contract's camera and ground-truth topics, live.
 
 It renders frame after frame of a scenario (looping) and publishes each as a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Seeded, smooth 2D value noise for terrain, surface texture and clouds."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Contact sheets: what a synthetic recording shows (UV, green, ground-truth mask) and where (a top view)."""
 
 from __future__ import annotations

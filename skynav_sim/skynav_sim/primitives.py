@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Solid primitives of the world and vectorised ray intersection with them.
 
 Every primitive answers, for a batch of rays (origins (N, 3), unit directions

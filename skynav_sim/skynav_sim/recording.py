@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Render a scenario and write it as a rosbag2 MCAP recording with the contract's topics and ground truth.
 
 Per frame, all with the same header.stamp (FRAME_RATE apart, starting at the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Ray casting of a fish-eye view: UV and green radiance, ground-truth sky mask and depth per pixel.
 
 Each pixel centre inside the image circle is cast as one ray through the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A lawn mower standing on the terrain: its base pose from the ground under its wheels, and its camera's pose.
 
 base_link (REP-103: x forward, y left, z up) sits on the plane fitted through

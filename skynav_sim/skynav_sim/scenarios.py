@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Scenarios: the sequence of camera poses and daylight conditions a synthetic recording is made of.
 
 - teach: a drive along a route through the yard;

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The camera's sensor: optics blur, automatic exposure per channel, photon and read noise, quantisation.
 
 Each channel (UV, green) has its own exposure, as a real two-channel camera

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Daylight in two bands, ultraviolet (~360 nm) and green (~530 nm): sun, sky dome and clouds.
 
 Units: spectral irradiance W m^-2 nm^-1, spectral radiance W m^-2 sr^-1 nm^-1,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Terrain: a height field with a surface material per cell, and rays cast against it.
 
 Heights z(x, y) in metres in the `map` frame (x east, y north, z up) on a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Outdoor worlds generated from a seed: terrain, vegetation, buildings, walls, fences, rocks; or a real landscape.
 
 Frame `map`: x east, y north, z up, metres. Every world has a drivable yard

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Small hand-made worlds for geometry tests."""
 
 import numpy as np

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The fish-eye model and the renderer's geometry: round trips, the zenith, forward and left."""
 
 import numpy as np

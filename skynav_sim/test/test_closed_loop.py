@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Closed-loop homing and route following with the real nodes in the loop, in synthetic worlds.
 
 Measured with this code (320x240, 200 deg): homing in the park world (seed 3) from 10 random starts

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Repeat drives with a detour: off the taught route in free space, back on it, and labelled so evaluations can tell."""
 
 import numpy as np

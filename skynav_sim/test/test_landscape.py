@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Real landscapes (Debian's stellarium-data) as a world's backdrop: geometry, the skyline, rendered views."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Recordings from scenarios: reproducible to the byte, the contract's topics, masks that match the light."""
 
 import hashlib

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Terrain, primitives, worlds, daylight and sensor: each against an independent computation."""
 
 import numpy as np

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Sky/ground segmentation of upward-looking UV/green fish-eye images: the skyline.
 
 Plain numpy and OpenCV (connected components and morphology of the structure steps, the optional

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Contrast projection, the global (learned) sky/ground separator and the classification rate.
 
 The contrast of a pixel is s = cos(a) x + sin(a) y of its normalised log

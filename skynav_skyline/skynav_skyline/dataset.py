@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Labelled frames from a recording: UV, green, the ground-truth sky mask, the camera, and where/when it was taken.
 
 For training and evaluation only (nodes never read ground truth). World and time-of-day labels come

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Decoding of UV/green images into trusted linear values and normalised log features.
 
 Encodings (CONTRACT.md): `mono8` and `mono16` are linear counts with a black

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Per-camera precomputation: the image circle, its rim, the azimuth sectors and the rays around the principal point.
 
 Sector k of n covers the azimuth phi = atan2(v - cy, u - cx) in

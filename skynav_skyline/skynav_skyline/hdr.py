@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Merging exposure brackets of one channel into linear radiance (float32, like a 32FC1 image).
 
 The images are linear in radiance (CONTRACT.md), so each bracket estimates

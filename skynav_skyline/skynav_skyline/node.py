@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The skyline node: UV and green images in, the sky/ground mask out.
 
 Subscribes /camera/uv/image_raw, /camera/green/image_raw and /camera/uv/camera_info; pairs the

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The skyline node's parameters: names, defaults, meaning, and their translation into SkylineParams.
 
 One definition for the node, `skynav skyline train` (which writes them) and `skynav skyline eval`

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Skyline segmentation: one entry point for the global, whole-image and per-sector threshold methods.
 
 Methods: 'global' (learned angle and threshold), 'otsu' and 'min-error' (one

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The structure of an upward view: two corrections of a thresholded mask that no per-pixel threshold can make.
 
 Ground stands on the horizon. In an upward fish-eye view every piece of ground therefore

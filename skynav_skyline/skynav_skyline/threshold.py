@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Histogram thresholds of the projected contrast: Otsu and Kittler-Illingworth minimum error.
 
 Every function works on one histogram (shape (bins,)) or on a stack of them

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Synthetic UV/green fish-eye scenes for the skyline tests.
 
 A scene is rendered in linear radiance through the contract's fish-eye model:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Decoding of mono8/mono16/32FC1 images, trust flags and the per-channel normalisation."""
 
 from __future__ import annotations

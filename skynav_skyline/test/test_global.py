@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The global separator: the sort trick against brute force, learning on synthetic scenes, the rate."""
 
 from __future__ import annotations

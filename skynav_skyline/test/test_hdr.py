@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Merging exposure brackets into linear radiance."""
 
 from __future__ import annotations

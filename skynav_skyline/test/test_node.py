@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The skyline node inside the in-process graph of `skynav run`: pairing, waiting for camera info, ordering."""
 
 import math

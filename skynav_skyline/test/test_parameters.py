@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The skyline parameters: shipped file and built-in defaults agree, and they make usable settings."""
 
 import math

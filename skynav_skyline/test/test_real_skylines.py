@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The default skyline method on real skylines: Stellarium landscapes (real shapes and ground colours) rendered now."""
 
 from __future__ import annotations

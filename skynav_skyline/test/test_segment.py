@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Segmentation: the image circle, untrusted pixels, invariances, encodings, sectors and their fallback."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The structure steps of an upward view: enclosed ground near the threshold, and sky beyond a ring of ground."""
 
 from __future__ import annotations

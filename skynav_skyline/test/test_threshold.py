@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Histogram thresholds: Otsu against brute force, Kittler-Illingworth on a known mixture, separability."""
 
 from __future__ import annotations

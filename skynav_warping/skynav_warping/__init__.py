@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Homing by warping: the home vector from the current view to a snapshot's place, on bumpy ground.
 
 - 3D-warping in the SH basis (warping3d): movement direction on the sphere, distance ratio and rotation, masked

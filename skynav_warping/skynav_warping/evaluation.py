@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Evaluation of home vectors against ground truth: angular errors, binned statistics, timing, quiver plots.
 
 Arrays in, numbers and figures out. Poses are those of camera_link in map (position in m, quaternion (x, y, z, w)

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The combined estimate: a compass rotation (optional) and 3D-warping give the home vector to a snapshot.
 
 Output conventions are those of skynav_msgs/HomeVector (CONTRACT.md): a unit direction towards the snapshot's

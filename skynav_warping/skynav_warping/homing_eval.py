@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Homing on a recorded grid, measured as the node graph runs: every method's home vectors against ground truth.
 
 The input is a recording's views as the skyline and SH nodes produce them (skynav_core.views.recording_views, with

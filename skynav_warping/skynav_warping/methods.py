@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The homing methods as they are evaluated, in one registry (homing_eval runs them; `skynav eval homing` lists them).
 
 Plain data that imports nothing heavy: the `skynav` command lists it while it builds its parser.

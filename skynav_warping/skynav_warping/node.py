@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The warping node: which way is the snapshot's place from here?
 
 Subscribes /skyline/sh (fill 'zero': the masked comparison needs the seen part alone),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Panoramic images unwrapped from the fish-eye view: an azimuth x elevation band around the horizon (camera_link).
 
 Column j holds azimuth phi_j = 2 pi j / n_azimuth (from +x, robot-forward, towards +y, robot-left); row 0 holds the

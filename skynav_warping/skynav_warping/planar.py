@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Planar warping baselines on panoramic images: 2D-warping (Franz et al. 1998) and min-warping (Moeller 2010).
 
 Both search a movement of the robot in the plane and a turn about the vertical, and predict the current view from

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A homing grid read from a recording (synthetic or real): snapshot frame 0, current views after it.
 
 Reads a rosbag2 MCAP through skynav_core.views.recorded_frames (imported when called: the warping code itself needs

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Batched SH rotations with one rotation per hypothesis (camera_link, contract basis), coefficient axis first.
 
 skynav_sh.rotate turns a whole batch by one rotation; a warping search needs a different rotation per hypothesis.

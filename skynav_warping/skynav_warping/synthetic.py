@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Synthetic scenes with known geometry, for tests and demonstrations of warping (all of it made up).
 
 - An equal-distance world for 3D-warping: every scene point lies on a sphere of radius rho around the snapshot's

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Views prepared for warping: the masked terms (v, v f, v f^2) of a partly seen view as SH coefficients.
 
 A fish-eye sees a cap of the sphere. Warping compares a predicted snapshot with the real one only where both

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """3D-warping in the SH basis: the home vector from the current view to a snapshot's place, for any tilt.
 
 Model (equal-distance assumption): every scene point lies at one distance rho from the current camera. Had the

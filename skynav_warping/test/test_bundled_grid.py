@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Homing on the bundled synthetic homing grids (bags/synthetic_park_homing.mcap, level ground, and
 bags/synthetic_park_bumpy_homing.mcap, the same places on bumps that tilt the camera up to 20 degrees more) and a
 compass set.

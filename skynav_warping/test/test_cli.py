@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`skynav eval homing`: the numbers it prints (evaluate_homing on the bundled grid), its plot and its errors.
 
 The views come from the installed skyline and SH nodes (recording_views), as the command runs them; so unlike

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Ground-truth home directions, angular errors, binned statistics and the quiver plot."""
 
 from __future__ import annotations

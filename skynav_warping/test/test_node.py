@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The warping node in the in-process graph: home vectors with and without the compass, route targets, bad input.
 
 The current views are the SH coefficients of bags/synthetic_park_homing.mcap as the installed skyline and SH

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Unwrapping the fish-eye view into a panoramic band: azimuth and elevation land where CONTRACT.md says."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Planar baselines (2D-warping, min-warping) on a synthetic level pole world, and their conventions.
 
 Level ground and upright cameras: the baselines' own assumptions hold, so they must home well. Measured over 16

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Batched per-hypothesis rotations against skynav_sh's own rotation."""
 
 from __future__ import annotations

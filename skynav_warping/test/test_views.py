@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Masked terms of partly seen views: visibility, taper and the masked cost they give."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """3D-warping on an exact equal-distance world (synthetic): direction convention, known steps, pure rotation.
 
 The world (skynav_warping.synthetic) puts every scene point on a unit sphere around the snapshot's place, so the

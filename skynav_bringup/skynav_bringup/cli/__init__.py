@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The `skynav` command.
 
 Every subcommand is a module found through the ``skynav.commands`` entry

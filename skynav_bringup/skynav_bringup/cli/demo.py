@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The chain over bundled synthetic recordings, step by step, with a readable summary: what `make demo` runs.
 
 Each step prints the command it runs, so every result can be reproduced by hand:

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Print a topic's messages as YAML, like `ros2 topic echo`.
 
 The type is found in the graph (or given with --type, then the topic may

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Show what a recording holds: files, size, duration, and each topic with its type and count.
 
 The layout follows `ros2 bag info`. BAG is a rosbag2 directory or a bare

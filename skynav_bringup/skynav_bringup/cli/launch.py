@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Start the skynav node graph on live topics, one process per node; Ctrl-C stops every node cleanly.
 
 The nodes are those installed in this environment (see `skynav_core.nodes`).

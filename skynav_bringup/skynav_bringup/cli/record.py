@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Record live topics into a rosbag2 MCAP recording.
 
 OUT ending in .mcap becomes a bare MCAP file, any other name a rosbag2

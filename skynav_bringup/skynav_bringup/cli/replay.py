@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Publish a recording's messages on their topics with their recorded timing.
 
 The stored CDR bytes are published unchanged. Publishers offer RELIABLE (and

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Run the whole node graph over a recording in one process and record every output topic.
 
 Deterministic: every input frame is processed, in recording order, none dropped, however fast

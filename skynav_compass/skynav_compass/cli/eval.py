@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Measure the visual 3D compass on a recording against ground truth: skynav's compass and its peers, side by side.
 
 Every frame of the recording goes through the skyline and SH nodes (as in `skynav run`); each method then

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Build a map from a teach drive: skyline -> SH for every frame, a snapshot every so often, into SQLite.
 
 The skyline and SH nodes run over the recording in this process (the same code and parameters as

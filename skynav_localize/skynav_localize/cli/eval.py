@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Measure place recognition on repeat drives against a map: skynav's methods and the baselines, side by side.
 
 Every query frame of each recording goes through the skyline and SH nodes (as in `skynav run`),

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Show what a map holds: name, snapshots, degree, descriptors, route length, where it came from."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Render a scenario into a rosbag2 MCAP recording with the contract's topics and ground truth.
 
 The recording holds, per frame at 10 Hz: /camera/uv/image_raw, /camera/green/image_raw,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Closed-loop route following in the synthetic world of a teach drive, with the skynav nodes in the loop.
 
 The map (`skynav map build TEACH.mcap`) holds the snapshots of a synthetic teach drive; the world,

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Closed-loop homing in a synthetic world, with the skynav nodes in the loop.
 
 A snapshot is taken at a home place; a simulated robot then starts at random free places up to

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Arguments shared by `skynav sim bag` and `skynav sim preview`: world, scenario, camera, daylight."""
 
 from __future__ import annotations

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Draw a contact sheet of a synthetic scenario or recording: UV, green, ground-truth mask, and a top view.
 
 Either render a few frames of a scenario (the same options as `skynav sim bag`) or read them from a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Measure sky/ground segmentation against ground truth: classification rate per method, channels, world and time.
 
 The classification rate of an exposure is the share of pixels inside the image circle that a method

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Learn the global UV/green separator from labelled recordings and write it as the skyline node's parameters.
 
 For each recording's exposures, the normalised log UV and log green values of every pixel inside

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Measure homing on a recorded grid: the home vector of every view towards a snapshot, by each method.
 
 Every frame of the recording goes through the skyline and SH nodes (as in `skynav run`). The
