@@ -14,7 +14,7 @@ vector with the exact cost, all are verified on sphere samples of the two masks 
 overlap where they disagree), and the best few by verification are refined by Newton steps (refine.refine) and
 verified again: the least disagreement wins. For other views (grey images, filled views) the lowest grid minimum is
 refined and the others' optima predicted by one Newton model; those that come close are refined fully, and the
-least cost wins. The estimate is R with d_snapshot = R d_current in camera_link (CONTRACT.md), its residual the
+least cost wins. The estimate is R with d_snapshot = R d_current in camera_link (docs/interfaces.md), its residual the
 cost there, and a confidence in [0, 1] that ranks estimates: how sharply the cost rises along the optimum's least
 determined axis (the Hessian's smallest eigenvalue over the typical grid cost), times how much skyline the overlap
 holds (verified: the share two unrelated masks of its sky shares would disagree on) or how clearly the best

@@ -6,7 +6,7 @@ the same code and parameters as `skynav run`), turns each /skyline/sh output int
 (CompassView.from_sh_message with the SH node's fill and field of view), and compares every view against one
 snapshot with each method. The snapshot is the recording's frame labelled 'reference' (else its first frame with a
 ground-truth pose) or given from outside (a map snapshot's coefficients and pose). The true rotation of a view is
-Q_s^-1 Q_c from the ground-truth orientations of camera_link (CONTRACT.md), its translation the distance between
+Q_s^-1 Q_c from the ground-truth orientations of camera_link (docs/interfaces.md), its translation the distance between
 the two positions. Views split into pure rotations and moved views: by the synthetic recording's frame labels when
 the snapshot is its reference frame, otherwise by the true translation (under / from MOVED_FROM_M on).
 

@@ -2,7 +2,7 @@
 """The default compass on band-limited functions: exact recovery, identity, single-axis signs, costs, hypotheses.
 
 Views of a function g fixed in the world, seen from camera orientations Q (camera_link in map), are
-f(d) = g(Q d), i.e. rotate(g, Q^-1); with d_snapshot = R d_current, R = Q_s^-1 Q_c (CONTRACT.md).
+f(d) = g(Q d), i.e. rotate(g, Q^-1); with d_snapshot = R d_current, R = Q_s^-1 Q_c (docs/interfaces.md).
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def test_rotation_about_each_axis_alone(axis, degrees):
 
 
 def test_contract_sign_camera_turned_about_its_own_z():
-    """Turn the camera by +20 deg about its own z: the estimate is Q_s^-1 Q_c = Rz(+20 deg) (CONTRACT.md)."""
+    """Turn the camera by +20 deg about its own z: the estimate is Q_s^-1 Q_c = Rz(+20 deg) (docs/interfaces.md)."""
     world = band_limited(31)
     q_snapshot = Rotation.from_euler('ZYX', [40.0, 8.0, -5.0], degrees=True)  # some heading and tilt in map
     q_current = q_snapshot * Rotation.from_euler('z', 20.0, degrees=True)  # intrinsic: about camera z

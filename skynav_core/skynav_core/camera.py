@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Fish-eye camera models: pixels <-> view directions in camera_link (equidistant/Kannala-Brandt, OCamCalib).
 
-Conventions (CONTRACT.md): camera_link looks up along +z; polar angle theta from
+Conventions (docs/interfaces.md): camera_link looks up along +z; polar angle theta from
 +z, azimuth phi from +x towards +y; camera_link is also the optical frame, so
 +x grows with image column u and +y with row v. Integer pixel coordinates are
 pixel centres. A model maps unit directions (..., 3) to pixel coordinates

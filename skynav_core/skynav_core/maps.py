@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The map store: one SQLite file per taught route, one row per snapshot (CONTRACT.md, "Maps").
+"""The map store: one SQLite file per taught route, one row per snapshot (docs/interfaces.md, "Maps").
 
 Schema (version SCHEMA_VERSION; `PRAGMA application_id` = APPLICATION_ID marks the file as a skynav map):
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 
 ENTRY_POINT_GROUP = 'skynav.nodes'
-# The data flow of CONTRACT.md: nodes start in this order; others follow by name.
+# The data flow of docs/interfaces.md: nodes start in this order; others follow by name.
 GRAPH_ORDER = ('skyline', 'sh', 'localize', 'compass', 'warping')
 
 

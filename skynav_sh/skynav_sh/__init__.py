@@ -3,7 +3,7 @@
 
 The public names below are loaded on first use (PEP 562), so `import skynav_sh` stays light; every table
 (Legendre values, quarter turns, Gaunt coefficients, translation blocks) is built lazily and cached.
-Frames, angles and the coefficient order are those of CONTRACT.md (camera_link, theta from +z, phi from +x to +y,
+Frames, angles and the coefficient order are those of docs/interfaces.md (camera_link, theta from +z, phi from +x to +y,
 index l*l + l + m). Rotation convention: rotate(c, R) gives f(R^T d), so f_snapshot = rotate(f_current, R) for the
 compass's d_snapshot = R d_current. Translation: translate(c, t / rho) gives g with g(normalise(d - t/rho)) = f(d).
 """

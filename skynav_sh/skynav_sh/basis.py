@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Real spherical harmonics of the contract (CONTRACT.md): index helpers, Legendre values, basis values.
+"""Real spherical harmonics of the contract (docs/interfaces.md): index helpers, Legendre values, basis values.
 
 Order: index l*l + l + m for l = 0..L, m = -l..l. Basis without Condon-Shortley phase:
 Y_l0 = N_l0 P_l(cos theta), Y_lm = sqrt(2) N_lm P_l^m(cos theta) cos(m phi) (m > 0),

@@ -4,7 +4,7 @@
 Each pixel centre inside the image circle is cast as one ray through the
 camera model; pixels on the sky/ground boundary get four more rays at the
 centres of their quarters, so that the ground truth labels a pixel by the
-majority of its area (five samples: CONTRACT.md) and the radiance there is
+majority of its area (five samples: docs/interfaces.md) and the radiance there is
 the area average. Surfaces are Lambertian, lit by the sun
 (with the shadows that objects cast on the ground) and by the sky.
 """

@@ -3,7 +3,7 @@
 
 Each channel (UV, green) has its own exposure, as a real two-channel camera
 with automatic exposure and gain has; no message carries it, so methods must
-not rely on the absolute level of 8/16-bit images (CONTRACT.md). 32FC1 output
+not rely on the absolute level of 8/16-bit images (docs/interfaces.md). 32FC1 output
 is the linear radiance itself (with the photon noise of the exposure it would
 have had), in W m^-2 sr^-1 nm^-1 for both channels.
 """

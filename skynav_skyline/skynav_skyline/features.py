@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Decoding of UV/green images into trusted linear values and normalised log features.
 
-Encodings (CONTRACT.md): `mono8` and `mono16` are linear counts with a black
+Encodings (docs/interfaces.md): `mono8` and `mono16` are linear counts with a black
 level (default 0) and the encoding's maximum means saturated; `32FC1` is linear
 radiance in one fixed unit for both channels, NaN/inf mark invalid pixels.
 
@@ -37,7 +37,7 @@ import numpy as np
 
 #: Largest raw value of each integer encoding (counts); it means saturated.
 ENCODING_MAX_COUNTS: dict[str, int] = {'mono8': 255, 'mono16': 65535}
-#: Encodings the skyline accepts (CONTRACT.md, input topics).
+#: Encodings the skyline accepts (docs/interfaces.md, input topics).
 ENCODINGS: tuple[str, ...] = ('mono8', 'mono16', '32FC1')
 #: Dark margin above the black level (counts): 2 counts of an 8-bit image, scaled to the encoding's full range.
 DARK_MARGIN_COUNTS: dict[str, float] = {'mono8': 2.0, 'mono16': 2.0 * 257}

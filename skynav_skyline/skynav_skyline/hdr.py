@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Merging exposure brackets of one channel into linear radiance (float32, like a 32FC1 image).
 
-The images are linear in radiance (CONTRACT.md), so each bracket estimates
+The images are linear in radiance (docs/interfaces.md), so each bracket estimates
 radiance = (raw - black level) / exposure time; the merge averages these
 estimates with a hat weight that trusts mid-range values most and ignores
 saturated and dark ones. A pixel with no trusted bracket but a saturated one

@@ -8,7 +8,7 @@
   `skynav eval homing`), reading homing grids from recordings (recording), and made-up
   scenes with known geometry for tests (synthetic).
 
-Conventions (CONTRACT.md): everything in the current camera_link (z up through the fish-eye, x forward = image
+Conventions (docs/interfaces.md): everything in the current camera_link (z up through the fish-eye, x forward = image
 right, y left = image down); the home vector points from the current place to the snapshot's place,
 Q_c^-1 (p_s - p_c) normalised; the rotation R maps current to snapshot directions, d_snapshot = R d_current.
 Public names load on first use (PEP 562), so `import skynav_warping` stays light.

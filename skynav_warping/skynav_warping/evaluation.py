@@ -3,7 +3,7 @@
 
 Arrays in, numbers and figures out. Poses are those of camera_link in map (position in m, quaternion (x, y, z, w)
 as geometry_msgs orders it). The true home direction of a current view at (p_c, Q_c) towards a snapshot taken at
-p_s is Q_c^-1 (p_s - p_c) normalised (CONTRACT.md), in the current camera_link; the true compass rotation is
+p_s is Q_c^-1 (p_s - p_c) normalised (docs/interfaces.md), in the current camera_link; the true compass rotation is
 R = Q_s^-1 Q_c (d_snapshot = R d_current).
 """
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The combined estimate: a compass rotation (optional) and 3D-warping give the home vector to a snapshot.
 
-Output conventions are those of skynav_msgs/HomeVector (CONTRACT.md): a unit direction towards the snapshot's
+Output conventions are those of skynav_msgs/HomeVector (docs/interfaces.md): a unit direction towards the snapshot's
 place in the current camera_link, the rotation R with d_snapshot = R d_current (quaternion x, y, z, w), and a
 residual (the masked mean squared difference of the warped current view and the snapshot, view units^2).
 When no translation explains the views better than a pure rotation (confidence below the threshold) the

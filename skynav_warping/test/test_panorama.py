@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Unwrapping the fish-eye view into a panoramic band: azimuth and elevation land where CONTRACT.md says."""
+"""Unwrapping the fish-eye view into a panoramic band: azimuth and elevation land where docs/interfaces.md says."""
 
 from __future__ import annotations
 

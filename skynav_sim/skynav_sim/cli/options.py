@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 DEFAULT_DISTORTION = '0.015,-0.002,0.0,0.0'
-MAX_FOV = 220.0  # degrees (CONTRACT.md)
+MAX_FOV = 220.0  # degrees (docs/interfaces.md)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
