@@ -50,9 +50,22 @@ def main() -> None:
     from scipy.spatial.transform import Rotation
 
     from skynav_sh.fisheye import FisheyeTransform
-    from skynav_warping import PanoramaUnwrapper, angular_errors, estimate_home_vector, home_vectors_in_map, \
-        load_homing_grid, min_warping, quiver_plot, true_home_directions, true_rotations, view_from_coefficients, \
-        view_from_fisheye, warping_2d, warping_tables, WarpingSettings
+    from skynav_warping import (
+        PanoramaUnwrapper,
+        WarpingSettings,
+        angular_errors,
+        estimate_home_vector,
+        home_vectors_in_map,
+        load_homing_grid,
+        min_warping,
+        quiver_plot,
+        true_home_directions,
+        true_rotations,
+        view_from_coefficients,
+        view_from_fisheye,
+        warping_2d,
+        warping_tables,
+    )
 
     grid = load_homing_grid(args.bag)
     positions, quaternions = grid.positions, grid.quaternions

@@ -25,8 +25,8 @@ for _variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS', 
 import argparse  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -55,9 +55,9 @@ def seconds_per_call(function: Callable[[], object], min_seconds: float = MIN_SE
 
 def build_map(path: Path, count: int, degree: int, rng: np.random.Generator):
     """Write a map of `count` random snapshots with the baseline's raw-UV descriptor; return it opened."""
+    from skynav_core.maps import MapStore, Snapshot
     from skynav_localize.baselines import RAW_UV_SIZE
     from skynav_localize.mapping import build_map
-    from skynav_core.maps import MapStore, Snapshot
 
     size = (degree + 1) ** 2
     raw_size = RAW_UV_SIZE[0] * RAW_UV_SIZE[1]

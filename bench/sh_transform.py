@@ -19,7 +19,7 @@ for _variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS', 
 
 import argparse  # noqa: E402
 import time  # noqa: E402
-from typing import Callable  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -116,8 +116,17 @@ def main() -> None:
 
     from skynav_core.camera import EquidistantCamera
     from skynav_core.rotations import zyz_angles
-    from skynav_sh import (FisheyeTransform, MaskedView, amplitude_spectrum, bispectrum, bispectrum_size, grid,
-                           masked_distance_views, quarter_turn, rotate)
+    from skynav_sh import (
+        FisheyeTransform,
+        MaskedView,
+        amplitude_spectrum,
+        bispectrum,
+        bispectrum_size,
+        grid,
+        masked_distance_views,
+        quarter_turn,
+        rotate,
+    )
 
     def measure(function: Callable[[], object]) -> float:
         return seconds_per_call(function, min_seconds)

@@ -9,8 +9,8 @@ import yaml
 from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import open_bag
-from skynav_core.testing import run_skynav
 from skynav_core.camera import EquidistantCamera
+from skynav_core.testing import run_skynav
 
 BAGS = sorted((Path(__file__).parents[1] / 'bags').glob('*.mcap'))
 INPUT_TOPICS = {

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from skynav_core.bag import open_bag
-from skynav_core.testing import run_skynav, write_featureless_recording
 from skynav_core.camera import EquidistantCamera
+from skynav_core.testing import run_skynav, write_featureless_recording
 
 FOV = np.radians(200.0)  # rad: the bundled recordings' fish-eye
 DEGREE = 16

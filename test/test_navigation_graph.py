@@ -18,9 +18,9 @@ import pytest
 
 from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
-from skynav_core.testing import run_skynav, start_skynav, wait_text
-from skynav_localize.evaluation import correct_matches
 from skynav_core.maps import MapStore
+from skynav_core.testing import run_skynav, start_skynav
+from skynav_localize.evaluation import correct_matches
 
 BAGS = Path(__file__).parents[1] / 'bags'
 
@@ -29,6 +29,7 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from scipy.spatial.transform import Rotation
+
     from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch
 
     map_file = tmp_path / 'garden.db'

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from skynav_core.bag import open_bag
-from skynav_core.images import fill_image, image_to_array, stamp_ns
-from skynav_core.testing import start_skynav, wait_text
 from skynav_core.camera import EquidistantCamera
+from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.testing import start_skynav
 from skynav_skyline.classify import classification_rate
 
 BAGS = Path(__file__).parents[1] / 'bags'

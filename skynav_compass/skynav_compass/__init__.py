@@ -50,7 +50,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.recording import *  # noqa: F401,F403
     from skynav_compass.refine import *  # noqa: F401,F403
     from skynav_compass.runner import *  # noqa: F401,F403
-    from skynav_compass.verify import *  # noqa: F401,F403
     from skynav_compass.so3 import *  # noqa: F401,F403
+    from skynav_compass.verify import *  # noqa: F401,F403
     from skynav_compass.views import *  # noqa: F401,F403
     from skynav_compass.yaw import *  # noqa: F401,F403

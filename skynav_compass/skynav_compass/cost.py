@@ -21,13 +21,19 @@ U = sum u_i G_i, u = R0 w, and turned into the rotation vector w by R0^T.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence, Union
 
 import numpy as np
 
-from skynav_compass.so3 import (EulerGrid, complex_form, rotate_degree_major, so3_correlation_cells,
-                                stacked_generators, to_padded)
+from skynav_compass.so3 import (
+    EulerGrid,
+    complex_form,
+    rotate_degree_major,
+    so3_correlation_cells,
+    stacked_generators,
+    to_padded,
+)
 from skynav_compass.views import CompassView
 
 COSTS = ('masked', 'plain')
@@ -43,10 +49,10 @@ class Jet:
         self.value, self.grad, self.hess = float(value), np.asarray(grad, float), np.asarray(hess, float)
 
     @staticmethod
-    def _lift(other: Union[Jet, float]) -> Jet:
+    def _lift(other: Jet | float) -> Jet:
         return other if isinstance(other, Jet) else Jet(other, np.zeros(3), np.zeros((3, 3)))
 
-    def __add__(self, other: Union[Jet, float]) -> Jet:
+    def __add__(self, other: Jet | float) -> Jet:
         other = Jet._lift(other)
         return Jet(self.value + other.value, self.grad + other.grad, self.hess + other.hess)
 
@@ -55,13 +61,13 @@ class Jet:
     def __neg__(self) -> Jet:
         return Jet(-self.value, -self.grad, -self.hess)
 
-    def __sub__(self, other: Union[Jet, float]) -> Jet:
+    def __sub__(self, other: Jet | float) -> Jet:
         return self + (-Jet._lift(other))
 
-    def __rsub__(self, other: Union[Jet, float]) -> Jet:
+    def __rsub__(self, other: Jet | float) -> Jet:
         return Jet._lift(other) - self
 
-    def __mul__(self, other: Union[Jet, float]) -> Jet:
+    def __mul__(self, other: Jet | float) -> Jet:
         other = Jet._lift(other)
         cross = np.outer(self.grad, other.grad)
         return Jet(self.value * other.value, self.value * other.grad + other.value * self.grad,
@@ -74,7 +80,7 @@ class Jet:
         v = self.value
         return Jet(1.0 / v, -self.grad / v**2, -self.hess / v**2 + 2.0 * np.outer(self.grad, self.grad) / v**3)
 
-    def __truediv__(self, other: Union[Jet, float]) -> Jet:
+    def __truediv__(self, other: Jet | float) -> Jet:
         if not isinstance(other, Jet):
             return Jet(self.value / other, self.grad / other, self.hess / other)
         q = self.value / other.value
@@ -82,7 +88,7 @@ class Jet:
         cross = np.outer(grad, other.grad)
         return Jet(q, grad, (self.hess - q * other.hess - cross - cross.T) / other.value)
 
-    def __rtruediv__(self, other: Union[Jet, float]) -> Jet:
+    def __rtruediv__(self, other: Jet | float) -> Jet:
         return Jet._lift(other) * self.reciprocal()
 
     def sqrt(self) -> Jet:
@@ -204,7 +210,7 @@ def cost_channels(kind: str, normalise: bool) -> tuple[Channel, ...]:
     return MASKED_NORMALISED_CHANNELS if normalise else MASKED_CHANNELS
 
 
-def prepare_snapshot(snapshot: Union[CompassView, np.ndarray, PreparedSnapshot], max_degree: int,
+def prepare_snapshot(snapshot: CompassView | np.ndarray | PreparedSnapshot, max_degree: int,
                      kind: str = 'masked', normalise: bool = False) -> PreparedSnapshot:
     """Return the snapshot's side of a cost kind ('masked' or 'plain') at degree L (a PreparedSnapshot as it is)."""
     if isinstance(snapshot, PreparedSnapshot):
@@ -346,13 +352,13 @@ def _is_zonal(stack: np.ndarray) -> np.ndarray:
     return np.max(np.abs(off_axis), axis=1, initial=0.0) <= 1e-12 * np.maximum(scale, 1e-300)
 
 
-def _plain_terms(view: Union[CompassView, np.ndarray]) -> np.ndarray:
+def _plain_terms(view: CompassView | np.ndarray) -> np.ndarray:
     """Return the filled coefficients of a view for the plain cost (a CompassView counts as zero-filled)."""
     return np.asarray(view.weighted if isinstance(view, CompassView) else view, dtype=float)
 
 
-def build_problem(snapshot: Union[CompassView, np.ndarray, PreparedSnapshot],
-                  current: Union[CompassView, np.ndarray], max_degree: int, kind: str = 'masked',
+def build_problem(snapshot: CompassView | np.ndarray | PreparedSnapshot,
+                  current: CompassView | np.ndarray, max_degree: int, kind: str = 'masked',
                   normalise: bool = False, min_overlap: float = 0.25) -> CostProblem:
     """Return the CostProblem of a cost kind ('masked' or 'plain') for two views cut to degree L.
 

@@ -7,9 +7,9 @@ Rotations are compass rotations R (d_snapshot = R d_current, camera_link) given 
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 

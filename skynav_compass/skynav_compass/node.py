@@ -22,7 +22,6 @@ stored yet), 'featureless' and 'featureless_snapshot'.
 from __future__ import annotations
 
 import numpy as np
-from skynav_msgs.msg import CompassEstimate, PlaceMatch, ShCoefficients
 from std_srvs.srv import Trigger
 
 from skynav_core.images import stamp_ns
@@ -30,9 +29,10 @@ from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
 from skynav_core.snapshots import SnapshotChoice
+from skynav_msgs.msg import CompassEstimate, PlaceMatch, ShCoefficients
 from skynav_sh.product import seen_mean, shows_skyline
 
-from .compass import MAX_TILT, Compass, CompassConfig
+from .compass import Compass, CompassConfig
 from .cost import PreparedSnapshot
 from .parameters import PARAMETERS, REFERENCES
 from .views import FILL_MODES, CompassView

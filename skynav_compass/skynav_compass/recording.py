@@ -19,18 +19,26 @@ only against the recording's own reference frame. Times are CPU time per estimat
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
-from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_compass.compass import MAX_TILT
-from skynav_compass.evaluation import (RIGHT_DEG, STATISTICS_COLUMNS, CompassResult, ErrorStatistics, error_statistics,
-                                       share_cell, summary_rows)
+from skynav_compass.evaluation import (
+    RIGHT_DEG,
+    STATISTICS_COLUMNS,
+    CompassResult,
+    ErrorStatistics,
+    error_statistics,
+    share_cell,
+    summary_rows,
+)
 from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
 from skynav_compass.runner import Method, NodeViews, build_method, compass_result, timed_estimates
+from skynav_core.evaluation import Column, text_table, unknown_methods
 
 GROUPS = ('rotation', 'moved')  # pure rotations, views moved against the snapshot
 GROUP_TITLES = {'rotation': 'pure rotations', 'moved': 'moved views'}
@@ -141,7 +149,7 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
         degree = node_degree
         snapshot_pose = snapshot_view.pose
         name = (f"the recording's reference frame ({reference})" if labelled
-                else f"the recording's first frame (it labels none 'reference')")
+                else "the recording's first frame (it labels none 'reference')")
         by_labels = all(v.label in ('rotation', 'translation') for v in queries)
     else:
         coefficients = np.asarray(snapshot.coefficients, dtype=float)

@@ -12,13 +12,13 @@ node does; on compass sets it does so when named NAME+prepared, so both ways can
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Callable, NamedTuple, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from skynav_sh.fisheye import FisheyeTransform
 from skynav_compass.compass import MAX_TILT, Compass, CompassConfig, any_tilt_config
 from skynav_compass.estimate import CompassEstimate
 from skynav_compass.evaluation import CompassResult, angular_error, relative_tilt
@@ -27,6 +27,7 @@ from skynav_compass.features import FeatureCompass, FeatureConfig
 from skynav_compass.methods import METHODS, PREPARED, CompassMethod
 from skynav_compass.views import CompassView
 from skynav_compass.yaw import PanoramicCompass, YawCompass
+from skynav_sh.fisheye import FisheyeTransform
 
 
 @dataclass(frozen=True)

@@ -12,9 +12,9 @@ turns Z(alpha) into diag(exp(i m alpha)) and D_l(Ry(beta)) into Wigner's small d
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Sequence
 
 import numpy as np
 

@@ -11,8 +11,6 @@ d_current with R = Rz(psi) (camera_link); a yaw-only compass cannot see tilt, so
 
 from __future__ import annotations
 
-from typing import Union
-
 import numpy as np
 
 from skynav_compass.compass import UNITS
@@ -99,8 +97,8 @@ class YawCompass:
         """Return a short name of the configured method."""
         return f'visual-compass-sh-{self.cost}'
 
-    def estimate(self, snapshot: Union[CompassView, np.ndarray],
-                 current: Union[CompassView, np.ndarray]) -> CompassEstimate:
+    def estimate(self, snapshot: CompassView | np.ndarray,
+                 current: CompassView | np.ndarray) -> CompassEstimate:
         """Return R = Rz(psi) minimising the compass cost over yaw (d_snapshot = R d_current)."""
         from skynav_compass.so3 import complex_form
 

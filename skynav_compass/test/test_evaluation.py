@@ -9,9 +9,21 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass import (CompassResult, angular_error, error_statistics, format_table, heading_error,
-                            load_compass_set, plot_errors, relative_tilt, roc_auc, run_methods, standard_methods,
-                            summary_rows, true_rotation)
+from skynav_compass import (
+    CompassResult,
+    angular_error,
+    error_statistics,
+    format_table,
+    heading_error,
+    load_compass_set,
+    plot_errors,
+    relative_tilt,
+    roc_auc,
+    run_methods,
+    standard_methods,
+    summary_rows,
+    true_rotation,
+)
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 

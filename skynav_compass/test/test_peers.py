@@ -9,9 +9,20 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass import (CompassView, ExhaustiveCompass, ExhaustiveConfig, FeatureCompass, PanoramicCompass,
-                            YawCompass, cap_visibility, decompose_essential, eight_point, estimate_rotation, kabsch,
-                            load_compass_set)
+from skynav_compass import (
+    CompassView,
+    ExhaustiveCompass,
+    ExhaustiveConfig,
+    FeatureCompass,
+    PanoramicCompass,
+    YawCompass,
+    cap_visibility,
+    decompose_essential,
+    eight_point,
+    estimate_rotation,
+    kabsch,
+    load_compass_set,
+)
 from skynav_core.camera import EquidistantCamera
 from skynav_core.rotations import rotation_angle
 from skynav_sh.basis import degree_order

@@ -13,8 +13,18 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass import (Compass, CompassConfig, CompassView, ExhaustiveCompass, ExhaustiveConfig, PreparedSnapshot,
-                            cap_visibility, load_compass_set, run_methods, standard_methods)
+from skynav_compass import (
+    Compass,
+    CompassConfig,
+    CompassView,
+    ExhaustiveCompass,
+    ExhaustiveConfig,
+    PreparedSnapshot,
+    cap_visibility,
+    load_compass_set,
+    run_methods,
+    standard_methods,
+)
 from skynav_compass.so3 import rotate_by_matrix, rotate_degree_major, to_padded
 from skynav_sh.basis import degree_order
 from skynav_sh.rotation import rotate

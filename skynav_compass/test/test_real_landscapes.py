@@ -32,8 +32,8 @@ TIMES = ('same', 'noon')  # the snapshot's time of day: the views' (morning), or
 @pytest.fixture(scope='module')
 def evaluations(stellarium, tmp_path_factory):
     """Return the compass evaluations {(landscape, snapshot time, SH degree): evaluation}, rendered at 320x240."""
-    from skynav_core.cli import graph_arguments
     from skynav_core.camera import EquidistantCamera
+    from skynav_core.cli import graph_arguments
     from skynav_sim import recording
     from skynav_sim.cli.options import DEFAULT_DISTORTION
     from skynav_sim.scenarios import ScenarioParameters, build, describe

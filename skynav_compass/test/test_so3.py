@@ -7,8 +7,18 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_compass.so3 import (EulerGrid, complex_form, correlation_products, from_padded, generators,
-                                rotate_by_matrix, rotate_z_padded, so3_correlation, to_padded, wigner_small_d_table)
+from skynav_compass.so3 import (
+    EulerGrid,
+    complex_form,
+    correlation_products,
+    from_padded,
+    generators,
+    rotate_by_matrix,
+    rotate_z_padded,
+    so3_correlation,
+    to_padded,
+    wigner_small_d_table,
+)
 from skynav_sh.rotation import rotate, rotate_z, wigner_small_d
 
 DEGREE = 8

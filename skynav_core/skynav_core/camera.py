@@ -226,7 +226,7 @@ class OCamCamera(_PixelCamera):
     fov_limit: float = 2 * np.pi  # a narrower full field of view (rad) than the image circle allows; never wider
 
     @classmethod
-    def from_calib_file(cls, path: Union[str, os.PathLike], centre_origin: int = OCAM_CENTRE_ORIGIN) -> OCamCamera:
+    def from_calib_file(cls, path: str | os.PathLike, centre_origin: int = OCAM_CENTRE_ORIGIN) -> OCamCamera:
         """Return the camera of an OCamCalib calib_results.txt (comment lines start with '#')."""
         lines = [line.split() for line in Path(path).read_text().splitlines()
                  if line.strip() and not line.lstrip().startswith('#')]

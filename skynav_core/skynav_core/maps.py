@@ -40,7 +40,7 @@ import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -169,7 +169,7 @@ class MapStore:
             raise MapError(f'{path}: no such directory {path.parent}')
         meta = {'format': MAP_FORMAT, 'schema_version': str(SCHEMA_VERSION), 'name': str(name),
                 'max_degree': str(int(max_degree)),
-                'created_utc': datetime.now(timezone.utc).isoformat(timespec='seconds'),
+                'created_utc': datetime.now(UTC).isoformat(timespec='seconds'),
                 'created_from': str(created_from)}
         for key, value in (metadata or {}).items():
             if key in RESERVED_META:

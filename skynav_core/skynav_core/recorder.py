@@ -12,8 +12,8 @@ from rclpy.node import Node
 
 from .bag import BagError, BagWriter
 from .qos import bag_qos, subscription_qos
-from .typestore import UnknownMessageType
 from .ros import message_class
+from .typestore import UnknownMessageType
 
 # Subscriber history per topic: how far the writer may fall behind before messages are lost.
 RECORD_DEPTH = 1000

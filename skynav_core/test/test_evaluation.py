@@ -9,9 +9,19 @@ import math
 import pytest
 
 from skynav_core.cli import CliError
-from skynav_core.evaluation import (Column, add_methods_argument, add_plots_argument, check_at_least, check_methods,
-                                    check_not_negative, check_positive, check_recordings, plots_folder, text_table,
-                                    unknown_methods)
+from skynav_core.evaluation import (
+    Column,
+    add_methods_argument,
+    add_plots_argument,
+    check_at_least,
+    check_methods,
+    check_not_negative,
+    check_positive,
+    check_recordings,
+    plots_folder,
+    text_table,
+    unknown_methods,
+)
 
 KNOWN = ('fast', 'slow', 'peer')
 

@@ -10,8 +10,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from skynav_core.rotations import (as_matrix, as_quaternion, home_direction, relative_rotation, rotation_angle,
-                                   tilt, yaw_matrix, zyz_angles, zyz_matrix)
+from skynav_core.rotations import (
+    as_matrix,
+    as_quaternion,
+    home_direction,
+    relative_rotation,
+    rotation_angle,
+    tilt,
+    yaw_matrix,
+    zyz_angles,
+    zyz_matrix,
+)
 
 seeds = st.integers(0, 2**32 - 1)
 

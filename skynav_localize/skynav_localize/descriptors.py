@@ -19,7 +19,7 @@ sky/ground edge (all sky or all ground) has no spectrum above degree 0 and gets 
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

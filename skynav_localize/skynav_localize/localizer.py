@@ -17,14 +17,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_core.maps import MapError, MapStore
 from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, DescriptorIndex, describe, descriptor_distance
 from skynav_localize.mapping import stored_settings
-from skynav_localize.matching import (DEFAULT_CANDIDATES, MOTION_SLACK, Acceptance, Match, SequenceBuffer,
-                                      SequenceParams, best_candidates, local_steps, motion_tests, motion_window,
-                                      runner_up, self_similarity, sequence_match, sequence_scores, single_frame,
-                                      view_in_place)
-from skynav_core.maps import MapError, MapStore
+from skynav_localize.matching import (
+    DEFAULT_CANDIDATES,
+    MOTION_SLACK,
+    Acceptance,
+    Match,
+    SequenceBuffer,
+    SequenceParams,
+    best_candidates,
+    local_steps,
+    motion_tests,
+    motion_window,
+    runner_up,
+    self_similarity,
+    sequence_match,
+    sequence_scores,
+    single_frame,
+    view_in_place,
+)
 from skynav_sh.product import message_sky_share, shows_skyline
 
 

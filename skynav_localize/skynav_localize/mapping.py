@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from skynav_core.maps import MapStore, Snapshot
 from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, describe
-from skynav_core.maps import MapStore, Snapshot
 
 #: skynav's descriptors: derived from the coefficients (stored only if a caller asks snapshot_descriptors for them).
 SH_DESCRIPTOR_NAMES = ('amplitude', 'bispectrum')

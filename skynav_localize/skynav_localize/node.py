@@ -18,17 +18,16 @@ from __future__ import annotations
 
 import math
 
-from skynav_msgs.msg import PlaceMatch, ShCoefficients
-
 from skynav_core.images import stamp_ns
+from skynav_core.maps import MapStore, map_for_parameter
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
+from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
-from .localizer import DESCRIPTOR_DEGREE, METHODS, OUR_METHODS, Localizer
+from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .parameters import PARAMETERS
-from skynav_core.maps import MapStore, map_for_parameter
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'

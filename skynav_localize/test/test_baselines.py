@@ -6,11 +6,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_localize.baselines import (RAW_UV_PATCH, RAW_UV_SIZE, BowVocabulary, as_uint8, kmeans,
-                                       orb_descriptors, orb_mask, raw_uv_descriptor, train_bow)
+from skynav_core.maps import MapStore
+from skynav_localize.baselines import (
+    RAW_UV_PATCH,
+    RAW_UV_SIZE,
+    BowVocabulary,
+    as_uint8,
+    kmeans,
+    orb_descriptors,
+    orb_mask,
+    raw_uv_descriptor,
+    train_bow,
+)
 from skynav_localize.descriptors import distance_matrix
 from skynav_localize.matching import single_frame
-from skynav_core.maps import MapStore
 
 
 def test_raw_uv_descriptor_is_patch_normalised_and_gain_free():

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from skynav_core.maps import MapError, MapStore
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.localizer import Localizer
-from skynav_core.maps import MapError, MapStore
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 BYTES_PER_SNAPSHOT = 4096  # the target: at most 4 kB per snapshot at L = 16 without the baselines

@@ -24,11 +24,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from skynav_core.maps import MapStore, Snapshot
 from skynav_localize.baselines import train_bow
 from skynav_localize.evaluation import evaluate, format_table
 from skynav_localize.localizer import METHODS, OUR_METHODS, Localizer
 from skynav_localize.mapping import build_map, snapshot_descriptors
-from skynav_core.maps import MapStore, Snapshot
 
 TARGET_RECALL_AT_FULL_PRECISION = 0.9  # the project's target for amplitude-spectrum matching with sequences
 TOLERANCE = 1.0  # m, the evaluation's default

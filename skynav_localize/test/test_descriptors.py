@@ -9,8 +9,15 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from skynav_localize.descriptors import (DescriptorIndex, amplitude_descriptor, bispectrum_descriptor,
-                                         bispectrum_size, describe, descriptor_distance, distance_matrix)
+from skynav_localize.descriptors import (
+    DescriptorIndex,
+    amplitude_descriptor,
+    bispectrum_descriptor,
+    bispectrum_size,
+    describe,
+    descriptor_distance,
+    distance_matrix,
+)
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_sh.rotation import rotate
 

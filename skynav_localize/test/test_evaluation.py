@@ -6,9 +6,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_localize.evaluation import (compare, correct_matches, evaluate, format_table, has_true_place,
-                                        plot_matches_along_route, plot_pr_curves, pr_auc, precision_recall,
-                                        recall_at_full_precision, threshold_at_full_precision)
+from skynav_localize.evaluation import (
+    compare,
+    correct_matches,
+    evaluate,
+    format_table,
+    has_true_place,
+    plot_matches_along_route,
+    plot_pr_curves,
+    pr_auc,
+    precision_recall,
+    recall_at_full_precision,
+    threshold_at_full_precision,
+)
 
 SNAPSHOTS = np.column_stack([np.arange(10.0), np.zeros(10)])  # a straight route, one snapshot per metre
 # q0 near snapshot 2 (matched right), q1 at 5 m matched to 8 (wrong), q2 matched right, q3 30 m off the route

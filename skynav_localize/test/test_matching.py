@@ -6,10 +6,25 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_localize.matching import (MOTION_SLACK, Acceptance, SequenceBuffer, SequenceParams, best_candidates,
-                                      contrast_normalise, distance_ratio, local_steps, motion_tests, motion_window,
-                                      runner_up, self_similarity, sequence_match, sequence_scores, single_frame,
-                                      trajectory_scores, view_in_place)
+from skynav_localize.matching import (
+    MOTION_SLACK,
+    Acceptance,
+    SequenceBuffer,
+    SequenceParams,
+    best_candidates,
+    contrast_normalise,
+    distance_ratio,
+    local_steps,
+    motion_tests,
+    motion_window,
+    runner_up,
+    self_similarity,
+    sequence_match,
+    sequence_scores,
+    single_frame,
+    trajectory_scores,
+    view_in_place,
+)
 
 SNAPSHOTS = 200
 QUERIES = 60

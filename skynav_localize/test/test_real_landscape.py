@@ -16,12 +16,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from skynav_core.maps import MapStore
 from skynav_core.testing import run_skynav
+from skynav_core.views import recording_views
 from skynav_localize.evaluation import evaluate
 from skynav_localize.localizer import METHODS, Localizer
 from skynav_localize.matching import Acceptance
-from skynav_core.maps import MapStore
-from skynav_core.views import recording_views
 
 LANDSCAPE, SEED = 'geneva', 1
 COMMON = ('--world', LANDSCAPE, '--seed', str(SEED), '--length', '8', '--size', '320x240', '--encoding', 'mono8')

@@ -8,7 +8,7 @@ Y_lm = sqrt(2) N_l|m| P_l^|m|(cos theta) sin(|m| phi) (m < 0); theta from +z, ph
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -34,7 +34,7 @@ def lm_index(degree: np.ndarray | int, order: np.ndarray | int) -> np.ndarray | 
     return degree * degree + degree + order
 
 
-@lru_cache(maxsize=None)
+@cache
 def _degree_order(max_degree: int) -> tuple[np.ndarray, np.ndarray]:
     """Return the cached read-only (l, m) arrays of degree L."""
     l = np.repeat(np.arange(max_degree + 1), 2 * np.arange(max_degree + 1) + 1)
@@ -54,7 +54,7 @@ def degree_slices(max_degree: int) -> list[slice]:
     return [slice(l * l, (l + 1) * (l + 1)) for l in range(int(max_degree) + 1)]
 
 
-@lru_cache(maxsize=None)
+@cache
 def _recurrence_factors(max_degree: int) -> tuple[np.ndarray, np.ndarray]:
     """Return a[l, m], b[l, m] of P_lm = a (x P_(l-1)m - b P_(l-2)m) for the fully normalised functions."""
     l = np.arange(max_degree + 1, dtype=float)[:, None]

@@ -15,8 +15,8 @@ theta' = 2 theta_max - theta, clipped to [0, theta_max]). Mask values: sky 1, gr
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cached_property
-from typing import Callable
 
 import numpy as np
 

@@ -11,13 +11,13 @@ from __future__ import annotations
 import math
 
 from sensor_msgs.msg import CameraInfo, Image
-from skynav_msgs.msg import ShCoefficients
 
+from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.ros import run_node
+from skynav_msgs.msg import ShCoefficients
 
-from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 from .fisheye import FILLS, FisheyeTransform
 from .parameters import PARAMETERS
 

@@ -18,7 +18,6 @@ import numpy as np
 from skynav_core.rotations import RotationLike, as_matrix, zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order, degree_slices
 
-
 # --- Ivanic-Ruedenberg recurrence (J. Phys. Chem. 100, 6342 (1996), with the 1998 erratum) ---------------
 
 def _degree_one(matrix: np.ndarray) -> np.ndarray:

@@ -11,11 +11,11 @@ sum need the non-Gaunt (antisymmetric) coupling and are left out; permutations o
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 
-from skynav_sh.basis import degree_from_size, degree_order, n_coefficients
+from skynav_sh.basis import degree_from_size, degree_order
 from skynav_sh.coupling import real_gaunt
 
 
@@ -27,7 +27,7 @@ def amplitude_spectrum(coefficients: np.ndarray) -> np.ndarray:
     return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1))
 
 
-@lru_cache(maxsize=None)
+@cache
 def bispectrum_triples(max_degree: int) -> np.ndarray:
     """Return the (l1, l2, l3) rows of the bispectrum in output order, shape (count, 3), read-only."""
     rows = [(l1, l2, l3) for l1 in range(max_degree + 1) for l2 in range(l1, max_degree + 1)

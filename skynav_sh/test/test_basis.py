@@ -7,9 +7,17 @@ import numpy as np
 import pytest
 from scipy.special import assoc_legendre_p, sph_harm_y
 
-from skynav_sh.basis import (degree_from_size, degree_order, degree_slices, lm_index, n_coefficients,
-                             normalised_legendre, real_sh, real_sh_directions)
 from skynav_core.camera import directions_from_angles
+from skynav_sh.basis import (
+    degree_from_size,
+    degree_order,
+    degree_slices,
+    lm_index,
+    n_coefficients,
+    normalised_legendre,
+    real_sh,
+    real_sh_directions,
+)
 from skynav_sh.transform import grid
 
 

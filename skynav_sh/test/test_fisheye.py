@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_sh.basis import n_coefficients, real_sh
 from skynav_core.camera import EquidistantCamera, OCamCamera, angles_from_directions
+from skynav_sh.basis import n_coefficients, real_sh
 from skynav_sh.fisheye import FisheyeTransform
 
 DEGREE = 24

@@ -9,8 +9,18 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sh.basis import degree_order, n_coefficients, real_sh_directions
 from skynav_sh.coupling import real_gaunt
-from skynav_sh.product import (MIN_CLASS_SHARE, MaskedView, cap_area, masked_distance, masked_distance_views,
-                               message_sky_share, overlap_area, product, seen_mean, shows_skyline)
+from skynav_sh.product import (
+    MIN_CLASS_SHARE,
+    MaskedView,
+    cap_area,
+    masked_distance,
+    masked_distance_views,
+    message_sky_share,
+    overlap_area,
+    product,
+    seen_mean,
+    shows_skyline,
+)
 from skynav_sh.rotation import rotate
 from skynav_sh.spectra import coefficient_distance
 from skynav_sh.transform import grid

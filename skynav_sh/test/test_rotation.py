@@ -11,8 +11,17 @@ from scipy.spatial.transform import Rotation
 
 from skynav_core.rotations import as_matrix, zyz_angles, zyz_matrix
 from skynav_sh.basis import degree_slices, n_coefficients
-from skynav_sh.rotation import (quarter_turn, rotate, rotate_y, rotate_z, rotate_zyz, wigner_d, wigner_d_matrix,
-                                wigner_d_recurrence, y_rotation_block)
+from skynav_sh.rotation import (
+    quarter_turn,
+    rotate,
+    rotate_y,
+    rotate_z,
+    rotate_zyz,
+    wigner_d,
+    wigner_d_matrix,
+    wigner_d_recurrence,
+    y_rotation_block,
+)
 from skynav_sh.transform import grid
 
 quaternions = st.tuples(*(st.floats(-1, 1, allow_nan=False) for _ in range(4))).map(np.array)

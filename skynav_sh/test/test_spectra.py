@@ -11,9 +11,17 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sh.basis import n_coefficients
 from skynav_sh.rotation import rotate
-from skynav_sh.spectra import (BISPECTRUM_BATCH, amplitude_distance, amplitude_spectrum, bispectrum,
-                               bispectrum_distance, bispectrum_size, bispectrum_triples, coefficient_distance,
-                               illumination_invariant)
+from skynav_sh.spectra import (
+    BISPECTRUM_BATCH,
+    amplitude_distance,
+    amplitude_spectrum,
+    bispectrum,
+    bispectrum_distance,
+    bispectrum_size,
+    bispectrum_triples,
+    coefficient_distance,
+    illumination_invariant,
+)
 from skynav_sh.transform import grid
 
 quaternions = st.tuples(*(st.floats(-1, 1, allow_nan=False) for _ in range(4))).map(np.array)

@@ -9,8 +9,7 @@ import pytest
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_sh.rotation import rotate
 from skynav_sh.transform import grid
-from skynav_sh.translation import (source_directions, translate, translate_z, translated_directions,
-                                   z_translation_blocks)
+from skynav_sh.translation import source_directions, translate, translate_z, translated_directions, z_translation_blocks
 
 DEGREE = 16
 

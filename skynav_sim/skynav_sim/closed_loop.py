@@ -23,11 +23,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process
 from skynav_core.images import fill_image
 from skynav_core.node import SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
-from skynav_core.camera import EquidistantCamera
 from skynav_core.rotations import as_matrix
 
 from .recording import CAMERA_FRAME, start_stamp
@@ -80,6 +80,7 @@ class SimRobotNode(SkynavNode):
         super().__init__('sim_robot', **kwargs)
         from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import CameraInfo, Image
+
         from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch
 
         self.image_type, self.info_type, self.pose_type = Image, CameraInfo, PoseStamped
@@ -226,8 +227,8 @@ def home_runs(world: World, camera: EquidistantCamera, goal: np.ndarray, starts:
 def snapshot_map(world: World, camera: EquidistantCamera, place: np.ndarray, heading: float, hours: float,
                  seed: int, path, name: str = 'home', ros_args: list[str] | None = None, bump_tilt: float = 0.0):
     """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
-    from skynav_localize.mapping import build_map
     from skynav_core.maps import Snapshot
+    from skynav_localize.mapping import build_map
 
     simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]

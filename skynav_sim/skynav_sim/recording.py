@@ -26,7 +26,7 @@ from .sensor import Sensor
 from .sky import Sky
 from .world import World
 
-SIMULATED_DATE = datetime.datetime(2026, 6, 21, tzinfo=datetime.timezone.utc)  # the sun model's day (172)
+SIMULATED_DATE = datetime.datetime(2026, 6, 21, tzinfo=datetime.UTC)  # the sun model's day (172)
 TOPICS = {
     '/camera/uv/image_raw': 'sensor_msgs/msg/Image',
     '/camera/green/image_raw': 'sensor_msgs/msg/Image',

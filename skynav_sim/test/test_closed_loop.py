@@ -58,8 +58,8 @@ def test_homing_succeeds_from_nine_in_ten_starts(camera, tmp_path):
 
 
 def test_route_following_stays_on_the_taught_route(camera, garden_map):
-    from skynav_sim.closed_loop import follow_route, route_deviation
     from skynav_sim.cli.follow import teach_world
+    from skynav_sim.closed_loop import follow_route, route_deviation
     from skynav_sim.sky import parse_time
 
     world, seed, teach_camera = teach_world(TEACH)

@@ -8,8 +8,8 @@ import pytest
 from scipy.ndimage import binary_erosion
 
 from skynav_core.bag import open_bag
-from skynav_core.testing import one_line_error, run_skynav
 from skynav_core.camera import EquidistantCamera, angles_from_directions
+from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE
 from skynav_sim.render import Renderer
 from skynav_sim.scenarios import ScenarioParameters, build

@@ -3,7 +3,6 @@
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from skynav_core.rotations import tilt
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE, Surface

@@ -9,16 +9,47 @@ Debevec merge); no ROS imports. Typical use::
     mask = segmenter.segment(uv, green, 'mono8', 'mono8')   # uint8, 255 sky, 0 ground
 """
 
-from .classify import (CHANNEL_MODES, UV_GREEN_CONTRAST_ANGLE, GlobalModel, best_threshold,
-                       classification_rate, learn_global, project)
-from .features import (ENCODINGS, REFERENCE_PERCENTILE, Channel, Features, decode, extract_features, log_feature,
-                       reference_level)
+from .classify import (
+                       CHANNEL_MODES,
+                       UV_GREEN_CONTRAST_ANGLE,
+                       GlobalModel,
+                       best_threshold,
+                       classification_rate,
+                       learn_global,
+                       project,
+)
+from .features import (
+                       ENCODINGS,
+                       REFERENCE_PERCENTILE,
+                       Channel,
+                       Features,
+                       decode,
+                       extract_features,
+                       log_feature,
+                       reference_level,
+)
 from .geometry import SectorLayout, SkylineGeometry
 from .hdr import merge_brackets
-from .segment import (METHODS, Segmentation, SectorThresholds, SkylineParams, SkylineSegmenter, is_bimodal,
-                      sector_thresholds, segment)
-from .threshold import (HistogramSplit, between_class_variance, histogram, minimum_error_criterion,
-                        minimum_error_split, minimum_error_threshold, otsu_split, otsu_threshold)
+from .segment import (
+                       METHODS,
+                       SectorThresholds,
+                       Segmentation,
+                       SkylineParams,
+                       SkylineSegmenter,
+                       is_bimodal,
+                       sector_thresholds,
+                       segment,
+)
+from .threshold import (
+                       HistogramSplit,
+                       between_class_variance,
+                       histogram,
+                       minimum_error_criterion,
+                       minimum_error_split,
+                       minimum_error_threshold,
+                       otsu_split,
+                       otsu_threshold,
+)
 
 __all__ = [
     'CHANNEL_MODES', 'ENCODINGS', 'METHODS', 'REFERENCE_PERCENTILE', 'UV_GREEN_CONTRAST_ANGLE',

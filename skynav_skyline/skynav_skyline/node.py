@@ -14,11 +14,11 @@ from functools import partial
 import numpy as np
 from sensor_msgs.msg import CameraInfo, Image
 
+from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 from skynav_core.images import ImageError, fill_image, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
-from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
 
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, skyline_params

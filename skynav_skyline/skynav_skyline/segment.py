@@ -40,15 +40,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
 from .features import REFERENCE_PERCENTILE, Features, extract_features
 from .geometry import SectorLayout, SkylineGeometry
 from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
-from .threshold import (DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index,
-                        histogram_range)
+from .threshold import DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index, histogram_range
 
 #: Segmentation methods.
 METHODS: tuple[str, ...] = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')

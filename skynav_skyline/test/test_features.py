@@ -6,8 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_skyline.features import (DARK_MARGIN_COUNTS, decode, extract_features, log_feature,
-                                     reference_level)
+from skynav_skyline.features import DARK_MARGIN_COUNTS, decode, extract_features, log_feature, reference_level
 
 
 def test_mono8_flags_and_black_level():

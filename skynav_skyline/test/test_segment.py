@@ -12,8 +12,15 @@ from hypothesis import strategies as st
 
 from skynav_skyline.classify import classification_rate
 from skynav_skyline.geometry import SkylineGeometry
-from skynav_skyline.segment import (METHODS, SkylineParams, SkylineSegmenter, above_sector_thresholds, is_bimodal,
-                                    sector_thresholds, segment)
+from skynav_skyline.segment import (
+    METHODS,
+    SkylineParams,
+    SkylineSegmenter,
+    above_sector_thresholds,
+    is_bimodal,
+    sector_thresholds,
+    segment,
+)
 
 LOCAL_METHODS = [m for m in METHODS if m != 'global']
 

@@ -9,9 +9,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import norm
 
-from skynav_skyline.threshold import (HISTOGRAM_RANGE_PERCENTILES, _percentiles, histogram,
-                                      minimum_error_criterion, minimum_error_split, minimum_error_threshold,
-                                      otsu_split, otsu_threshold)
+from skynav_skyline.threshold import (
+    HISTOGRAM_RANGE_PERCENTILES,
+    _percentiles,
+    histogram,
+    minimum_error_criterion,
+    minimum_error_split,
+    minimum_error_threshold,
+    otsu_split,
+    otsu_threshold,
+)
 
 
 def brute_force_between_class_variance(counts, centres):

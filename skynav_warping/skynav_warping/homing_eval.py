@@ -27,8 +27,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skynav_core.evaluation import Column, text_table, unknown_methods
-from skynav_warping.evaluation import DISTANCE_BINS, angular_errors, binned_statistics, home_vectors_in_map, \
-    quiver_plot, tilt_angles, true_home_directions
+from skynav_warping.evaluation import (
+    DISTANCE_BINS,
+    angular_errors,
+    binned_statistics,
+    home_vectors_in_map,
+    quiver_plot,
+    tilt_angles,
+    true_home_directions,
+)
 from skynav_warping.methods import METHODS, PANORAMA_METHODS
 from skynav_warping.warping3d import WarpingSettings
 

@@ -25,7 +25,6 @@ compass node chooses its reference).
 from __future__ import annotations
 
 import numpy as np
-from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
 from skynav_core.images import stamp_ns
 from skynav_core.node import SkynavNode
@@ -33,13 +32,13 @@ from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
 from skynav_core.snapshots import SnapshotChoice
+from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 from skynav_sh.product import message_sky_share, shows_skyline
-from skynav_compass.compass import MAX_TILT
 
 from .homing import estimate_home_vector
+from .parameters import PARAMETERS, TARGETS
 from .views import view_from_coefficients
 from .warping3d import WarpingSettings
-from .parameters import PARAMETERS, TARGETS
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'

@@ -30,8 +30,19 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_sh.fisheye import FisheyeTransform
-from skynav_warping import PanoramaUnwrapper, angular_errors, binned_statistics, estimate_home_vector, \
-    load_homing_grid, min_warping, tilt_angles, true_home_directions, true_rotations, view_from_fisheye, warping_2d
+from skynav_warping import (
+    PanoramaUnwrapper,
+    angular_errors,
+    binned_statistics,
+    estimate_home_vector,
+    load_homing_grid,
+    min_warping,
+    tilt_angles,
+    true_home_directions,
+    true_rotations,
+    view_from_fisheye,
+    warping_2d,
+)
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 DEGREE = 16

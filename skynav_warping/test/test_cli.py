@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 from skynav_bringup.cli import main
-from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_core.maps import MapStore, Snapshot
+from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_core.views import recording_views
 from skynav_warping.cli import eval as eval_cli
 from skynav_warping.homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot

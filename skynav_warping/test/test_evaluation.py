@@ -7,8 +7,17 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_warping import angular_errors, binned_statistics, home_vectors_in_map, quiver_plot, rotation_errors, \
-    summary_table, tilt_angles, true_home_directions, true_rotations
+from skynav_warping import (
+    angular_errors,
+    binned_statistics,
+    home_vectors_in_map,
+    quiver_plot,
+    rotation_errors,
+    summary_table,
+    tilt_angles,
+    true_home_directions,
+    true_rotations,
+)
 
 
 def test_true_home_direction_follows_the_contract():

@@ -21,15 +21,15 @@ import pytest
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
-from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
 from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
-from skynav_core.nodes import NodeSpec
-from skynav_localize.mapping import build_map
 from skynav_core.maps import Snapshot
+from skynav_core.nodes import NodeSpec
 from skynav_core.views import recording_views
+from skynav_localize.mapping import build_map
+from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_park_homing.mcap'
 WARPING = NodeSpec('warping', 'skynav_warping', 'skynav_warping.node:WarpingNode')

@@ -15,8 +15,15 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_core.rotations import yaw_matrix
-from skynav_warping import WarpingSettings, angular_errors, coarse_costs, estimate_home_vector, hypothesis_costs, \
-    warp_home_vector, warping_tables
+from skynav_warping import (
+    WarpingSettings,
+    angular_errors,
+    coarse_costs,
+    estimate_home_vector,
+    hypothesis_costs,
+    warp_home_vector,
+    warping_tables,
+)
 from skynav_warping.synthetic import blob_scene, render_equal_distance_view
 
 SETTINGS = WarpingSettings()

@@ -78,11 +78,10 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
     """Print the classification rate of every mask against ground truth, draw a contact sheet; return the rates."""
     import numpy as np
 
-    from skynav_core.camera import EquidistantCamera
-    from skynav_skyline.classify import classification_rate
-
     from skynav_core.bag import open_bag
+    from skynav_core.camera import EquidistantCamera
     from skynav_core.images import image_to_array, stamp_ns
+    from skynav_skyline.classify import classification_rate
 
     inputs: dict[int, dict] = {}
     camera = None
@@ -169,11 +168,10 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     """Print the place matches of the run against the true positions, and plot them along the route."""
     import numpy as np
 
-    from skynav_localize.evaluation import correct_matches, plot_matches_along_route
-    from skynav_core.maps import MapStore
-
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
+    from skynav_core.maps import MapStore
+    from skynav_localize.evaluation import correct_matches, plot_matches_along_route
 
     with open_bag(run_bag) as bag:
         matches = [bag.deserialize(raw) for raw in bag.messages(['/localization/match'])]
@@ -206,10 +204,9 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     """Print the compass's rotation errors and the home vectors' direction errors against ground truth `poses`."""
     import numpy as np
 
-    from skynav_core.maps import MapStore
-
     from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
+    from skynav_core.maps import MapStore
     from skynav_core.rotations import home_direction, relative_rotation, rotation_angle
 
     with open_bag(run_bag) as bag:

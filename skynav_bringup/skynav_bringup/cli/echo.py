@@ -38,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.qos import subscription_qos
     from skynav_core.ros import StopRequest, message_class, spin_until, tool_node
     from skynav_core.typestore import ensure_type, typestore
+
     from . import CliError
 
     count = 1 if args.once else args.count

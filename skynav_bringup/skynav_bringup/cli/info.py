@@ -8,7 +8,7 @@ The layout follows `ros2 bag info`. BAG is a rosbag2 directory or a bare
 from __future__ import annotations
 
 import argparse
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 HELP = 'topics, types, counts and duration of a bag'
 
@@ -21,7 +21,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def _stamp(nanoseconds: int) -> str:
     """Return a time as `ros2 bag info` shows it: UTC date and seconds since the epoch."""
     seconds, rest = divmod(nanoseconds, 10**9)
-    date = datetime.fromtimestamp(seconds, tz=timezone.utc).strftime('%b %d %Y %H:%M:%S')
+    date = datetime.fromtimestamp(seconds, tz=UTC).strftime('%b %d %Y %H:%M:%S')
     return f'{date}.{rest:09d} ({seconds}.{rest:09d})'
 
 

@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.launcher import Launcher
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
+
     from . import CliError
     from .run import ros_arguments
 

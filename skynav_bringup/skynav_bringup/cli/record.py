@@ -30,6 +30,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.bag import BagWriter
     from skynav_core.recorder import Recorder
     from skynav_core.ros import StopRequest, tool_node
+
     from . import CliError
 
     if not args.topics and not args.all:

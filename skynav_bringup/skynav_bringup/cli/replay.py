@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay the bag; return the exit code."""
     from skynav_core.bag import open_bag
     from skynav_core.ros import StopRequest, tool_node
+
     from . import CliError
 
     if args.rate < 0:

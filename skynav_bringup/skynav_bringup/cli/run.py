@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.bag import BagWriter, open_bag
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
+
     from . import CliError
 
     specs = installed_nodes()

@@ -43,13 +43,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from skynav_core.bag import open_bag
-    from skynav_core.cli import CliError
-    from skynav_core.cli import graph_arguments
+    from skynav_core.cli import CliError, graph_arguments
+    from skynav_core.maps import MapError, Snapshot
     from skynav_core.views import recording_views
 
     from ..descriptors import describe
     from ..mapping import SnapshotSelector, baseline_descriptors, build_map, finish_baselines
-    from skynav_core.maps import MapError, Snapshot
 
     if args.out.exists() and not args.overwrite:
         raise CliError(f'{args.out} exists already; choose another name or pass --overwrite')

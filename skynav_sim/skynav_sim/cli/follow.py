@@ -15,7 +15,6 @@ Reports how far the path stayed from the taught route and plots both. Everything
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 HELP = 'closed-loop route following of a simulated robot along a taught (synthetic) route'
@@ -42,8 +41,8 @@ def teach_world(teach: Path):
     import yaml
 
     from skynav_core.bag import BagError, open_bag
-    from skynav_core.cli import CliError
     from skynav_core.camera import EquidistantCamera
+    from skynav_core.cli import CliError
 
     from ..world import STYLES, generate
 
