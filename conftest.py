@@ -22,8 +22,16 @@ _domain_lock = None
 # pytest's importlib mode names a test module after its path (skynav_sh/test/test_x.py ->
 # skynav_sh.test.test_x) and would otherwise register the repository folder skynav_sh/ as an empty
 # namespace module that hides the real package.
-PACKAGES = ('skynav_core', 'skynav_bringup', 'skynav_skyline', 'skynav_sh', 'skynav_localize', 'skynav_compass',
-            'skynav_warping', 'skynav_sim')
+PACKAGES = (
+    'skynav_core',
+    'skynav_bringup',
+    'skynav_skyline',
+    'skynav_sh',
+    'skynav_localize',
+    'skynav_compass',
+    'skynav_warping',
+    'skynav_sim',
+)
 for _package in PACKAGES:
     importlib.import_module(_package)
 

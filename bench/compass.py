@@ -43,8 +43,10 @@ BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SETS = ('garden', 'mineral')
 PAIRS = (('fft-masked', 'exhaustive-masked'), ('fft-zero', 'exhaustive-zero'))
 # every method of the registry on the SH, then the pairs with the snapshot prepared once; the image methods
-SH_METHODS = (*(name for name, m in METHODS.items() if not m.needs_images),
-              *(name + PREPARED for pair in PAIRS for name in pair))
+SH_METHODS = (
+    *(name for name, m in METHODS.items() if not m.needs_images),
+    *(name + PREPARED for pair in PAIRS for name in pair),
+)
 IMAGE_METHODS = tuple(name for name, m in METHODS.items() if m.needs_images)
 
 
@@ -65,12 +67,16 @@ def ratio_lines(runs, label: str) -> list[str]:
             higher = np.mean(a.residuals > b.residuals + 1e-12)
             once = ''
             if suffix:
-                once = (f'; snapshot prepared once in {1e3 * by_name[fast + suffix].snapshot_seconds:.2f} /'
-                        f' {1e3 * by_name[slow + suffix].snapshot_seconds:.2f} ms')
-            lines.append(f'  {label} {mode}: {slow} / {fast} time ratio {ratio:5.1f}x  (median'
-                         f' {1e3 * np.median(b.seconds):.1f} ms vs {1e3 * np.median(a.seconds):.2f} ms{once});'
-                         f' median error {np.median(a.errors):.2f} vs {np.median(b.errors):.2f} deg; {fast} reached'
-                         f' the lower cost in {100 * lower:.0f} %, the higher in {100 * higher:.0f} % of the queries')
+                once = (
+                    f'; snapshot prepared once in {1e3 * by_name[fast + suffix].snapshot_seconds:.2f} /'
+                    f' {1e3 * by_name[slow + suffix].snapshot_seconds:.2f} ms'
+                )
+            lines.append(
+                f'  {label} {mode}: {slow} / {fast} time ratio {ratio:5.1f}x  (median'
+                f' {1e3 * np.median(b.seconds):.1f} ms vs {1e3 * np.median(a.seconds):.2f} ms{once});'
+                f' median error {np.median(a.errors):.2f} vs {np.median(b.errors):.2f} deg; {fast} reached'
+                f' the lower cost in {100 * lower:.0f} %, the higher in {100 * higher:.0f} % of the queries'
+            )
     return lines
 
 
@@ -80,8 +86,9 @@ def main() -> None:
     parser.add_argument('--repeats', type=int, default=3, help='timed runs per estimate (least counts)')
     parser.add_argument('--degrees', type=int, nargs='+', default=[16, 32])
     parser.add_argument('--plots', type=Path, default=None, help='directory for error plots (PNG)')
-    parser.add_argument('--bags', type=Path, nargs='+', default=None,
-                        help='compass sets to run (default: the bundled synthetic ones)')
+    parser.add_argument(
+        '--bags', type=Path, nargs='+', default=None, help='compass sets to run (default: the bundled synthetic ones)'
+    )
     parser.add_argument('--methods', nargs='+', default=None, help='methods to run (default: all)')
     args = parser.parse_args()
 
@@ -104,23 +111,36 @@ def main() -> None:
             runs = run_methods(data, standard_methods(data.camera, degree, names), queries, repeats=repeats)
             rotation = np.array([data.labels[i] == 'rotation' for i in queries])
             kind = 'synthetic' if data.synthetic else 'recorded'
-            print(f'\n== {data.name} ({kind}), L = {degree}: {rotation.sum()} pure rotations (tilt up to '
-                  f'{data.tilts()[queries][rotation].max():.0f} deg), {(~rotation).sum()} moved views (up to '
-                  f'{data.translations()[queries].max():.2f} m) ==')
+            print(
+                f'\n== {data.name} ({kind}), L = {degree}: {rotation.sum()} pure rotations (tilt up to '
+                f'{data.tilts()[queries][rotation].max():.0f} deg), {(~rotation).sum()} moved views (up to '
+                f'{data.translations()[queries].max():.2f} m) =='
+            )
             print(format_table(summary_rows([r.result for r in runs], {'rotation': rotation, 'moved': ~rotation})))
             aucs = [(r.result.method, r.result.separation()) for r in runs]
             print('  AUC over all views: ' + ', '.join(f'{m} {"-" if np.isnan(a) else f"{a:.3f}"}' for m, a in aucs))
-            print('  preparation per view (ms): ' + ', '.join(f'{r.result.method} {1e3 * r.prepare_seconds:.1f}'
-                                                          for r in runs))
+            print(
+                '  preparation per view (ms): '
+                + ', '.join(f'{r.result.method} {1e3 * r.prepare_seconds:.1f}' for r in runs)
+            )
             for line in ratio_lines(runs, f'L = {degree}'):
                 print(line)
             if args.plots is not None:
                 args.plots.mkdir(parents=True, exist_ok=True)
-                chosen = [r.result for r in runs if r.result.method in
-                          ('fft-masked', 'fft-zero', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')]
-                path = plot_errors(chosen, data.tilts()[queries], data.translations()[queries],
-                                   args.plots / f'compass_{name}_L{degree}.png', data.synthetic,
-                                   f'{data.name}, L = {degree}')
+                chosen = [
+                    r.result
+                    for r in runs
+                    if r.result.method
+                    in ('fft-masked', 'fft-zero', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')
+                ]
+                path = plot_errors(
+                    chosen,
+                    data.tilts()[queries],
+                    data.translations()[queries],
+                    args.plots / f'compass_{name}_L{degree}.png',
+                    data.synthetic,
+                    f'{data.name}, L = {degree}',
+                )
                 print(f'  plot: {path}')
 
 

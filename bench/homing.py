@@ -72,19 +72,23 @@ def main() -> None:
     true = true_home_directions(positions[1:], quaternions[1:], positions[0])
     rotations = true_rotations(quaternions[0], quaternions[1:])
     distance = np.linalg.norm(positions[1:] - positions[0], axis=1)
-    compass = [Rotation.from_rotvec(np.radians([1.0, 1.0, 3.0]) * np.random.default_rng(i).standard_normal(3))
-               .as_matrix() @ r for i, r in enumerate(rotations)]
+    compass = [
+        Rotation.from_rotvec(np.radians([1.0, 1.0, 3.0]) * np.random.default_rng(i).standard_normal(3)).as_matrix() @ r
+        for i, r in enumerate(rotations)
+    ]
 
     start = time.perf_counter()
     transform = FisheyeTransform(grid.camera, DEGREE, fill='zero')
     unwrapper = PanoramaUnwrapper(grid.camera)
     warping_tables(WarpingSettings())
     setup = time.perf_counter() - start
-    prepare_view = np.median([best_time(lambda m=m: view_from_fisheye(transform, m), args.repeats)[0]
-                              for m in grid.masks])
+    prepare_view = np.median(
+        [best_time(lambda m=m: view_from_fisheye(transform, m), args.repeats)[0] for m in grid.masks]
+    )
     coefficients = transform.coefficients(grid.masks[0])
-    prepare_coefficients = best_time(lambda: view_from_coefficients(coefficients, grid.camera.field_of_view, DEGREE),
-                                     args.repeats)[0]
+    prepare_coefficients = best_time(
+        lambda: view_from_coefficients(coefficients, grid.camera.field_of_view, DEGREE), args.repeats
+    )[0]
     prepare_band = np.median([best_time(lambda m=m: unwrapper(m), args.repeats)[0] for m in grid.masks])
     views = [view_from_fisheye(transform, m) for m in grid.masks]
     bands = [unwrapper(m) for m in grid.masks]
@@ -110,20 +114,34 @@ def main() -> None:
         estimates_map[name] = home_vectors_in_map(np.array(directions), quaternions[1:])
 
     reference = rows['3d-warping + compass']
-    print(f'homing benchmark on {Path(args.bag).name} ({"synthetic" if grid.synthetic else "recorded"} data): '
-          f'{len(true)} places {distance.min():.2f}-{distance.max():.2f} m from the snapshot, one thread')
+    print(
+        f'homing benchmark on {Path(args.bag).name} ({"synthetic" if grid.synthetic else "recorded"} data): '
+        f'{len(true)} places {distance.min():.2f}-{distance.max():.2f} m from the snapshot, one thread'
+    )
     print(f'setup (transform, panorama maps, warping tables): {setup * 1e3:.0f} ms once')
-    print(f'preparation per frame: mask -> SH view {prepare_view * 1e3:.2f} ms, SH coefficients -> view '
-          f'{prepare_coefficients * 1e3:.2f} ms, mask -> panoramic band {prepare_band * 1e3:.2f} ms')
-    print(f'{"method":<22}{"ms/estimate":>12}{"x 3d+compass":>13}{"median deg":>12}{"p90 deg":>9}'
-          f'{"median / 3d+compass":>21}')
+    print(
+        f'preparation per frame: mask -> SH view {prepare_view * 1e3:.2f} ms, SH coefficients -> view '
+        f'{prepare_coefficients * 1e3:.2f} ms, mask -> panoramic band {prepare_band * 1e3:.2f} ms'
+    )
+    print(
+        f'{"method":<22}{"ms/estimate":>12}{"x 3d+compass":>13}{"median deg":>12}{"p90 deg":>9}'
+        f'{"median / 3d+compass":>21}'
+    )
     for name, (seconds, median, p90) in rows.items():
-        print(f'{name:<22}{seconds * 1e3:>12.1f}{seconds / reference[0]:>13.2f}{median:>12.1f}{p90:>9.1f}'
-              f'{median / reference[1]:>21.2f}')
+        print(
+            f'{name:<22}{seconds * 1e3:>12.1f}{seconds / reference[0]:>13.2f}{median:>12.1f}{p90:>9.1f}'
+            f'{median / reference[1]:>21.2f}'
+        )
     if args.plot:
-        title = quiver_plot(args.plot, positions[1:], positions[0], home_vectors_in_map(true, quaternions[1:]),
-                            estimates_map, f'home vectors (unit, map x-y) on {Path(args.bag).name}',
-                            synthetic=grid.synthetic)
+        title = quiver_plot(
+            args.plot,
+            positions[1:],
+            positions[0],
+            home_vectors_in_map(true, quaternions[1:]),
+            estimates_map,
+            f'home vectors (unit, map x-y) on {Path(args.bag).name}',
+            synthetic=grid.synthetic,
+        )
         print(f'quiver plot "{title}" saved to {args.plot}')
 
 

@@ -64,8 +64,9 @@ def build_map(path: Path, count: int, degree: int, rng: np.random.Generator):
 
     def snapshots():
         for i in range(count):
-            yield Snapshot(i, i, rng.standard_normal(size), None,
-                           {'raw_uv': rng.standard_normal(raw_size).astype(np.float32)})
+            yield Snapshot(
+                i, i, rng.standard_normal(size), None, {'raw_uv': rng.standard_normal(raw_size).astype(np.float32)}
+            )
 
     build_map(path, f'random {count}', degree, snapshots()).close()
     start = time.perf_counter()
@@ -89,8 +90,10 @@ def main() -> None:
     rng = np.random.default_rng(0)
     coefficients = rng.standard_normal((args.degree + 1) ** 2)
     image = rng.integers(0, 256, IMAGE_SHAPE, dtype=np.uint8)
-    print(f'one thread; SH degree L = {args.degree}; random maps (timing only); '
-          f'baseline query image {IMAGE_SHAPE[1]}x{IMAGE_SHAPE[0]} mono8')
+    print(
+        f'one thread; SH degree L = {args.degree}; random maps (timing only); '
+        f'baseline query image {IMAGE_SHAPE[1]}x{IMAGE_SHAPE[0]} mono8'
+    )
     timings: dict[tuple[str, int], float] = {}
     loads: dict[tuple[str, int], float] = {}
     with tempfile.TemporaryDirectory() as folder:
@@ -99,33 +102,44 @@ def main() -> None:
             store, opening = build_map(Path(folder) / f'map{count}.db', count, args.degree, rng)
             built = time.perf_counter() - start
             megabytes = store.path.stat().st_size / 1e6
-            print(f'map of {count} snapshots: {megabytes:.1f} MB ({1e6 * megabytes / count:.0f} bytes per snapshot, '
-                  f'with the baseline\'s raw UV), built in {built:.1f} s, '
-                  f'opened and checked in {1e3 * opening:.0f} ms')
+            print(
+                f'map of {count} snapshots: {megabytes:.1f} MB ({1e6 * megabytes / count:.0f} bytes per snapshot, '
+                f"with the baseline's raw UV), built in {built:.1f} s, "
+                f'opened and checked in {1e3 * opening:.0f} ms'
+            )
             for name in METHODS:
                 start = time.perf_counter()
                 localizer = Localizer(store, name)
                 loads[name, count] = time.perf_counter() - start
-                query = ((lambda loc=localizer: loc.query(uv=image)) if localizer.method.source == 'uv'
-                         else (lambda loc=localizer: loc.query(coefficients)))
+                query = (
+                    (lambda loc=localizer: loc.query(uv=image))
+                    if localizer.method.source == 'uv'
+                    else (lambda loc=localizer: loc.query(coefficients))
+                )
                 for _ in range(localizer.sequence.length):
                     query()  # steady state: the sequence buffer is full
                 timings[name, count] = seconds_per_call(query)
             store.close()
 
     print()
-    header = f'{"method":<16}' + ''.join(f'{f"N={n} load (ms)":>20}{"query (ms)":>12}{"x baseline":>12}'
-                                         for n in args.sizes)
+    header = f'{"method":<16}' + ''.join(
+        f'{f"N={n} load (ms)":>20}{"query (ms)":>12}{"x baseline":>12}' for n in args.sizes
+    )
     print(header)
     print('-' * len(header))
     for name in METHODS:
-        cells = ''.join(f'{1e3 * loads[name, n]:20.1f}{1e3 * timings[name, n]:12.3f}'
-                        f'{timings[name, n] / timings["seqslam-raw-uv", n]:12.2f}' for n in args.sizes)
+        cells = ''.join(
+            f'{1e3 * loads[name, n]:20.1f}{1e3 * timings[name, n]:12.3f}'
+            f'{timings[name, n] / timings["seqslam-raw-uv", n]:12.2f}'
+            for n in args.sizes
+        )
         print(f'{name:<16}{cells}')
     largest = max(args.sizes)
     verdict = 'meets' if 1e3 * timings['amplitude', largest] < TARGET_MS else 'misses'
-    print(f'\namplitude at N={largest}: {1e3 * timings["amplitude", largest]:.3f} ms per query, {verdict} the '
-          f'{TARGET_MS:g} ms target; amplitude-seq {1e3 * timings["amplitude-seq", largest]:.3f} ms')
+    print(
+        f'\namplitude at N={largest}: {1e3 * timings["amplitude", largest]:.3f} ms per query, {verdict} the '
+        f'{TARGET_MS:g} ms target; amplitude-seq {1e3 * timings["amplitude-seq", largest]:.3f} ms'
+    )
 
 
 if __name__ == '__main__':

@@ -46,8 +46,9 @@ def write_pairs(path: Path, pairs: int) -> list[bytes]:
             header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9), 'camera_link')
             for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
                 pixels = (scene + rng.normal(0, 300, scene.shape)).clip(0, 65535).astype(np.uint16)
-                image = T['sensor_msgs/msg/Image'](header, HEIGHT, WIDTH, 'mono16', 0, 2 * WIDTH,
-                                                   pixels.view(np.uint8).ravel())
+                image = T['sensor_msgs/msg/Image'](
+                    header, HEIGHT, WIDTH, 'mono16', 0, 2 * WIDTH, pixels.view(np.uint8).ravel()
+                )
                 blob = bytes(typestore().serialize_cdr(image, 'sensor_msgs/msg/Image'))
                 writer.write(topic, t, blob)
                 blobs.append(blob)
@@ -67,8 +68,10 @@ def bare_publisher_rate(blobs: list[bytes]) -> float:
     rclpy.init(context=context)
     node = Node('bare_publisher', context=context)
     publisher = node.create_publisher(
-        message_class('sensor_msgs/msg/Image'), '/camera/uv/image_raw',
-        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        message_class('sensor_msgs/msg/Image'),
+        '/camera/uv/image_raw',
+        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
+    )
     with tempfile.TemporaryDirectory() as tmp:
         recorder = start_skynav('record', f'{tmp}/bare.mcap', '/camera/uv/image_raw')
         wait_text(recorder, 'recording')
@@ -104,8 +107,21 @@ def main() -> int:
         recorder = start_skynav('record', str(copy), '/camera/uv/image_raw', '/camera/green/image_raw')
         wait_text(recorder, 'recording')
         replay = subprocess.run(
-            [sys.executable, '-m', 'skynav_bringup.cli', 'replay', str(source), '--rate', '0',
-             '--wait-for-subscribers', '30'], capture_output=True, text=True, check=True)
+            [
+                sys.executable,
+                '-m',
+                'skynav_bringup.cli',
+                'replay',
+                str(source),
+                '--rate',
+                '0',
+                '--wait-for-subscribers',
+                '30',
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         recorder.send_signal(signal.SIGINT)
         recorder.wait(timeout=60)
         # The replay reports its own publishing time (after discovery, until every message is acknowledged).
@@ -116,8 +132,10 @@ def main() -> int:
 
     replay_rate = len(blobs) / seconds
     print(f'images: {len(blobs)} ({args.pairs} UV+green pairs, {WIDTH}x{HEIGHT} mono16, {megabytes:.0f} MB)')
-    print(f'skynav replay --rate 0 : {replay_rate:7.1f} msg/s  {replay_rate / 2:6.1f} pairs/s  '
-          f'{megabytes / seconds:6.1f} MB/s')
+    print(
+        f'skynav replay --rate 0 : {replay_rate:7.1f} msg/s  {replay_rate / 2:6.1f} pairs/s  '
+        f'{megabytes / seconds:6.1f} MB/s'
+    )
     print(f'bare rclpy publisher   : {bare:7.1f} msg/s  (the same bytes from memory)')
     print(f'ratio replay / bare    : {replay_rate / bare:.2f}')
     print(f'skynav record kept     : {kept}/{len(blobs)} ({len(blobs) - kept} lost)')

@@ -87,8 +87,14 @@ def check_conversion(degree: int) -> float:
     by_ducc = ducc0.sht.experimental.analysis_2d(map=samples[None], spin=0, lmax=degree, geometry='GL', nthreads=1)
     worst = np.abs(complex_to_real(by_ducc[0], degree) - coefficients).max()
     ducc_samples = ducc0.sht.experimental.synthesis_2d(
-        alm=real_to_complex(coefficients, degree)[None], spin=0, lmax=degree, geometry='GL', ntheta=g.n_theta,
-        nphi=g.n_phi, nthreads=1)[0]
+        alm=real_to_complex(coefficients, degree)[None],
+        spin=0,
+        lmax=degree,
+        geometry='GL',
+        ntheta=g.n_theta,
+        nphi=g.n_phi,
+        nthreads=1,
+    )[0]
     worst = max(worst, np.abs(ducc_samples - samples).max() / np.abs(samples).max())
     rotation = Rotation.from_rotvec([0.3, -1.1, 0.7])
     alpha, beta, gamma = zyz_angles(rotation)  # ducc0: psi about z, theta about y, phi about z, extrinsic
@@ -146,13 +152,30 @@ def main() -> None:
         samples = g.synthesis(coefficients)
         ducc_map = samples[None].copy()
         alm = real_to_complex(coefficients, degree)[None]
-        rows.append(('forward transform (analysis)', degree, measure(lambda: g.analysis(samples)),
-                     measure(lambda: ducc0.sht.experimental.analysis_2d(
-                         map=ducc_map, spin=0, lmax=degree, geometry='GL', nthreads=1))))
-        rows.append(('inverse transform (synthesis)', degree, measure(lambda: g.synthesis(coefficients)),
-                     measure(lambda: ducc0.sht.experimental.synthesis_2d(
-                         alm=alm, spin=0, lmax=degree, geometry='GL', ntheta=g.n_theta, nphi=g.n_phi,
-                         nthreads=1))))
+        rows.append(
+            (
+                'forward transform (analysis)',
+                degree,
+                measure(lambda: g.analysis(samples)),
+                measure(
+                    lambda: ducc0.sht.experimental.analysis_2d(
+                        map=ducc_map, spin=0, lmax=degree, geometry='GL', nthreads=1
+                    )
+                ),
+            )
+        )
+        rows.append(
+            (
+                'inverse transform (synthesis)',
+                degree,
+                measure(lambda: g.synthesis(coefficients)),
+                measure(
+                    lambda: ducc0.sht.experimental.synthesis_2d(
+                        alm=alm, spin=0, lmax=degree, geometry='GL', ntheta=g.n_theta, nphi=g.n_phi, nthreads=1
+                    )
+                ),
+            )
+        )
 
     camera = EquidistantCamera.for_field_of_view(640, 480, np.radians(200))
     mask = skyline_mask(camera)
@@ -161,28 +184,66 @@ def main() -> None:
     for degree in (16, 32, 64):
         transform = FisheyeTransform(camera, degree)  # defaults: zero fill, 4x finer grid, 2x2 sub-samples
         fine = transform.grid
-        rows.append((f'fish-eye mask -> coeffs ({fine.n_theta}x{fine.n_phi} grid)', degree,
-                     measure(lambda: transform.coefficients(mask)),
-                     measure(lambda: ducc0.sht.experimental.analysis_2d(
-                         map=transform.samples(mask)[None], spin=0, lmax=degree, geometry='GL', nthreads=1))))
+        rows.append(
+            (
+                f'fish-eye mask -> coeffs ({fine.n_theta}x{fine.n_phi} grid)',
+                degree,
+                measure(lambda: transform.coefficients(mask)),
+                measure(
+                    lambda: ducc0.sht.experimental.analysis_2d(
+                        map=transform.samples(mask)[None], spin=0, lmax=degree, geometry='GL', nthreads=1
+                    )
+                ),
+            )
+        )
         coefficients = rng.standard_normal((degree + 1) ** 2)
         alm = real_to_complex(coefficients, degree)
         quarter_turn(degree)  # the cached table is built once per degree
-        rows.append(('general rotation', degree, measure(lambda: rotate(coefficients, rotation)),
-                     measure(lambda: ducc0.sht.rotate_alm(alm, degree, gamma, beta, alpha, nthreads=1))))
+        rows.append(
+            (
+                'general rotation',
+                degree,
+                measure(lambda: rotate(coefficients, rotation)),
+                measure(lambda: ducc0.sht.rotate_alm(alm, degree, gamma, beta, alpha, nthreads=1)),
+            )
+        )
         rows.append(('amplitude spectrum', degree, measure(lambda: amplitude_spectrum(coefficients)), None))
-        rows.append((f'bispectrum ({bispectrum_size(degree)} triples, grid)', degree,
-                     measure(lambda: bispectrum(coefficients)), None))
+        rows.append(
+            (
+                f'bispectrum ({bispectrum_size(degree)} triples, grid)',
+                degree,
+                measure(lambda: bispectrum(coefficients)),
+                None,
+            )
+        )
         visibility = transform.visibility_coefficients
         view = MaskedView.from_coefficients(transform.coefficients(mask), visibility)
-        rows.append(('masked view terms (v, v f, v f^2)', degree,
-                     measure(lambda: MaskedView.from_coefficients(coefficients, visibility)), None))
-        rows.append(('rotate masked view + masked distance', degree,
-                     measure(lambda: masked_distance_views(view.rotated(rotation), view)), None))
+        rows.append(
+            (
+                'masked view terms (v, v f, v f^2)',
+                degree,
+                measure(lambda: MaskedView.from_coefficients(coefficients, visibility)),
+                None,
+            )
+        )
+        rows.append(
+            (
+                'rotate masked view + masked distance',
+                degree,
+                measure(lambda: masked_distance_views(view.rotated(rotation), view)),
+                None,
+            )
+        )
         if degree <= 16:
             bispectrum(coefficients, method='gaunt')  # builds the cached Gaunt table
-            rows.append(('bispectrum (Gaunt contraction)', degree,
-                         measure(lambda: bispectrum(coefficients, method='gaunt')), None))
+            rows.append(
+                (
+                    'bispectrum (Gaunt contraction)',
+                    degree,
+                    measure(lambda: bispectrum(coefficients, method='gaunt')),
+                    None,
+                )
+            )
 
     print()
     print('one thread; best of 5 runs; ducc0', ducc0.__version__, '| numpy', np.__version__)

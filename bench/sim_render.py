@@ -49,8 +49,10 @@ def main() -> int:
                 times.append(now - start)
                 start = now
             median, p90 = np.median(times), np.percentile(times, 90)
-            print(f'{style:8s} {width:>4d}x{height:<3d} {median * 1e3:7.0f}ms {p90 * 1e3:7.0f}ms '
-                  f'{median / FRAME_PERIOD:8.2f}')
+            print(
+                f'{style:8s} {width:>4d}x{height:<3d} {median * 1e3:7.0f}ms {p90 * 1e3:7.0f}ms '
+                f'{median / FRAME_PERIOD:8.2f}'
+            )
     return 0
 
 

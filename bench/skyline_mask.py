@@ -73,8 +73,9 @@ def main() -> int:
     rows = [(method, channels, {}) for channels in ('uv', 'uv-green') for method in METHODS]
     rows.append((shipped['method'], shipped['channels'], {'hole_margin': 0.0, 'ring_share': math.inf}))
     for method, channels, changes in rows:
-        segmenter = SkylineSegmenter(geometry, skyline_params({**shipped, 'method': method, 'channels': channels,
-                                                               **changes}))
+        segmenter = SkylineSegmenter(
+            geometry, skyline_params({**shipped, 'method': method, 'channels': channels, **changes})
+        )
 
         def run(uv: np.ndarray, green: np.ndarray) -> None:
             segmenter.segment(uv, green, args.encoding, args.encoding)
@@ -83,8 +84,7 @@ def main() -> int:
         ms = mask_times_ms(run, exposures)
         median = float(np.median(ms))
         label = method + (' -structure' if changes else '')
-        print(f'{label:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} '
-              f'{median / peer_median:10.1f}')
+        print(f'{label:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} {median / peer_median:10.1f}')
     print(f'{"cv2 Otsu (peer)":18s} {"uv":9s} {peer_median:9.2f} {np.percentile(peer_ms, 90):7.2f} {1.0:10.1f}')
     return 0
 

@@ -23,8 +23,14 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     publisher = node.create_publisher(PlaceMatch, '/localization/match', 10)
-    message = PlaceMatch(map_name='garden', index=42, distance=0.125, accepted=True,
-                         candidate_indices=list(range(40)), candidate_distances=[0.5, 1.5])
+    message = PlaceMatch(
+        map_name='garden',
+        index=42,
+        distance=0.125,
+        accepted=True,
+        candidate_indices=list(range(40)),
+        candidate_distances=[0.5, 1.5],
+    )
     message.header.frame_id = 'camera_link'
     message.snapshot_stamp.sec = 1234
     echo = start_skynav('echo', '/localization/match', '--once')
@@ -66,7 +72,8 @@ def test_replay_of_damaged_bags_fails_in_one_line(tmp_path):
 
 def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
     # A trivial node, registered the way skynav packages register theirs (a `skynav.nodes` entry point).
-    (tmp_path / 'trivial_node.py').write_text(textwrap.dedent('''
+    (tmp_path / 'trivial_node.py').write_text(
+        textwrap.dedent("""
         from rclpy.node import Node
         from skynav_core.ros import run_node
 
@@ -78,7 +85,8 @@ def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
 
         def main(args=None):
             return run_node(Trivial, args)
-    '''))
+    """)
+    )
     dist = tmp_path / 'trivial_node-1.0.dist-info'
     dist.mkdir()
     (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: trivial-node\nVersion: 1.0\n')
@@ -89,7 +97,10 @@ def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
 
     launch = subprocess.Popen(
         [sys.executable, '-m', 'skynav_bringup.cli', 'launch', '--params', str(params)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
     )
     lines = wait_text(launch, 'trivial node up', stream='stdout')
     assert any('[trivial]' in line and 'greeting=hello' in line for line in lines)

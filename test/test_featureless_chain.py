@@ -35,10 +35,15 @@ def masks(camera):
     directions = camera.pixel_directions()
     up, azimuth = directions[..., 2], np.arctan2(directions[..., 1], directions[..., 0])
     circle = camera.image_circle()
-    return {name: (sky & circle).astype(np.uint8) * 255 for name, sky in {
-        'sky': np.ones_like(circle), 'ground': np.zeros_like(circle),
-        'open field': up > np.sin(np.radians(1.5)),
-        'skyline': up > np.sin(np.radians(20 + 15 * np.sin(3 * azimuth)))}.items()}
+    return {
+        name: (sky & circle).astype(np.uint8) * 255
+        for name, sky in {
+            'sky': np.ones_like(circle),
+            'ground': np.zeros_like(circle),
+            'open field': up > np.sin(np.radians(1.5)),
+            'skyline': up > np.sin(np.radians(20 + 15 * np.sin(3 * azimuth))),
+        }.items()
+    }
 
 
 @pytest.fixture(scope='module')
@@ -91,12 +96,15 @@ def test_compass_and_warping_cores_give_finite_answers_and_no_confidence_without
     for snapshot_name, snapshot in coefficients.items():
         for current_name, current in coefficients.items():
             pair = (snapshot_name, current_name)
-            estimate = compass.estimate(CompassView.from_sh_message(snapshot, FOV, 'zero', DEGREE),
-                                        CompassView.from_sh_message(current, FOV, 'zero', DEGREE))
+            estimate = compass.estimate(
+                CompassView.from_sh_message(snapshot, FOV, 'zero', DEGREE),
+                CompassView.from_sh_message(current, FOV, 'zero', DEGREE),
+            )
             np.testing.assert_allclose(estimate.matrix @ estimate.matrix.T, np.eye(3), atol=1e-9)
             assert np.isfinite(estimate.residual), pair
-            home = estimate_home_vector(view_from_coefficients(current, FOV, DEGREE),
-                                        view_from_coefficients(snapshot, FOV, DEGREE))
+            home = estimate_home_vector(
+                view_from_coefficients(current, FOV, DEGREE), view_from_coefficients(snapshot, FOV, DEGREE)
+            )
             assert np.all(np.isfinite(home.best_direction)) and np.all(np.isfinite(home.rotation)), pair
             assert np.isfinite(home.residual) and 0.0 <= home.confidence <= 1.0, pair
             if snapshot_name in blank or current_name in blank:

@@ -19,8 +19,16 @@ ALLOWED = {
     'skynav_compass': {'skynav_msgs', 'skynav_core', 'skynav_sh'},
     'skynav_warping': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_compass'},
     'skynav_sim': {'skynav_msgs', 'skynav_core', 'skynav_localize'},
-    'skynav_bringup': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_skyline', 'skynav_localize',
-                       'skynav_compass', 'skynav_warping', 'skynav_sim'},
+    'skynav_bringup': {
+        'skynav_msgs',
+        'skynav_core',
+        'skynav_sh',
+        'skynav_skyline',
+        'skynav_localize',
+        'skynav_compass',
+        'skynav_warping',
+        'skynav_sim',
+    },
 }
 
 
@@ -51,10 +59,12 @@ def test_the_diagram_of_the_docs_is_the_table_here():
 def test_a_package_imports_only_along_the_documented_edges(package):
     code = ROOT / package / package
     assert code.is_dir()
-    breaks = sorted(f'{path.relative_to(ROOT)}:{line} imports {target}'
-                    for path in code.rglob('*.py')
-                    for target, line in imported_packages(path)
-                    if target != package and target not in ALLOWED[package])
+    breaks = sorted(
+        f'{path.relative_to(ROOT)}:{line} imports {target}'
+        for path in code.rglob('*.py')
+        for target, line in imported_packages(path)
+        if target != package and target not in ALLOWED[package]
+    )
     assert breaks == []
 
 

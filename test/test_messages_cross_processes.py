@@ -40,7 +40,9 @@ def test_every_message_type_crosses_processes(tmp_path, ros_context):
     received = {topic: [] for topic in topics}
     for topic, msgtype in topics.items():
         node.create_subscription(
-            message_class(msgtype), topic, received[topic].append,
+            message_class(msgtype),
+            topic,
+            received[topic].append,
             QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE),
         )
     replay = start_skynav('replay', str(tmp_path / 'all_types.mcap'), '--rate', '0', '--wait-for-subscribers', '30')
@@ -53,8 +55,13 @@ def test_every_message_type_crosses_processes(tmp_path, ros_context):
         theirs = [rclpy_to_plain(m) for m in received[topic]]
         assert theirs == mine, topic
     assert set(topics) >= {
-        '/skyline/sh', '/localization/match', '/compass/orientation', '/homing/home_vector',
-        '/camera/uv/image_raw', '/camera/uv/camera_info', '/ground_truth/pose',
+        '/skyline/sh',
+        '/localization/match',
+        '/compass/orientation',
+        '/homing/home_vector',
+        '/camera/uv/image_raw',
+        '/camera/uv/camera_info',
+        '/ground_truth/pose',
     }
     executor.shutdown()
     node.destroy_node()

@@ -48,9 +48,11 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     matches, compass, homing = {}, {}, {}
-    for topic, message_type, received in (('/localization/match', PlaceMatch, matches),
-                                          ('/compass/orientation', CompassEstimate, compass),
-                                          ('/homing/home_vector', HomeVector, homing)):
+    for topic, message_type, received in (
+        ('/localization/match', PlaceMatch, matches),
+        ('/compass/orientation', CompassEstimate, compass),
+        ('/homing/home_vector', HomeVector, homing),
+    ):
         node.create_subscription(message_type, topic, lambda m, r=received: r.__setitem__(stamp_ns(m.header), m), 100)
     launch = start_skynav('launch', '--map', str(map_file))
     try:
@@ -60,11 +62,23 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
         deadline = time.monotonic() + 60
         outputs = ('/localization/match', '/compass/orientation', '/homing/home_vector')
         readers = {'/skyline/mask': 1, '/skyline/sh': 3, '/localization/match': 3, '/compass/orientation': 2}
-        while time.monotonic() < deadline and (min(node.count_publishers(t) for t in outputs) == 0 or any(
-                node.count_subscribers(t) < n for t, n in readers.items())):
+        while time.monotonic() < deadline and (
+            min(node.count_publishers(t) for t in outputs) == 0
+            or any(node.count_subscribers(t) < n for t, n in readers.items())
+        ):
             executor.spin_once(timeout_sec=0.1)
-        replay = start_skynav('replay', str(repeat), '--rate', '1', '--wait-for-subscribers', '30',
-                              '--topics', '/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+        replay = start_skynav(
+            'replay',
+            str(repeat),
+            '--rate',
+            '1',
+            '--wait-for-subscribers',
+            '30',
+            '--topics',
+            '/camera/uv/image_raw',
+            '/camera/green/image_raw',
+            '/camera/uv/camera_info',
+        )
         while replay.poll() is None:
             executor.spin_once(timeout_sec=0.05)
         assert replay.returncode == 0, replay.stderr.read()

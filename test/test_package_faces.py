@@ -20,8 +20,10 @@ def test_every_exported_name_resolves(package):
 
 
 def test_importing_the_packages_loads_no_submodule_and_no_scipy():
-    code = (f'import sys; import {", ".join(PACKAGES)}; '
-            f'loaded = [m for m in sys.modules if m.startswith({PACKAGES!r}) and m.count(".") == 1 '
-            f'and not m.endswith(".lazy")]; print(loaded, "scipy" in sys.modules)')
+    code = (
+        f'import sys; import {", ".join(PACKAGES)}; '
+        f'loaded = [m for m in sys.modules if m.startswith({PACKAGES!r}) and m.count(".") == 1 '
+        f'and not m.endswith(".lazy")]; print(loaded, "scipy" in sys.modules)'
+    )
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == '[] False'

@@ -44,8 +44,9 @@ def test_replay_follows_the_recorded_timing(tmp_path):
     out = tmp_path / 'timed_copy.mcap'
     recorder = start_skynav('record', str(out), '/skyline/sh')
     wait_text(recorder, 'recording')
-    replay = start_skynav('replay', str(source), '--rate', '2', '--topics', '/skyline/sh',
-                          '--wait-for-subscribers', '30')
+    replay = start_skynav(
+        'replay', str(source), '--rate', '2', '--topics', '/skyline/sh', '--wait-for-subscribers', '30'
+    )
     assert replay.wait(timeout=60) == 0, replay.stderr.read()
     recorder.send_signal(signal.SIGINT)
     assert recorder.wait(timeout=30) == 0

@@ -37,8 +37,12 @@ def ground_truth(path):
 
 def start_node(module: str, *ros_args: str) -> subprocess.Popen:
     """Start a node class in a process of its own, as `skynav launch` does."""
-    return subprocess.Popen([sys.executable, '-m', 'skynav_core.run_node', module, '--ros-args', *ros_args],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    return subprocess.Popen(
+        [sys.executable, '-m', 'skynav_core.run_node', module, '--ros-args', *ros_args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
 
 
 def spin_until(executor, done, timeout):
@@ -72,9 +76,18 @@ def test_replayed_recording_gives_masks_that_match_ground_truth(graph_node):
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
         assert spin_until(executor, lambda: node.count_publishers('/skyline/mask') > 0, 30)
-        replay = start_skynav('replay', str(bag), '--rate', '1', '--wait-for-subscribers', '30',
-                              '--topics', '/camera/uv/image_raw', '/camera/green/image_raw',
-                              '/camera/uv/camera_info')
+        replay = start_skynav(
+            'replay',
+            str(bag),
+            '--rate',
+            '1',
+            '--wait-for-subscribers',
+            '30',
+            '--topics',
+            '/camera/uv/image_raw',
+            '/camera/green/image_raw',
+            '/camera/uv/camera_info',
+        )
         assert replay.wait(timeout=120) == 0, replay.stderr.read()
         spin_until(executor, lambda: len(masks) == len(truths), 30)
     finally:
@@ -95,8 +108,13 @@ def _image(encoding, pixels, stamp, frame='camera_link'):
     from sensor_msgs.msg import Image
 
     if encoding == 'rgb8':  # not an encoding of the contract: built by hand
-        message = Image(height=pixels.shape[0], width=pixels.shape[1] // 3, encoding='rgb8', step=pixels.shape[1],
-                        data=pixels.tobytes())
+        message = Image(
+            height=pixels.shape[0],
+            width=pixels.shape[1] // 3,
+            encoding='rgb8',
+            step=pixels.shape[1],
+            data=pixels.tobytes(),
+        )
     else:
         message = fill_image(Image(), pixels, encoding)
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
@@ -135,8 +153,16 @@ def test_bad_input_is_logged_counted_and_survived(graph_node):
     node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
-        assert spin_until(executor, lambda: uv_pub.get_subscription_count() and green_pub.get_subscription_count()
-                          and info_pub.get_subscription_count() and node.count_publishers('/skyline/mask'), 30)
+        assert spin_until(
+            executor,
+            lambda: (
+                uv_pub.get_subscription_count()
+                and green_pub.get_subscription_count()
+                and info_pub.get_subscription_count()
+                and node.count_publishers('/skyline/mask')
+            ),
+            30,
+        )
         rng = np.random.default_rng(0)
         sky = np.full((48, 64), 30000, np.uint16)
         sky[:, :20] = 2000  # a band of ground
@@ -171,9 +197,14 @@ def test_bad_input_is_logged_counted_and_survived(graph_node):
             values = _diagnostic_values(diagnostics[-1], 'skynav/skyline') if diagnostics else None
             return values or {}
 
-        assert spin_until(executor, lambda: all(int(counts().get(f'rejected_{reason}', 0)) >= 1 for reason in
-                                                ('encoding', 'size_mismatch', 'invalid_image', 'out_of_order')), 30), \
-            ' '.join(f'{k}={v}' for k, v in sorted(counts().items()))
+        assert spin_until(
+            executor,
+            lambda: all(
+                int(counts().get(f'rejected_{reason}', 0)) >= 1
+                for reason in ('encoding', 'size_mismatch', 'invalid_image', 'out_of_order')
+            ),
+            30,
+        ), ' '.join(f'{k}={v}' for k, v in sorted(counts().items()))
         assert skyline.poll() is None  # still serving
         assert int(counts()['errors']) == 0
         assert [stamp_ns(m.header) for m in masks] == [t0 + (k + 4) * step]
@@ -196,8 +227,7 @@ def test_missing_camera_info_is_counted_and_nothing_crashes(graph_node):
     node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
-        assert spin_until(executor, lambda: uv_pub.get_subscription_count() and green_pub.get_subscription_count(),
-                          30)
+        assert spin_until(executor, lambda: uv_pub.get_subscription_count() and green_pub.get_subscription_count(), 30)
         pixels = np.full((48, 64), 1000, np.uint16)
         for k in range(40):  # more exposures than the node holds while it waits for camera info
             stamp = 1_800_000_000 * 10**9 + k * 10**8

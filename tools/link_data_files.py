@@ -26,8 +26,9 @@ def data_files(package_dir: Path) -> list[tuple[str, list[str]]]:
         return []
     declared = []
     for target, patterns in config.items('options.data_files'):
-        files = sorted(str(path.relative_to(package_dir)) for pattern in patterns.split()
-                       for path in package_dir.glob(pattern))
+        files = sorted(
+            str(path.relative_to(package_dir)) for pattern in patterns.split() for path in package_dir.glob(pattern)
+        )
         declared.append((target, files))
     return declared
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Write skynav_bringup/config/skynav.yaml from the installed nodes' parameter tables.
 
-    .venv/bin/python tools/write_parameters.py
+.venv/bin/python tools/write_parameters.py
 """
 
 from skynav_bringup.parameters import SHIPPED, shipped_parameter_file

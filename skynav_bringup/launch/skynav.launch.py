@@ -32,6 +32,4 @@ def generate_launch_description():
         for spec in installed_nodes()
         if spec.executable is not None
     ]
-    return LaunchDescription(
-        [DeclareLaunchArgument('params_file', default_value=str(default_params))] + nodes
-    )
+    return LaunchDescription([DeclareLaunchArgument('params_file', default_value=str(default_params))] + nodes)

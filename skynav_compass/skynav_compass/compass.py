@@ -49,10 +49,12 @@ MAX_TILT = np.radians(45.0)
 #: Evidence (sharpness x skyline share, rad^-2) at which the confidence is 1/2: on the real-landscape and synthetic
 #: compass sets, estimates within 5 degrees of the truth mostly lie far above it, wrong ones below it.
 CONFIDENCE_SCALE = 0.05
-UNITS = {('masked', False): 'mean squared difference over the overlap (value^2)',
-         ('masked', True): '1 - correlation coefficient over the overlap',
-         ('plain', False): 'integral of the squared difference (value^2 sr)',
-         ('plain', True): '2 - 2 correlation of unit-norm views without c_00'}
+UNITS = {
+    ('masked', False): 'mean squared difference over the overlap (value^2)',
+    ('masked', True): '1 - correlation coefficient over the overlap',
+    ('plain', False): 'integral of the squared difference (value^2 sr)',
+    ('plain', True): '2 - 2 correlation of unit-norm views without c_00',
+}
 
 
 @dataclass(frozen=True)
@@ -123,7 +125,7 @@ class Compass:
     @property
     def method(self) -> str:
         """Return a short name of the configured method."""
-        return f"fft-{self.config.cost}{'-normalised' if self.config.normalise else ''}"
+        return f'fft-{self.config.cost}{"-normalised" if self.config.normalise else ""}'
 
     def prepare(self, snapshot: Snapshot) -> PreparedSnapshot:
         """Return the snapshot's side of this compass's cost, built once for any number of estimates against it.
@@ -161,8 +163,9 @@ class Compass:
         costs = problem.grid_costs(self.grid)
         poles = tuple(k for k, beta in enumerate(self.grid.betas) if min(beta, np.pi - beta) < 1e-12)
         minima = grid_minima(costs, c.hypotheses, poles)
-        failed = CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, UNITS[c.cost, c.normalise],
-                                 confidence=0.0)
+        failed = CompassEstimate(
+            np.eye(3), float('inf'), (), 0.0, False, self.method, UNITS[c.cost, c.normalise], confidence=0.0
+        )
         if not minima:
             return failed
         angles = np.array([self.grid.angles(index) for index in minima])
@@ -185,8 +188,9 @@ class Compass:
             results = self._optima(problem, starts, start_jets, typical, details)
         found: list[tuple[Hypothesis, Refined]] = []
         for result in results:  # best first
-            if np.isfinite(result.cost) and all(rotation_angle(result.matrix, h.matrix) > c.separation
-                                                for h, _ in found):
+            if np.isfinite(result.cost) and all(
+                rotation_angle(result.matrix, h.matrix) > c.separation for h, _ in found
+            ):
                 found.append((Hypothesis(result.matrix, result.cost), result))
         if not found:
             return failed
@@ -203,16 +207,28 @@ class Compass:
         if verified is not None:  # and how much of the overlap holds skyline (sky and ground both)
             evidence = sharpness * float(verified.contrast[0])
         else:  # and how clearly the best stands out of the other hypotheses
-            evidence = sharpness * min(relative / c.min_relative_margin, 1.0) if c.min_relative_margin > 0 \
-                else sharpness
+            evidence = (
+                sharpness * min(relative / c.min_relative_margin, 1.0) if c.min_relative_margin > 0 else sharpness
+            )
         confidence = evidence / (evidence + CONFIDENCE_SCALE)
         details.update(sharpness=sharpness)
         confident = best.cost <= c.max_residual and confidence >= c.min_confidence
-        return CompassEstimate(best.matrix, best.cost, tuple(h for h, _ in found), margin, confident, self.method,
-                               UNITS[c.cost, c.normalise], details, relative_margin=relative, confidence=confidence)
+        return CompassEstimate(
+            best.matrix,
+            best.cost,
+            tuple(h for h, _ in found),
+            margin,
+            confident,
+            self.method,
+            UNITS[c.cost, c.normalise],
+            details,
+            relative_margin=relative,
+            confidence=confidence,
+        )
 
-    def _optima(self, problem: CostProblem, starts: np.ndarray, start_jets: list, typical: float,
-                details: dict) -> list[Refined]:
+    def _optima(
+        self, problem: CostProblem, starts: np.ndarray, start_jets: list, typical: float, details: dict
+    ) -> list[Refined]:
         """Return the local optima of the SH cost near the starts (3x3 each), lowest cost first.
 
         The best start is refined to convergence; for the others one Newton model predicts the cost of their local
@@ -233,29 +249,37 @@ class Compass:
         details.update(refine_iterations=sum(r.iterations for r in results), predicted_hypotheses=predicted)
         return sorted(results, key=lambda r: r.cost)
 
-    def _verified_optima(self, problem: CostProblem, starts: np.ndarray, start_jets: list,
-                         details: dict) -> list[Refined]:
+    def _verified_optima(
+        self, problem: CostProblem, starts: np.ndarray, start_jets: list, details: dict
+    ) -> list[Refined]:
         """Return local optima of the SH cost near the starts, ranked on sphere samples of the two masks (verify.py).
 
         Every start takes one Newton step (its Jet is at hand) and is verified there; the best few by verification
         are refined to convergence and verified again, best first.
         """
         c = self.config
-        stepped = [newton_prediction(problem, matrix, radius=self.grid.step, jet=jet, max_tilt=c.max_tilt)
-                   for matrix, jet in zip(starts, start_jets)]
+        stepped = [
+            newton_prediction(problem, matrix, radius=self.grid.step, jet=jet, max_tilt=c.max_tilt)
+            for matrix, jet in zip(starts, start_jets)
+        ]
         masks = current_masks(problem)
         first = verify(problem, np.stack([r.matrix for r in stepped]), masks)
         chosen = np.lexsort(([r.cost for r in stepped], first.score))[: c.refined]
         results = [refine(problem, stepped[k].matrix, radius=self.grid.step, max_tilt=c.max_tilt) for k in chosen]
         checked = verify(problem, np.stack([r.matrix for r in results]), masks)
         order = np.lexsort(([r.cost for r in results], checked.score))
-        details.update(refine_iterations=sum(r.iterations for r in results), verified=checked.subset(order),
-                       screened=first, hessian=results[order[0]].hessian)
+        details.update(
+            refine_iterations=sum(r.iterations for r in results),
+            verified=checked.subset(order),
+            screened=first,
+            hessian=results[order[0]].hessian,
+        )
         return [results[k] for k in order]
 
 
-def estimate_rotation(snapshot: Snapshot, current: View, max_degree: int | None = None,
-                      config: CompassConfig | None = None) -> CompassEstimate:
+def estimate_rotation(
+    snapshot: Snapshot, current: View, max_degree: int | None = None, config: CompassConfig | None = None
+) -> CompassEstimate:
     """Return the compass estimate of two views with a cached Compass of degree L (default: the views' degree)."""
     if max_degree is None:
         if isinstance(snapshot, PreparedSnapshot):

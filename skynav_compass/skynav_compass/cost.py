@@ -70,8 +70,11 @@ class Jet:
     def __mul__(self, other: Jet | float) -> Jet:
         other = Jet._lift(other)
         cross = np.outer(self.grad, other.grad)
-        return Jet(self.value * other.value, self.value * other.grad + other.value * self.grad,
-                   self.value * other.hess + other.value * self.hess + cross + cross.T)
+        return Jet(
+            self.value * other.value,
+            self.value * other.grad + other.value * self.grad,
+            self.value * other.hess + other.value * self.hess + cross + cross.T,
+        )
 
     __rmul__ = __mul__
 
@@ -122,8 +125,14 @@ PLAIN_CHANNELS: tuple[Channel, ...] = (((0, 0, 1.0),),)  # <f_s, D f_c>
 # masked: a = (v_s f_s^2, v_s f_s, v_s), b = (v_c, v_c f_c, v_c f_c^2); the squared difference and the overlap area
 MASKED_CHANNELS: tuple[Channel, ...] = (((0, 0, 1.0), (1, 1, -2.0), (2, 2, 1.0)), ((2, 0, 1.0),))
 # masked, normalised: sum f_s^2, sum f_s f_c, sum f_c^2, area, sum f_s, sum f_c over the overlap
-MASKED_NORMALISED_CHANNELS: tuple[Channel, ...] = (((0, 0, 1.0),), ((1, 1, 1.0),), ((2, 2, 1.0),), ((2, 0, 1.0),),
-                                                   ((1, 0, 1.0),), ((2, 1, 1.0),))
+MASKED_NORMALISED_CHANNELS: tuple[Channel, ...] = (
+    ((0, 0, 1.0),),
+    ((1, 1, 1.0),),
+    ((2, 2, 1.0),),
+    ((2, 0, 1.0),),
+    ((1, 0, 1.0),),
+    ((2, 1, 1.0),),
+)
 
 
 @dataclass(eq=False)
@@ -173,8 +182,9 @@ class PreparedSnapshot:
             first = stacked @ flat  # (3n, q): rows i n + k hold (G_i a)_k
             second = (stacked @ first.reshape(3, n, q).transpose(1, 0, 2).reshape(n, 3 * q)).reshape(3, n, 3, q)
             second = 0.5 * (second + second.transpose(2, 1, 0, 3))  # [i, :, j] = (G_i G_j + G_j G_i) a / 2
-            columns = np.concatenate([flat[None], -first.reshape(3, n, q),
-                                      second.transpose(0, 2, 1, 3).reshape(9, n, q)])  # (13, n, q)
+            columns = np.concatenate(
+                [flat[None], -first.reshape(3, n, q), second.transpose(0, 2, 1, 3).reshape(9, n, q)]
+            )  # (13, n, q)
             self._jets = columns.transpose(2, 0, 1).reshape(q, 13, *shape[1:])
         return self._jets
 
@@ -210,14 +220,20 @@ def cost_channels(kind: str, normalise: bool) -> tuple[Channel, ...]:
     return MASKED_NORMALISED_CHANNELS if normalise else MASKED_CHANNELS
 
 
-def prepare_snapshot(snapshot: CompassView | np.ndarray | PreparedSnapshot, max_degree: int,
-                     kind: str = 'masked', normalise: bool = False) -> PreparedSnapshot:
+def prepare_snapshot(
+    snapshot: CompassView | np.ndarray | PreparedSnapshot,
+    max_degree: int,
+    kind: str = 'masked',
+    normalise: bool = False,
+) -> PreparedSnapshot:
     """Return the snapshot's side of a cost kind ('masked' or 'plain') at degree L (a PreparedSnapshot as it is)."""
     if isinstance(snapshot, PreparedSnapshot):
         if (snapshot.kind, snapshot.normalise, snapshot.max_degree) != (kind, bool(normalise), int(max_degree)):
-            raise ValueError(f'the snapshot was prepared for the {snapshot.kind} cost (normalise '
-                             f'{snapshot.normalise}) at degree {snapshot.max_degree}, not for the {kind} cost '
-                             f'(normalise {bool(normalise)}) at degree {int(max_degree)}')
+            raise ValueError(
+                f'the snapshot was prepared for the {snapshot.kind} cost (normalise '
+                f'{snapshot.normalise}) at degree {snapshot.max_degree}, not for the {kind} cost '
+                f'(normalise {bool(normalise)}) at degree {int(max_degree)}'
+            )
         return snapshot
     if kind == 'plain':
         f_s = _plain_terms(snapshot)
@@ -314,7 +330,8 @@ class CostProblem:
         turned = rotate_degree_major(self._current_by_degree, rotation)  # (..., L+1, r, 2L+1)
         flat = turned.reshape(rotation.shape[:-2] + (-1,))
         values = (flat @ self.side.channel_matrix(self.channels, derivatives)).reshape(
-            rotation.shape[:-2] + (len(self.channels), -1))
+            rotation.shape[:-2] + (len(self.channels), -1)
+        )
         if derivatives:
             r = rotation[..., None, :, :]  # (..., 1, 3, 3) against (..., channels, ...)
             values[..., 1:4] = (values[..., None, 1:4] @ r)[..., 0, :]  # (R^T g)^T = g^T R
@@ -357,9 +374,14 @@ def _plain_terms(view: CompassView | np.ndarray) -> np.ndarray:
     return np.asarray(view.weighted if isinstance(view, CompassView) else view, dtype=float)
 
 
-def build_problem(snapshot: CompassView | np.ndarray | PreparedSnapshot,
-                  current: CompassView | np.ndarray, max_degree: int, kind: str = 'masked',
-                  normalise: bool = False, min_overlap: float = 0.25) -> CostProblem:
+def build_problem(
+    snapshot: CompassView | np.ndarray | PreparedSnapshot,
+    current: CompassView | np.ndarray,
+    max_degree: int,
+    kind: str = 'masked',
+    normalise: bool = False,
+    min_overlap: float = 0.25,
+) -> CostProblem:
     """Return the CostProblem of a cost kind ('masked' or 'plain') for two views cut to degree L.
 
     The snapshot may come prepared (prepare_snapshot with the same kind, normalise and L): its side is then reused.

@@ -74,8 +74,16 @@ def load_compass_set(path: str | Path) -> CompassSet:
     images = {key: recorded.images[topic] for key, topic in IMAGE_TOPICS.items()}
     stamps = sorted(s for s in recorded.poses if all(s in by_stamp for by_stamp in images.values()))
     meta_frames = recorded.description.get('frames') or []
-    labels = tuple(str(meta_frames[i].get('label', 'frame')) if i < len(meta_frames) else 'frame'
-                   for i in range(len(stamps)))
+    labels = tuple(
+        str(meta_frames[i].get('label', 'frame')) if i < len(meta_frames) else 'frame' for i in range(len(stamps))
+    )
     poses = np.stack([recorded.poses[s] for s in stamps])
-    return CompassSet(recorded.camera, *(np.stack([images[key][s] for s in stamps]) for key in IMAGE_TOPICS),
-                      poses[:, :3], poses[:, 3:], labels, recorded.synthetic, Path(path).stem)
+    return CompassSet(
+        recorded.camera,
+        *(np.stack([images[key][s] for s in stamps]) for key in IMAGE_TOPICS),
+        poses[:, :3],
+        poses[:, 3:],
+        labels,
+        recorded.synthetic,
+        Path(path).stem,
+    )

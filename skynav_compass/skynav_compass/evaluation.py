@@ -55,8 +55,14 @@ class ErrorStatistics:
 
     def as_dict(self) -> dict:
         """Return the statistics as a plain dict."""
-        return {'median': self.median, 'p90': self.p90, 'p95': self.p95, 'max': self.max,
-                'share_under_2deg': self.share_under, 'count': self.count}
+        return {
+            'median': self.median,
+            'p90': self.p90,
+            'p95': self.p95,
+            'max': self.max,
+            'share_under_2deg': self.share_under,
+            'count': self.count,
+        }
 
 
 def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD_DEG) -> ErrorStatistics:
@@ -66,8 +72,14 @@ def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD
         nan = float('nan')
         return ErrorStatistics(nan, nan, nan, nan, nan, 0)
     e = np.where(np.isfinite(e), e, 180.0)  # a failed estimate counts as the worst error
-    return ErrorStatistics(float(np.median(e)), float(np.percentile(e, 90)), float(np.percentile(e, 95)),
-                           float(e.max()), float(np.mean(e < threshold)), int(e.size))
+    return ErrorStatistics(
+        float(np.median(e)),
+        float(np.percentile(e, 90)),
+        float(np.percentile(e, 95)),
+        float(e.max()),
+        float(np.mean(e < threshold)),
+        int(e.size),
+    )
 
 
 def roc_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
@@ -117,9 +129,16 @@ def summary_rows(results: Sequence[CompassResult], groups: Mapping[str, np.ndarr
     for result in results:
         for group, selection in groups.items():
             stats = error_statistics(result.errors[selection])
-            rows.append({'method': result.method, 'group': group, **stats.as_dict(),
-                         'ms_per_estimate': 1e3 * float(np.median(result.seconds[selection]))
-                         if np.any(selection) else float('nan')})
+            rows.append(
+                {
+                    'method': result.method,
+                    'group': group,
+                    **stats.as_dict(),
+                    'ms_per_estimate': 1e3 * float(np.median(result.seconds[selection]))
+                    if np.any(selection)
+                    else float('nan'),
+                }
+            )
     return rows
 
 
@@ -134,14 +153,39 @@ def share_cell(share: float) -> str:
 
 def format_table(rows: Sequence[dict]) -> str:
     """Return a text table of summary rows: method, group, median/p90/max error (deg), share < 2 deg, ms."""
-    columns = (Column('method', 28, align='<'), Column('views', 12, align='<'), *STATISTICS_COLUMNS,
-               Column('<2deg', 6), Column('ms', 8, '.2f'))
-    return text_table(columns, [(r['method'], r['group'], r['count'], r['median'], r['p90'], r['max'],
-                                 share_cell(r['share_under_2deg']), r['ms_per_estimate']) for r in rows])
+    columns = (
+        Column('method', 28, align='<'),
+        Column('views', 12, align='<'),
+        *STATISTICS_COLUMNS,
+        Column('<2deg', 6),
+        Column('ms', 8, '.2f'),
+    )
+    return text_table(
+        columns,
+        [
+            (
+                r['method'],
+                r['group'],
+                r['count'],
+                r['median'],
+                r['p90'],
+                r['max'],
+                share_cell(r['share_under_2deg']),
+                r['ms_per_estimate'],
+            )
+            for r in rows
+        ],
+    )
 
 
-def plot_errors(results: Sequence[CompassResult], tilt: np.ndarray, translation: np.ndarray,
-                path: str | Path, synthetic: bool = True, title: str = '') -> Path:
+def plot_errors(
+    results: Sequence[CompassResult],
+    tilt: np.ndarray,
+    translation: np.ndarray,
+    path: str | Path,
+    synthetic: bool = True,
+    title: str = '',
+) -> Path:
     """Save a figure of angular error (deg) against relative tilt (deg) and against translation (m) per method."""
     import matplotlib
 
@@ -154,8 +198,7 @@ def plot_errors(results: Sequence[CompassResult], tilt: np.ndarray, translation:
     for k, result in enumerate(results):
         errors = np.where(np.isfinite(result.errors), result.errors, 180.0)
         for axis, x in zip(axes, (tilt, translation)):
-            axis.plot(x, errors, linestyle='none', marker=markers[k % len(markers)], alpha=0.8,
-                      label=result.method)
+            axis.plot(x, errors, linestyle='none', marker=markers[k % len(markers)], alpha=0.8, label=result.method)
     for axis, label in zip(axes, ('relative tilt against the snapshot (deg)', 'distance from the snapshot (m)')):
         axis.set_yscale('log')
         axis.axhline(ERROR_THRESHOLD_DEG, color='grey', linewidth=0.8, linestyle='--')

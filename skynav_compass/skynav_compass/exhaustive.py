@@ -26,8 +26,13 @@ View = Union[CompassView, np.ndarray]
 Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by ExhaustiveCompass.prepare
 
 
-def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray,
-                        turned_snapshot: np.ndarray | None = None) -> np.ndarray:
+def grid_channel_values(
+    problem: CostProblem,
+    alphas: np.ndarray,
+    betas: np.ndarray,
+    gammas: np.ndarray,
+    turned_snapshot: np.ndarray | None = None,
+) -> np.ndarray:
     """Return every channel at all R = Rz(a) Ry(b) Rz(g) of the outer grid: (channels, n_alpha, n_beta, n_gamma).
 
     turned_snapshot: Z(-alpha) a for these alphas, (A, q, L+1, 2L+1), if already at hand.
@@ -44,16 +49,20 @@ def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndar
     m = np.arange(-L, L + 1)
     angle = beta[:, None] * np.abs(m)[None, :]  # (B, 2L+1)
     sign = np.where(m > 0, -1.0, 1.0)
-    stepped = (np.cos(angle)[:, None, :, None] * back[None]
-               + (sign * np.sin(angle))[:, None, :, None] * back[None, :, ::-1, :])  # (B, L+1, 2L+1, r G)
+    stepped = (
+        np.cos(angle)[:, None, :, None] * back[None] + (sign * np.sin(angle))[:, None, :, None] * back[None, :, ::-1, :]
+    )  # (B, L+1, 2L+1, r G)
     rotated = np.matmul(turn[None], stepped)  # (B, L+1, 2L+1, r G)
     n_beta, n_gamma = len(beta), len(gammas)
     # ((L+1)(2L+1), r B G): the columns of term j form one block (a strided view BLAS takes as it is)
     right = rotated.reshape(n_beta, L + 1, size, r, n_gamma).transpose(1, 2, 3, 0, 4).reshape((L + 1) * size, -1)
     # snapshot side: Z(alpha)^T a = Z(-alpha) a; each channel sums w <Z(-alpha) a_i, Y(beta) Z(gamma) b_j> over its
     # terms, one matrix product per term (only the pairs the cost uses)
-    snap = turned_snapshot if turned_snapshot is not None else rotate_z_padded(
-        problem.snapshot, -np.asarray(alphas, dtype=float))  # (A, q, L+1, 2L+1)
+    snap = (
+        turned_snapshot
+        if turned_snapshot is not None
+        else rotate_z_padded(problem.snapshot, -np.asarray(alphas, dtype=float))
+    )  # (A, q, L+1, 2L+1)
     n_alpha, block = snap.shape[0], n_beta * n_gamma
     out = np.zeros((len(problem.channels), n_alpha, block))
     for k, channel in enumerate(problem.channels):
@@ -62,8 +71,13 @@ def grid_channel_values(problem: CostProblem, alphas: np.ndarray, betas: np.ndar
     return out.reshape(len(problem.channels), n_alpha, n_beta, n_gamma)
 
 
-def grid_search_costs(problem: CostProblem, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray,
-                      turned_snapshot: np.ndarray | None = None) -> np.ndarray:
+def grid_search_costs(
+    problem: CostProblem,
+    alphas: np.ndarray,
+    betas: np.ndarray,
+    gammas: np.ndarray,
+    turned_snapshot: np.ndarray | None = None,
+) -> np.ndarray:
     """Return the cost at all R = Rz(a) Ry(b) Rz(g) of the outer grid, (n_alpha, n_beta, n_gamma); inf if invalid."""
     values = list(grid_channel_values(problem, alphas, betas, gammas, turned_snapshot))
     with np.errstate(divide='ignore', invalid='ignore'):
@@ -96,7 +110,7 @@ class ExhaustiveCompass:
     @property
     def method(self) -> str:
         """Return a short name of the configured method."""
-        return f"exhaustive-{self.config.cost}{'-normalised' if self.config.normalise else ''}"
+        return f'exhaustive-{self.config.cost}{"-normalised" if self.config.normalise else ""}'
 
     @property
     def coarse_step(self) -> float:
@@ -152,15 +166,27 @@ class ExhaustiveCompass:
         if not candidates:
             return CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, units)
         hypotheses = [Hypothesis(zyz_matrix(*angles), cost) for cost, angles in candidates]
-        distinct = [h for k, h in enumerate(hypotheses)
-                    if all(rotation_angle(h.matrix, other.matrix) > np.radians(5) for other in hypotheses[:k])]
+        distinct = [
+            h
+            for k, h in enumerate(hypotheses)
+            if all(rotation_angle(h.matrix, other.matrix) > np.radians(5) for other in hypotheses[:k])
+        ]
         margin = distinct[1].cost - distinct[0].cost if len(distinct) > 1 else float('inf')
-        return CompassEstimate(distinct[0].matrix, distinct[0].cost, tuple(distinct), margin, True, self.method,
-                               units, {'evaluated_rotations': evaluated})
+        return CompassEstimate(
+            distinct[0].matrix,
+            distinct[0].cost,
+            tuple(distinct),
+            margin,
+            True,
+            self.method,
+            units,
+            {'evaluated_rotations': evaluated},
+        )
 
     @staticmethod
-    def _best(costs: np.ndarray, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray, keep: int,
-              separation: float) -> list[tuple[float, tuple[float, float, float]]]:
+    def _best(
+        costs: np.ndarray, alphas: np.ndarray, betas: np.ndarray, gammas: np.ndarray, keep: int, separation: float
+    ) -> list[tuple[float, tuple[float, float, float]]]:
         """Return up to `keep` lowest (cost, (alpha, beta, gamma)) of a grid, at least `separation` rad apart."""
         order = np.argsort(costs, axis=None)
         out: list[tuple[float, tuple[float, float, float]]] = []

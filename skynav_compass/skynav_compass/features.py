@@ -143,9 +143,13 @@ class FeatureCompass:
         matcher = cv2.BFMatcher(self._norm)
         forward = matcher.knnMatch(desc_c, desc_s, k=2)
         backward = {m[0].queryIdx: m[0].trainIdx for m in matcher.knnMatch(desc_s, desc_c, k=1) if m}
-        pairs = [(m[0].trainIdx, m[0].queryIdx) for m in forward
-                 if len(m) == 2 and m[0].distance < self.config.ratio * m[1].distance
-                 and backward.get(m[0].trainIdx) == m[0].queryIdx]
+        pairs = [
+            (m[0].trainIdx, m[0].queryIdx)
+            for m in forward
+            if len(m) == 2
+            and m[0].distance < self.config.ratio * m[1].distance
+            and backward.get(m[0].trainIdx) == m[0].queryIdx
+        ]
         if not pairs:
             return np.zeros((0, 3)), np.zeros((0, 3))
         index = np.array(pairs)
@@ -193,8 +197,16 @@ class FeatureCompass:
         c = self.config
         d_s, d_c = self.matches(snapshot, current)
         if len(d_s) < 3:
-            return CompassEstimate(np.eye(3), float('inf'), (), 0.0, False, self.method, 'deg',
-                                   {'matches': len(d_s), 'inliers': 0, 'model': 'none'})
+            return CompassEstimate(
+                np.eye(3),
+                float('inf'),
+                (),
+                0.0,
+                False,
+                self.method,
+                'deg',
+                {'matches': len(d_s), 'inliers': 0, 'model': 'none'},
+            )
         rng = np.random.default_rng(c.seed)
         rotation, inliers = self._ransac_rotation(d_s, d_c, rng)
         model = 'rotation'
@@ -207,6 +219,13 @@ class FeatureCompass:
         angles = np.degrees(np.arccos(np.clip(np.sum(d_s[inliers] * (d_c[inliers] @ rotation.T), axis=1), -1, 1)))
         residual = float(np.median(angles)) if angles.size else float('inf')
         confident = bool(inliers.sum() >= 10)
-        return CompassEstimate(rotation, residual, (Hypothesis(rotation, residual),), float('inf'), confident,
-                               self.method, 'median inlier angle (deg)',
-                               {'matches': int(len(d_s)), 'inliers': int(inliers.sum()), 'model': model})
+        return CompassEstimate(
+            rotation,
+            residual,
+            (Hypothesis(rotation, residual),),
+            float('inf'),
+            confident,
+            self.method,
+            'median inlier angle (deg)',
+            {'matches': int(len(d_s)), 'inliers': int(inliers.sum()), 'model': model},
+        )

@@ -53,20 +53,23 @@ class CompassMethod:
         return self.view in IMAGE_VIEWS
 
 
-METHODS: dict[str, CompassMethod] = {m.name: m for m in (
-    CompassMethod('fft-masked', 'masked', 'fft'),  # skynav's compass (the node's)
-    CompassMethod('fft-masked-any-tilt', 'masked', 'fft-any-tilt'),
-    CompassMethod('fft-zero', 'zero', 'fft', {'cost': 'plain'}),
-    CompassMethod('fft-mean', 'mean', 'fft', {'cost': 'plain'}),
-    CompassMethod('fft-mirror', 'mirror', 'fft', {'cost': 'plain'}),
-    # grey UV image instead of the mask, gain and offset removed over the overlap (masked correlation coefficient)
-    CompassMethod('fft-uv-normalised', 'uv', 'fft', {'normalise': True}),
-    CompassMethod('exhaustive-masked', 'masked', 'exhaustive'),
-    CompassMethod('exhaustive-zero', 'zero', 'exhaustive', {'cost': 'plain'}),
-    CompassMethod('visual-compass-sh', 'masked', 'yaw'),
-    CompassMethod('visual-compass-panorama', 'mask', 'panorama'),
-    CompassMethod('features-sift', 'image', 'features', {'detector': 'sift'}),
-    CompassMethod('features-orb', 'image', 'features', {'detector': 'orb'}),
-)}
+METHODS: dict[str, CompassMethod] = {
+    m.name: m
+    for m in (
+        CompassMethod('fft-masked', 'masked', 'fft'),  # skynav's compass (the node's)
+        CompassMethod('fft-masked-any-tilt', 'masked', 'fft-any-tilt'),
+        CompassMethod('fft-zero', 'zero', 'fft', {'cost': 'plain'}),
+        CompassMethod('fft-mean', 'mean', 'fft', {'cost': 'plain'}),
+        CompassMethod('fft-mirror', 'mirror', 'fft', {'cost': 'plain'}),
+        # grey UV image instead of the mask, gain and offset removed over the overlap (masked correlation coefficient)
+        CompassMethod('fft-uv-normalised', 'uv', 'fft', {'normalise': True}),
+        CompassMethod('exhaustive-masked', 'masked', 'exhaustive'),
+        CompassMethod('exhaustive-zero', 'zero', 'exhaustive', {'cost': 'plain'}),
+        CompassMethod('visual-compass-sh', 'masked', 'yaw'),
+        CompassMethod('visual-compass-panorama', 'mask', 'panorama'),
+        CompassMethod('features-sift', 'image', 'features', {'detector': 'sift'}),
+        CompassMethod('features-orb', 'image', 'features', {'detector': 'orb'}),
+    )
+}
 NODE_METHODS = tuple(name for name, m in METHODS.items() if m.view in NODE_VIEWS)  # `skynav eval compass` offers
 DEFAULT_METHODS = ('fft-masked', 'exhaustive-masked', 'visual-compass-panorama', 'features-sift')

@@ -78,8 +78,9 @@ class CompassNode(SkynavNode):
     def store_reference(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Service: keep the latest view as the live reference."""
         response.success = self.latest is not None
-        response.message = 'stored the latest view as the live reference' if self.latest is not None \
-            else 'no view received yet'
+        response.message = (
+            'stored the latest view as the live reference' if self.latest is not None else 'no view received yet'
+        )
         if self.latest is not None:
             self.live = self.latest
         return response
@@ -112,8 +113,11 @@ class CompassNode(SkynavNode):
         current = CompassView.from_sh_message(coefficients, float(message.field_of_view), message.fill, degree)
         share = sky_share(current)
         if not shows_skyline(share):
-            self.reject('featureless', f'view stamped {stamp} shows no skyline (sky on {100 * share:.0f} % of '
-                                       'what it sees): every rotation fits it alike')
+            self.reject(
+                'featureless',
+                f'view stamped {stamp} shows no skyline (sky on {100 * share:.0f} % of '
+                'what it sees): every rotation fits it alike',
+            )
             return
         self.latest = current
         reference = self.reference_view(float(message.field_of_view))
@@ -121,15 +125,19 @@ class CompassNode(SkynavNode):
             return
         index, snapshot, share = reference
         if not shows_skyline(share):
-            self.reject('featureless_snapshot', f'snapshot {index} shows no skyline (sky on {100 * share:.0f} % '
-                                                'of what it sees): every rotation fits it alike')
+            self.reject(
+                'featureless_snapshot',
+                f'snapshot {index} shows no skyline (sky on {100 * share:.0f} % '
+                'of what it sees): every rotation fits it alike',
+            )
             return
         with self.processing(stamp):
             estimate = self.compass.estimate(snapshot, current)
             result = CompassEstimate(snapshot_index=index, residual=float(estimate.residual))
             result.header = message.header
-            (result.rotation.x, result.rotation.y, result.rotation.z,
-             result.rotation.w) = (float(v) for v in estimate.quaternion)
+            (result.rotation.x, result.rotation.y, result.rotation.z, result.rotation.w) = (
+                float(v) for v in estimate.quaternion
+            )
         self.emit(COMPASS_TOPIC, result)
 
 

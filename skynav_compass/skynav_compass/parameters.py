@@ -13,11 +13,15 @@ REFERENCES = ('match', 'index', 'live')  # what the compass compares against
 
 PARAMETERS = {
     'map': Parameter('', 'SQLite map file (`skynav map build`) whose snapshots are compared against'),
-    'reference': Parameter('match', f'what to compare against: {", ".join(REFERENCES)} (match: the snapshot of the '
-                                    'latest accepted place match)'),
+    'reference': Parameter(
+        'match',
+        f'what to compare against: {", ".join(REFERENCES)} (match: the snapshot of the latest accepted place match)',
+    ),
     'index': Parameter(0, "the snapshot of reference 'index'"),
     'max_degree': Parameter(16, 'SH degree of the estimate'),
-    'max_tilt_deg': Parameter(float(math.degrees(MAX_TILT)),
-                              'largest tilt between the current view and the snapshot considered (deg, up to 180); '
-                              'a mower tilts 20-25 deg on rough lawn, two views up to 45'),
+    'max_tilt_deg': Parameter(
+        float(math.degrees(MAX_TILT)),
+        'largest tilt between the current view and the snapshot considered (deg, up to 180); '
+        'a mower tilts 20-25 deg on rough lawn, two views up to 45',
+    ),
 }

@@ -103,8 +103,14 @@ def check_node_methods(names: Sequence[str]) -> None:
         raise EvaluationError(problem)
 
 
-def recording_methods(camera, max_degree: int, field_of_view: float, fill: str = 'zero',
-                      names: Sequence[str] = DEFAULT_METHODS, max_tilt: float | None = MAX_TILT) -> list[Method]:
+def recording_methods(
+    camera,
+    max_degree: int,
+    field_of_view: float,
+    fill: str = 'zero',
+    names: Sequence[str] = DEFAULT_METHODS,
+    max_tilt: float | None = MAX_TILT,
+) -> list[Method]:
     """Return the named methods for views of the SH node (skynav_core.views.View): prepare(view) -> its input.
 
     field_of_view (rad) and fill: as the SH node made the coefficients (its ShCoefficients fields); max_tilt (rad):
@@ -115,10 +121,16 @@ def recording_methods(camera, max_degree: int, field_of_view: float, fill: str =
     return [build_method(METHODS[name], views, max_degree, camera, max_tilt) for name in names]
 
 
-def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot: ExternalSnapshot | None = None,
-                   fill: str = 'zero', field_of_view: float | None = None,
-                   clock: Callable[[], float] = time.process_time, repeats: int = 1,
-                   max_tilt: float | None = MAX_TILT) -> RecordingEvaluation:
+def evaluate_views(
+    recording,
+    methods: Sequence[str] = DEFAULT_METHODS,
+    snapshot: ExternalSnapshot | None = None,
+    fill: str = 'zero',
+    field_of_view: float | None = None,
+    clock: Callable[[], float] = time.process_time,
+    repeats: int = 1,
+    max_tilt: float | None = MAX_TILT,
+) -> RecordingEvaluation:
     """Return every method's errors on the views of a recording (skynav_core.views.RecordingViews) against a snapshot.
 
     snapshot None: the recording's frame labelled 'reference' (else its first frame with a pose). fill and
@@ -148,8 +160,11 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
         queries = [v for k, v in enumerate(views) if k != reference]
         degree = node_degree
         snapshot_pose = snapshot_view.pose
-        name = (f"the recording's reference frame ({reference})" if labelled
-                else "the recording's first frame (it labels none 'reference')")
+        name = (
+            f"the recording's reference frame ({reference})"
+            if labelled
+            else "the recording's first frame (it labels none 'reference')"
+        )
         by_labels = all(v.label in ('rotation', 'translation') for v in queries)
     else:
         coefficients = np.asarray(snapshot.coefficients, dtype=float)
@@ -166,8 +181,10 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
             skipped[method] = "needs the snapshot's images; runs only against the recording's reference frame"
         methods = [m for m in methods if not METHODS[m].needs_images]
         if not methods:
-            raise EvaluationError(f"every chosen method needs the snapshot's images, which {snapshot.name} lacks; "
-                                  'choose an SH method (or no map)')
+            raise EvaluationError(
+                f"every chosen method needs the snapshot's images, which {snapshot.name} lacks; "
+                'choose an SH method (or no map)'
+            )
     if not queries:
         raise EvaluationError(f'{path}: no view with ground truth to compare against {name}')
     compared = {METHODS[m].view for m in methods}
@@ -187,13 +204,24 @@ def evaluate_views(recording, methods: Sequence[str] = DEFAULT_METHODS, snapshot
         rotation = translations < MOVED_FROM_M
     chosen = recording_methods(camera, degree, field_of_view, fill, methods, max_tilt)
     prepared = [[method.prepare(v) for v in [snapshot_view, *queries]] for method in chosen]
-    estimates, seconds, snapshot_seconds = timed_estimates(chosen, [p[0] for p in prepared],
-                                                           [p[1:] for p in prepared], clock, repeats)
+    estimates, seconds, snapshot_seconds = timed_estimates(
+        chosen, [p[0] for p in prepared], [p[1:] for p in prepared], clock, repeats
+    )
     results = [compass_result(method.name, estimates[k], truth, seconds[k]) for k, method in enumerate(chosen)]
-    return RecordingEvaluation(path, bool(recording.synthetic), degree, name, np.array([v.stamp for v in queries]),
-                               tilts, translations, {'rotation': rotation, 'moved': ~rotation},
-                               'labels' if by_labels else 'translation', results, skipped,
-                               {m.name: float(s) for m, s in zip(chosen, snapshot_seconds) if m.prepare_snapshot})
+    return RecordingEvaluation(
+        path,
+        bool(recording.synthetic),
+        degree,
+        name,
+        np.array([v.stamp for v in queries]),
+        tilts,
+        translations,
+        {'rotation': rotation, 'moved': ~rotation},
+        'labels' if by_labels else 'translation',
+        results,
+        skipped,
+        {m.name: float(s) for m, s in zip(chosen, snapshot_seconds) if m.prepare_snapshot},
+    )
 
 
 @dataclass(frozen=True)
@@ -205,10 +233,15 @@ class _SnapshotView:
     mask: Any = None
 
 
-def evaluate_recording(path: str | Path, methods: Sequence[str] = DEFAULT_METHODS,
-                       snapshot: ExternalSnapshot | None = None, ros_args: list[str] | None = None,
-                       clock: Callable[[], float] = time.process_time, repeats: int = 1,
-                       max_tilt: float | None = MAX_TILT) -> RecordingEvaluation:
+def evaluate_recording(
+    path: str | Path,
+    methods: Sequence[str] = DEFAULT_METHODS,
+    snapshot: ExternalSnapshot | None = None,
+    ros_args: list[str] | None = None,
+    clock: Callable[[], float] = time.process_time,
+    repeats: int = 1,
+    max_tilt: float | None = MAX_TILT,
+) -> RecordingEvaluation:
     """Run the skyline and SH nodes over a recording (node parameters from ros_args) and evaluate the compass on it.
 
     See evaluate_views; the SH node's fill and field of view come from the parameter files in ros_args.
@@ -251,43 +284,71 @@ def format_report(evaluation: RecordingEvaluation) -> str:
     e = evaluation
     kind = ' (synthetic)' if e.synthetic else ''
     prepared = [m for m in e.snapshot_seconds]
-    lines = [f'{e.path.name}{kind}: {len(e.stamps)} views from the skyline and SH nodes (SH degree {e.max_degree}) '
-             f'against {e.snapshot}',
-             'error: 3D rotation error against ground truth (deg); ms: CPU time per estimate'
-             + (f' (snapshot prepared once for {", ".join(prepared)})' if prepared else '')]
+    lines = [
+        f'{e.path.name}{kind}: {len(e.stamps)} views from the skyline and SH nodes (SH degree {e.max_degree}) '
+        f'against {e.snapshot}',
+        'error: 3D rotation error against ground truth (deg); ms: CPU time per estimate'
+        + (f' (snapshot prepared once for {", ".join(prepared)})' if prepared else ''),
+    ]
     columns = (Column('method', 26, align='<'), *STATISTICS_COLUMNS, Column('<2deg', 6), Column('ms', 8, '.2f'))
     for group in GROUPS:
         selection = e.groups[group]
         count = int(np.sum(selection))
-        how = 'frame labels' if e.grouped_by == 'labels' else (
-            f'under {MOVED_FROM_M:g} m from the snapshot' if group == 'rotation' else
-            f'{MOVED_FROM_M:g} m or more from the snapshot')
+        how = (
+            'frame labels'
+            if e.grouped_by == 'labels'
+            else (
+                f'under {MOVED_FROM_M:g} m from the snapshot'
+                if group == 'rotation'
+                else f'{MOVED_FROM_M:g} m or more from the snapshot'
+            )
+        )
         lines.append('')
         if not count:
             lines.append(f'{GROUP_TITLES[group]}: none ({how})')
             continue
-        lines.append(f'{GROUP_TITLES[group]}: {count} views ({how}); tilt {e.tilts[selection].min():.0f}-'
-                     f'{e.tilts[selection].max():.0f} deg, translation {e.translations[selection].min():.2f}-'
-                     f'{e.translations[selection].max():.2f} m')
+        lines.append(
+            f'{GROUP_TITLES[group]}: {count} views ({how}); tilt {e.tilts[selection].min():.0f}-'
+            f'{e.tilts[selection].max():.0f} deg, translation {e.translations[selection].min():.2f}-'
+            f'{e.translations[selection].max():.2f} m'
+        )
         rows = []
         for result in e.results:
             s = e.statistics(result.method, group)
-            rows.append((result.method, s.count, s.median, s.p90, s.max, share_cell(s.share_under),
-                         e.milliseconds(result.method, group)))
+            rows.append(
+                (
+                    result.method,
+                    s.count,
+                    s.median,
+                    s.p90,
+                    s.max,
+                    share_cell(s.share_under),
+                    e.milliseconds(result.method, group),
+                )
+            )
         lines.append(text_table(columns, rows))
-    lines += ['', f'all {len(e.stamps)} views; AUC: how well the confidence ranks estimates under {RIGHT_DEG:g} deg of '
-                  'error above the others (1: perfectly, 0.5: by chance, -: all on one side;',
-              "without a confidence: by the residual); tilt: the most any estimate tilts the views apart (deg)"]
-    columns = (Column('method', 26, align='<'), *STATISTICS_COLUMNS, Column(f'<{RIGHT_DEG:g}deg', 6),
-               Column('AUC', 6, '.3f'), Column('tilt', 6, '.1f'))
+    lines += [
+        '',
+        f'all {len(e.stamps)} views; AUC: how well the confidence ranks estimates under {RIGHT_DEG:g} deg of '
+        'error above the others (1: perfectly, 0.5: by chance, -: all on one side;',
+        'without a confidence: by the residual); tilt: the most any estimate tilts the views apart (deg)',
+    ]
+    columns = (
+        Column('method', 26, align='<'),
+        *STATISTICS_COLUMNS,
+        Column(f'<{RIGHT_DEG:g}deg', 6),
+        Column('AUC', 6, '.3f'),
+        Column('tilt', 6, '.1f'),
+    )
     rows = []
     for result in e.results:
         s = error_statistics(result.errors)
         share = float(np.mean(np.where(np.isfinite(result.errors), result.errors, 180.0) < RIGHT_DEG))
         auc = result.separation()
         tilt = float(np.max(result.tilts)) if result.tilts is not None and result.tilts.size else float('nan')
-        rows.append((result.method, s.count, s.median, s.p90, s.max, share_cell(share), '-' if np.isnan(auc) else auc,
-                     tilt))
+        rows.append(
+            (result.method, s.count, s.median, s.p90, s.max, share_cell(share), '-' if np.isnan(auc) else auc, tilt)
+        )
     lines.append(text_table(columns, rows))
     for method, reason in e.skipped.items():
         lines.append(f'skipped {method}: {reason}')

@@ -31,9 +31,13 @@ def _rotation_vector_exp(w: np.ndarray) -> np.ndarray:
     else:
         a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / (angle * angle)
     xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
-    return np.array([[1.0 - b * (yy + zz), b * xy - a * z, b * xz + a * y],
-                     [b * xy + a * z, 1.0 - b * (xx + zz), b * yz - a * x],
-                     [b * xz - a * y, b * yz + a * x, 1.0 - b * (xx + yy)]])
+    return np.array(
+        [
+            [1.0 - b * (yy + zz), b * xy - a * z, b * xz + a * y],
+            [b * xy + a * z, 1.0 - b * (xx + zz), b * yz - a * x],
+            [b * xz - a * y, b * yz + a * x, 1.0 - b * (xx + yy)],
+        ]
+    )
 
 
 def _cholesky_solve(h: np.ndarray, g: np.ndarray) -> np.ndarray | None:
@@ -41,17 +45,17 @@ def _cholesky_solve(h: np.ndarray, g: np.ndarray) -> np.ndarray | None:
     (a, b, c), (_, d, e), (_, _, f) = h.tolist()
     if a <= 0:
         return None
-    l11 = a ** 0.5
+    l11 = a**0.5
     l21, l31 = b / l11, c / l11
     t = d - l21 * l21
     if t <= 0:
         return None
-    l22 = t ** 0.5
+    l22 = t**0.5
     l32 = (e - l31 * l21) / l22
     t = f - l31 * l31 - l32 * l32
     if t <= 0:
         return None
-    l33 = t ** 0.5
+    l33 = t**0.5
     g1, g2, g3 = g.tolist()
     y1 = g1 / l11
     y2 = (g2 - l21 * y1) / l22
@@ -82,8 +86,9 @@ def within_tilt(matrix: np.ndarray, max_tilt: float | None) -> bool:
     return max_tilt is None or float(matrix[2, 2]) >= math.cos(max_tilt) - 1e-12
 
 
-def newton_prediction(problem: CostProblem, start: np.ndarray, radius: float = 0.2, jet: Jet | None = None,
-                      max_tilt: float | None = None) -> Refined:
+def newton_prediction(
+    problem: CostProblem, start: np.ndarray, radius: float = 0.2, jet: Jet | None = None, max_tilt: float | None = None
+) -> Refined:
     """Return one Newton step from R0 (3x3) and the cost its quadratic model predicts there (one cost evaluation).
 
     max_tilt (rad): a step that would tilt z further than this is not taken (R0 and its cost are returned).
@@ -103,8 +108,15 @@ def newton_prediction(problem: CostProblem, start: np.ndarray, radius: float = 0
     return Refined(stepped, min(predicted, jet.value), float(np.linalg.norm(jet.grad)), 0, jet.hess)
 
 
-def refine(problem: CostProblem, start: np.ndarray, radius: float = 0.2, max_iterations: int = 40,
-           tolerance: float = 1e-4, jet: Jet | None = None, max_tilt: float | None = None) -> Refined:
+def refine(
+    problem: CostProblem,
+    start: np.ndarray,
+    radius: float = 0.2,
+    max_iterations: int = 40,
+    tolerance: float = 1e-4,
+    jet: Jet | None = None,
+    max_tilt: float | None = None,
+) -> Refined:
     """Return the local minimum of the cost near R0 (3x3) by Newton steps (|w| <= a trust radius, rad).
 
     max_tilt (rad): a step that would tilt z further than this is refused like one that does not descend, so the
@@ -129,8 +141,10 @@ def refine(problem: CostProblem, start: np.ndarray, radius: float = 0.2, max_ite
         candidate = matrix @ _rotation_vector_exp(step)
         trial = problem.jet(candidate) if within_tilt(candidate, max_tilt) else Jet(np.inf, jet.grad, jet.hess)
         slack = 1e-13 * max(abs(jet.value), 1e-300)
-        if np.isfinite(trial.value) and (trial.value <= jet.value + slack or
-                                         (length < 1e-6 and np.linalg.norm(trial.grad) < np.linalg.norm(jet.grad))):
+        if np.isfinite(trial.value) and (
+            trial.value <= jet.value + slack
+            or (length < 1e-6 and np.linalg.norm(trial.grad) < np.linalg.norm(jet.grad))
+        ):
             matrix, jet = candidate, trial
             radius = max(radius, 2.0 * length)
             if newton_length < tolerance:

@@ -93,8 +93,15 @@ class NodeViews:
         raise ValueError(f'the SH node gives no {kind!r} view')
 
 
-def build_method(entry: CompassMethod, views: ImageViews | NodeViews, max_degree: int, camera=None,
-                 max_tilt: float | None = MAX_TILT, prepared: bool = True, name: str | None = None) -> Method:
+def build_method(
+    entry: CompassMethod,
+    views: ImageViews | NodeViews,
+    max_degree: int,
+    camera=None,
+    max_tilt: float | None = MAX_TILT,
+    prepared: bool = True,
+    name: str | None = None,
+) -> Method:
     """Return the Method of a registry entry: its view of frames and its compass (degree L, tilt bound in rad).
 
     prepared: prepare the snapshot once (compasses that can); name: what tables call it (default the entry's).
@@ -124,23 +131,34 @@ def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None =
     """
     chosen = list(METHODS) if names is None else list(names)
     entries = {name: METHODS.get(name.removesuffix(PREPARED)) for name in chosen}
-    unknown = [name for name, entry in entries.items()
-               if entry is None or (name.endswith(PREPARED) and not entry.prepares)]
+    unknown = [
+        name for name, entry in entries.items() if entry is None or (name.endswith(PREPARED) and not entry.prepares)
+    ]
     if unknown:
-        raise ValueError(f'unknown methods {unknown}; expected some of {tuple(METHODS)} (the fft-* and exhaustive-* '
-                         f'ones also as NAME{PREPARED})')
+        raise ValueError(
+            f'unknown methods {unknown}; expected some of {tuple(METHODS)} (the fft-* and exhaustive-* '
+            f'ones also as NAME{PREPARED})'
+        )
     views = ImageViews(camera, max_degree)
-    return [build_method(entries[name], views, max_degree, camera, prepared=name.endswith(PREPARED), name=name)
-            for name in chosen]
+    return [
+        build_method(entries[name], views, max_degree, camera, prepared=name.endswith(PREPARED), name=name)
+        for name in chosen
+    ]
 
 
-def compass_result(name: str, estimates: Sequence[CompassEstimate], truth: np.ndarray,
-                   seconds: np.ndarray) -> CompassResult:
+def compass_result(
+    name: str, estimates: Sequence[CompassEstimate], truth: np.ndarray, seconds: np.ndarray
+) -> CompassResult:
     """Return a method's result: its estimates' errors against the true rotations (Q, 3, 3) and their seconds."""
-    return CompassResult(name, angular_error(np.array([e.quaternion for e in estimates]), truth), seconds,
-                         np.array([e.residual for e in estimates]), np.array([e.confident for e in estimates]),
-                         np.array([e.confidence for e in estimates]),
-                         relative_tilt(np.array([e.matrix for e in estimates])))
+    return CompassResult(
+        name,
+        angular_error(np.array([e.quaternion for e in estimates]), truth),
+        seconds,
+        np.array([e.residual for e in estimates]),
+        np.array([e.confident for e in estimates]),
+        np.array([e.confidence for e in estimates]),
+        relative_tilt(np.array([e.matrix for e in estimates])),
+    )
 
 
 @dataclass(frozen=True)
@@ -153,9 +171,13 @@ class RunResult:
     snapshot_seconds: float = 0.0  # preparing the snapshot once (methods with prepare_snapshot), else 0
 
 
-def timed_estimates(methods: Sequence[Method], snapshots: Sequence[Any], queries: Sequence[Sequence[Any]],
-                    clock: Callable[[], float] = time.process_time,
-                    repeats: int = 1) -> tuple[list[list[CompassEstimate]], np.ndarray, np.ndarray]:
+def timed_estimates(
+    methods: Sequence[Method],
+    snapshots: Sequence[Any],
+    queries: Sequence[Sequence[Any]],
+    clock: Callable[[], float] = time.process_time,
+    repeats: int = 1,
+) -> tuple[list[list[CompassEstimate]], np.ndarray, np.ndarray]:
     """Return every method's estimates of its query views against its snapshot view, with the seconds they took.
 
     snapshots[k] and queries[k][q] are method k's prepared views. A method with prepare_snapshot prepares its
@@ -186,8 +208,13 @@ def timed_estimates(methods: Sequence[Method], snapshots: Sequence[Any], queries
     return estimates, seconds, snapshot_seconds
 
 
-def run_methods(compass_set, methods: Sequence[Method], queries: Sequence[int] | None = None,
-                clock: Callable[[], float] = time.process_time, repeats: int = 1) -> list[RunResult]:
+def run_methods(
+    compass_set,
+    methods: Sequence[Method],
+    queries: Sequence[int] | None = None,
+    clock: Callable[[], float] = time.process_time,
+    repeats: int = 1,
+) -> list[RunResult]:
     """Return every method's errors (deg) and seconds per estimate on the queries against the set's reference.
 
     The methods take turns on every query and every repetition, so a change of load on the machine hits them alike;
@@ -206,7 +233,18 @@ def run_methods(compass_set, methods: Sequence[Method], queries: Sequence[int] |
         prepare_seconds.append((clock() - start) / len(frames))
         prepared.append(views)
     estimates, seconds, snapshot_seconds = timed_estimates(
-        methods, [views[compass_set.reference] for views in prepared],
-        [[views[i] for i in queries] for views in prepared], clock, repeats)
-    return [RunResult(compass_result(method.name, estimates[k], truth[queries], seconds[k]), tuple(estimates[k]),
-                      prepare_seconds[k], float(snapshot_seconds[k])) for k, method in enumerate(methods)]
+        methods,
+        [views[compass_set.reference] for views in prepared],
+        [[views[i] for i in queries] for views in prepared],
+        clock,
+        repeats,
+    )
+    return [
+        RunResult(
+            compass_result(method.name, estimates[k], truth[queries], seconds[k]),
+            tuple(estimates[k]),
+            prepare_seconds[k],
+            float(snapshot_seconds[k]),
+        )
+        for k, method in enumerate(methods)
+    ]

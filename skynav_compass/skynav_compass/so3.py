@@ -68,6 +68,7 @@ def complex_form(padded: np.ndarray) -> np.ndarray:
 
 # --- rotations of padded coefficients ----------------------------------------------------------------------
 
+
 @lru_cache(maxsize=16)
 def quarter_turn_padded(max_degree: int) -> np.ndarray:
     """Return J_l = D_l(Rx(-90 deg)) for l = 0..L as a read-only padded stack (L+1, 2L+1, 2L+1)."""
@@ -190,6 +191,7 @@ def stacked_generators(max_degree: int):  # -> scipy.sparse.csr_matrix
 
 
 # --- Wigner small d on an Euler-angle grid and the SO(3) correlation by FFT ---------------------------------
+
 
 @lru_cache(maxsize=16)
 def _complex_quarter_turn(max_degree: int) -> np.ndarray:

@@ -91,8 +91,9 @@ def current_masks(problem: CostProblem) -> tuple[np.ndarray, np.ndarray]:
     return recovered_masks(from_padded(problem.current[1]), from_padded(problem.current[0]), problem.max_degree)
 
 
-def verify(problem: CostProblem, rotations: np.ndarray,
-           current: tuple[np.ndarray, np.ndarray] | None = None) -> Verification:
+def verify(
+    problem: CostProblem, rotations: np.ndarray, current: tuple[np.ndarray, np.ndarray] | None = None
+) -> Verification:
     """Return the sample figures of rotations R (K, 3, 3) for a masked problem of two binary views.
 
     current: the current view's masks (current_masks), if already at hand.
@@ -114,5 +115,4 @@ def verify(problem: CostProblem, rotations: np.ndarray,
         share_c = np.sum(both * sky_c, axis=(1, 2)) / area
     contrast = share_s * (1 - share_c) + share_c * (1 - share_s)
     empty = area <= 0
-    return Verification(np.where(empty, 1.0, disagreement), area / max(smaller, 1e-300),
-                        np.where(empty, 0.0, contrast))
+    return Verification(np.where(empty, 1.0, disagreement), area / max(smaller, 1e-300), np.where(empty, 0.0, contrast))

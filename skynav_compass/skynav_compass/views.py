@@ -27,8 +27,9 @@ def cap_visibility(max_degree: int, theta_max: float) -> np.ndarray:
     L = int(max_degree)
     a = float(np.cos(theta_max))
     l = np.arange(L + 1)
-    integral = np.where(l == 0, 1.0 - a,
-                        (eval_legendre(np.maximum(l - 1, 0), a) - eval_legendre(l + 1, a)) / (2 * l + 1))
+    integral = np.where(
+        l == 0, 1.0 - a, (eval_legendre(np.maximum(l - 1, 0), a) - eval_legendre(l + 1, a)) / (2 * l + 1)
+    )
     out = np.zeros(n_coefficients(L))
     out[l * l + l] = 2 * np.pi * np.sqrt((2 * l + 1) / SPHERE_AREA) * integral
     return out
@@ -64,8 +65,11 @@ class CompassView:
 
     def truncated(self, max_degree: int) -> CompassView:
         """Return the view cut (or zero-extended) to degree L."""
-        return CompassView(_truncate(self.weighted, max_degree), _truncate(self.weighted_square, max_degree),
-                           _truncate(self.visibility, max_degree))
+        return CompassView(
+            _truncate(self.weighted, max_degree),
+            _truncate(self.weighted_square, max_degree),
+            _truncate(self.visibility, max_degree),
+        )
 
     @property
     def area(self) -> float:
@@ -73,8 +77,9 @@ class CompassView:
         return float(self.visibility[0] * np.sqrt(SPHERE_AREA))
 
     @classmethod
-    def from_samples(cls, grid, samples: np.ndarray, seen: np.ndarray,
-                     square_samples: np.ndarray | None = None) -> CompassView:
+    def from_samples(
+        cls, grid, samples: np.ndarray, seen: np.ndarray, square_samples: np.ndarray | None = None
+    ) -> CompassView:
         """Return the view of cell values v f (samples), v f^2 (default v f: binary) and v (seen) on an SH grid."""
         # grid: a skynav_sh GaussLegendreGrid; its analysis is truncated at grid.max_degree
         square = samples if square_samples is None else square_samples
@@ -97,8 +102,13 @@ class CompassView:
         return cls.from_samples(transform.grid, samples, transform.visibility, square)
 
     @classmethod
-    def from_coefficients(cls, coefficients: np.ndarray, visibility: np.ndarray | None = None,
-                          max_degree: int | None = None, binary: bool = False) -> CompassView:
+    def from_coefficients(
+        cls,
+        coefficients: np.ndarray,
+        visibility: np.ndarray | None = None,
+        max_degree: int | None = None,
+        binary: bool = False,
+    ) -> CompassView:
         """Return the view of a function f (coefficients, unseen part arbitrary) and visibility v by SH products.
 
         The products are exact for band-limited f and v (degree L defaults to that of f); visibility None means the
@@ -120,8 +130,9 @@ class CompassView:
         return cls(weighted, full, v)
 
     @classmethod
-    def from_sh_message(cls, coefficients: np.ndarray, field_of_view: float, fill: str = 'zero',
-                        max_degree: int | None = None) -> CompassView:
+    def from_sh_message(
+        cls, coefficients: np.ndarray, field_of_view: float, fill: str = 'zero', max_degree: int | None = None
+    ) -> CompassView:
         """Return the view of a skyline mask's SH (ShCoefficients: coefficients, fill, field_of_view in rad).
 
         zero fill: v f is the message itself; mean fill: v f = f - mu (1 - v) with mu = c_00 / sqrt(4 pi) exactly;
@@ -140,8 +151,7 @@ class CompassView:
             unseen[0] += np.sqrt(SPHERE_AREA)
             weighted = _truncate(f, degree) - mean * unseen
         elif fill == 'mirror':
-            weighted = product(cap_visibility(degree_from_size(f.shape[-1]), field_of_view / 2), f,
-                               max_degree=degree)
+            weighted = product(cap_visibility(degree_from_size(f.shape[-1]), field_of_view / 2), f, max_degree=degree)
         else:
             raise ValueError(f'unknown fill {fill!r}; expected one of {FILL_MODES}')
         return cls(weighted, weighted, v)

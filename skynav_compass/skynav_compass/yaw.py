@@ -53,16 +53,21 @@ class PanoramicCompass:
 
         from skynav_sh.fisheye import image_values
 
-        return cv2.remap(image_values(image), self._maps[0], self._maps[1], cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+        return cv2.remap(
+            image_values(image),
+            self._maps[0],
+            self._maps[1],
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0.0,
+        )
 
     def image_difference(self, snapshot: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Return the rotational image difference (value^2) of two panoramas per column shift psi_k = 2 pi k / n."""
         s = np.asarray(snapshot, dtype=np.float64)
         c = np.asarray(current, dtype=np.float64)
         # sum_j s[j] c[j - k] for all k: inverse FFT of S conj(C) summed over rows
-        cross = np.fft.irfft(np.sum(np.fft.rfft(s, axis=1) * np.conj(np.fft.rfft(c, axis=1)), axis=0),
-                             n=s.shape[1])
+        cross = np.fft.irfft(np.sum(np.fft.rfft(s, axis=1) * np.conj(np.fft.rfft(c, axis=1)), axis=0), n=s.shape[1])
         return (np.sum(s * s) + np.sum(c * c) - 2 * cross) / s.size
 
     def estimate(self, snapshot_image: np.ndarray, current_image: np.ndarray) -> CompassEstimate:
@@ -77,15 +82,23 @@ class PanoramicCompass:
         offset = _parabola_offset(difference[(k - 1) % n], difference[k], difference[(k + 1) % n])
         psi = 2 * np.pi * (k + offset) / n
         matrix = yaw_matrix(psi)
-        return CompassEstimate(matrix, float(difference[k]), (Hypothesis(matrix, float(difference[k])),), float('inf'),
-                               True, self.method, 'mean squared panorama difference (value^2)')
+        return CompassEstimate(
+            matrix,
+            float(difference[k]),
+            (Hypothesis(matrix, float(difference[k])),),
+            float('inf'),
+            True,
+            self.method,
+            'mean squared panorama difference (value^2)',
+        )
 
 
 class YawCompass:
     """The classic visual compass on the SH: the compass cost over z-rotations only (FFT over psi, then Newton)."""
 
-    def __init__(self, max_degree: int, cost: str = 'masked', normalise: bool = False,
-                 oversampling: float = 4.0) -> None:
+    def __init__(
+        self, max_degree: int, cost: str = 'masked', normalise: bool = False, oversampling: float = 4.0
+    ) -> None:
         """Prepare the yaw search of degree L with n = oversampling (2L + 2) samples of psi."""
         self.max_degree = int(max_degree)
         self.cost = cost
@@ -97,8 +110,7 @@ class YawCompass:
         """Return a short name of the configured method."""
         return f'visual-compass-sh-{self.cost}'
 
-    def estimate(self, snapshot: CompassView | np.ndarray,
-                 current: CompassView | np.ndarray) -> CompassEstimate:
+    def estimate(self, snapshot: CompassView | np.ndarray, current: CompassView | np.ndarray) -> CompassEstimate:
         """Return R = Rz(psi) minimising the compass cost over yaw (d_snapshot = R d_current)."""
         from skynav_compass.so3 import complex_form
 
@@ -126,5 +138,12 @@ class YawCompass:
                 break
         matrix = yaw_matrix(psi)
         residual = problem.cost(matrix)
-        return CompassEstimate(matrix, residual, (Hypothesis(matrix, residual),), float('inf'), True, self.method,
-                               UNITS[self.cost, self.normalise])
+        return CompassEstimate(
+            matrix,
+            residual,
+            (Hypothesis(matrix, residual),),
+            float('inf'),
+            True,
+            self.method,
+            UNITS[self.cost, self.normalise],
+        )

@@ -90,8 +90,14 @@ def test_camera_turned_about_its_own_z_in_the_image(compass_set):
     d_current = camera.pixel_directions()
     source = camera.project(truth.apply(d_current.reshape(-1, 3))).reshape(d_current.shape[:-1] + (2,))
     mask = data.masks[data.reference]
-    turned = cv2.remap(mask, source[..., 0].astype(np.float32), source[..., 1].astype(np.float32),
-                       cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    turned = cv2.remap(
+        mask,
+        source[..., 0].astype(np.float32),
+        source[..., 1].astype(np.float32),
+        cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
     transform = FisheyeTransform(camera, DEGREE, 'zero')
     views = CompassView.from_image(transform, mask), CompassView.from_image(transform, turned)
     estimate = Compass(DEGREE).estimate(*views)

@@ -84,8 +84,16 @@ def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
 
 
 def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
-    result = run_skynav('eval', 'compass', str(GARDEN), '--methods', 'fft-masked', 'visual-compass-panorama',
-                        '--plots', str(tmp_path / 'plots'))
+    result = run_skynav(
+        'eval',
+        'compass',
+        str(GARDEN),
+        '--methods',
+        'fft-masked',
+        'visual-compass-panorama',
+        '--plots',
+        str(tmp_path / 'plots'),
+    )
     assert result.returncode == 0, result.stderr
     out = result.stdout
     assert 'pure rotations: 15 views' in out and 'moved views: 15 views' in out
@@ -114,8 +122,10 @@ def _bag_without_camera(path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize('case, code', [('missing bag', 1), ('no camera topics', 1), ('unknown method', 2),
-                                        ('corrupt map', 1), ('not a bag', 1)])
+@pytest.mark.parametrize(
+    'case, code',
+    [('missing bag', 1), ('no camera topics', 1), ('unknown method', 2), ('corrupt map', 1), ('not a bag', 1)],
+)
 def test_bad_input_is_one_line_with_its_exit_code(case, code, tmp_path):
     garden = str(GARDEN)
     if case == 'missing bag':
@@ -157,8 +167,9 @@ def test_sh_node_settings_follow_the_parameter_files(tmp_path):
 
     first, second = tmp_path / 'a.yaml', tmp_path / 'b.yaml'
     first.write_text('sh:\n  ros__parameters:\n    fill: mean\n    max_degree: 12\n')
-    second.write_text('/**:\n  ros__parameters:\n    field_of_view_deg: 180.0\nskyline:\n  ros__parameters:\n'
-                      '    fill: mirror\n')
+    second.write_text(
+        '/**:\n  ros__parameters:\n    field_of_view_deg: 180.0\nskyline:\n  ros__parameters:\n    fill: mirror\n'
+    )
     settings = sh_node_settings(['--params-file', str(first), '--params-file', str(second), '-p', 'map:=x'])
     assert settings == {'fill': 'mean', 'max_degree': 12, 'field_of_view_deg': 180.0}
     assert sh_node_settings(None) == {}

@@ -83,8 +83,9 @@ def test_contract_sign_camera_turned_about_its_own_z():
     truth = q_snapshot.inv() * q_current
     assert np.allclose(truth.as_rotvec(), [0.0, 0.0, np.radians(20.0)])
     visibility = cap_visibility(DEGREE, np.radians(100))
-    views = [CompassView.from_coefficients(view_of(world, q), visibility, max_degree=DEGREE)
-             for q in (q_snapshot, q_current)]
+    views = [
+        CompassView.from_coefficients(view_of(world, q), visibility, max_degree=DEGREE) for q in (q_snapshot, q_current)
+    ]
     estimate = Compass(DEGREE).estimate(*views)
     assert np.degrees(estimate.rotation.as_rotvec()) == pytest.approx([0.0, 0.0, 20.0], abs=0.5)
 
@@ -169,6 +170,7 @@ def test_small_overlap_rotations_are_rejected():
 
 # --- a ground robot's prior: the tilt bound, the overlap, verification on samples and the confidence ---------------
 
+
 def skyline_view(orientation: Rotation, skyline, field_of_view_deg: float = 200.0, degree: int = 16) -> CompassView:
     """Return the binary mask view (degree L) of a world whose sky lies above the elevation skyline(azimuth) (rad).
 
@@ -229,8 +231,7 @@ def test_newton_steps_stay_within_the_tilt_bound():
 
 def test_hypotheses_whose_fields_of_view_hardly_overlap_are_refused():
     """200-degree fish-eyes turned over still share a 20-degree band (30 % of a view): the default refuses it."""
-    view = CompassView.from_coefficients(band_limited(95), cap_visibility(DEGREE, np.radians(100)),
-                                         max_degree=DEGREE)
+    view = CompassView.from_coefficients(band_limited(95), cap_visibility(DEGREE, np.radians(100)), max_degree=DEGREE)
     turned_over = Rotation.from_euler('x', 180, degrees=True)
     assert Compass(DEGREE).cost(view, view, turned_over) == float('inf')  # default: at least half
     assert np.isfinite(Compass(DEGREE, CompassConfig(min_overlap=0.25)).cost(view, view, turned_over))
@@ -245,10 +246,12 @@ def test_the_confidence_ranks_estimates():
     for name, skyline in (('rugged', rugged), ('flat', flat)):
         values = []
         for _ in range(3):
-            q_s = Rotation.from_euler('ZYX', [rng.uniform(0, 360), rng.uniform(-5, 5), rng.uniform(-5, 5)],
-                                      degrees=True)
-            q_c = q_s * Rotation.from_euler('ZYX', [rng.uniform(0, 360), rng.uniform(-20, 20),
-                                                    rng.uniform(-20, 20)], degrees=True)
+            q_s = Rotation.from_euler(
+                'ZYX', [rng.uniform(0, 360), rng.uniform(-5, 5), rng.uniform(-5, 5)], degrees=True
+            )
+            q_c = q_s * Rotation.from_euler(
+                'ZYX', [rng.uniform(0, 360), rng.uniform(-20, 20), rng.uniform(-20, 20)], degrees=True
+            )
             estimate = Compass(16).estimate(skyline_view(q_s, skyline), skyline_view(q_c, skyline))
             values.append(estimate.confidence)
             if name == 'rugged':

@@ -39,8 +39,9 @@ def test_angular_error_in_degrees_for_quaternions_and_matrices():
 def test_tilt_and_heading():
     r = Rotation.from_euler('ZY', [40.0, 25.0], degrees=True)  # heading 40, then a tilt of 25 about y
     assert relative_tilt(r.as_quat()) == pytest.approx(25.0)
-    assert heading_error(Rotation.from_euler('z', 170, degrees=True).as_quat(),
-                         Rotation.from_euler('z', -175, degrees=True).as_quat()) == pytest.approx(15.0)
+    assert heading_error(
+        Rotation.from_euler('z', 170, degrees=True).as_quat(), Rotation.from_euler('z', -175, degrees=True).as_quat()
+    ) == pytest.approx(15.0)
 
 
 def test_true_rotation_from_poses_follows_the_contract():
@@ -75,11 +76,13 @@ def test_roc_auc_counts_right_estimates_ranked_above_wrong_ones():
     assert np.isnan(roc_auc([0.1, 0.2], [True, True]))  # nothing to separate
     # a method without a confidence is ranked by its residual, lower first
     errors = np.array([1.0, 2.0, 30.0, 90.0])
-    by_residual = CompassResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, np.inf]),
-                               confidence=np.full(4, np.nan))
+    by_residual = CompassResult(
+        'm', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, np.inf]), confidence=np.full(4, np.nan)
+    )
     assert by_residual.separation() == 1.0
-    by_confidence = CompassResult('m', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, 0.4]),
-                                 confidence=np.array([0.2, 0.9, 0.1, 0.05]))
+    by_confidence = CompassResult(
+        'm', errors, np.zeros(4), residuals=np.array([0.1, 0.2, 0.3, 0.4]), confidence=np.array([0.2, 0.9, 0.1, 0.05])
+    )
     assert by_confidence.separation() == 1.0
     assert by_confidence.separation(np.array([True, False, True, False])) == 1.0
 

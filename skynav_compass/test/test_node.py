@@ -59,8 +59,12 @@ def reference_map(tmp_path_factory, reference):
 def sh_message(view, field_of_view, stamp=None, coefficients=None, max_degree=None, fill='zero'):
     """Return a view as the SH node publishes it (its own stamp unless `stamp` is given)."""
     coefficients = view.coefficients if coefficients is None else np.asarray(coefficients)
-    message = ShCoefficients(max_degree=view.max_degree if max_degree is None else max_degree,
-                             coefficients=coefficients.tolist(), fill=fill, field_of_view=float(field_of_view))
+    message = ShCoefficients(
+        max_degree=view.max_degree if max_degree is None else max_degree,
+        coefficients=coefficients.tolist(),
+        fill=fill,
+        field_of_view=float(field_of_view),
+    )
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp if stamp is None else stamp, 10**9)
     message.header.frame_id = 'camera_link'
     return message
@@ -185,8 +189,13 @@ def test_unusable_parameters_fall_back_to_the_defaults(reference_map):
         node = graph.nodes[0]
         assert node.rejected['parameters'] == 1
         # every parameter falls back, the map too
-        assert node.parameter_values() == {'map': '', 'reference': 'match', 'index': 0, 'max_degree': 16,
-                                           'max_tilt_deg': 45.0}
+        assert node.parameter_values() == {
+            'map': '',
+            'reference': 'match',
+            'index': 0,
+            'max_degree': 16,
+            'max_tilt_deg': 45.0,
+        }
         # at run time an unusable value is refused and the current one kept
         refused = node.set_parameters([Parameter('reference', value='bogus')])[0]
         assert not refused.successful and 'reference' in refused.reason
@@ -203,8 +212,14 @@ def test_a_match_selects_the_snapshot_of_a_larger_map(recording, tmp_path):
     """With several snapshots, reference 'match' waits for an accepted place match and follows it."""
     views = [v for v in recording.views if v.label == 'rotation'][:3]
     path = tmp_path / 'three.db'
-    build_map(path, 'three', 16, [Snapshot(k, v.stamp, v.coefficients, v.pose) for k, v in enumerate(views)],
-              created_from='test', overwrite=True)
+    build_map(
+        path,
+        'three',
+        16,
+        [Snapshot(k, v.stamp, v.coefficients, v.pose) for k, v in enumerate(views)],
+        created_from='test',
+        overwrite=True,
+    )
     current = [v for v in recording.views if v.label == 'translation'][:4]
     fov = recording.camera.field_of_view
 
@@ -247,8 +262,14 @@ def test_non_finite_coefficients_are_rejected(recording, reference_map):
 def test_a_match_beyond_the_map_is_rejected(recording, tmp_path):
     views = [v for v in recording.views if v.label == 'rotation'][:2]
     path = tmp_path / 'two.db'
-    build_map(path, 'two', 16, [Snapshot(k, v.stamp, v.coefficients, v.pose) for k, v in enumerate(views)],
-              created_from='test', overwrite=True)
+    build_map(
+        path,
+        'two',
+        16,
+        [Snapshot(k, v.stamp, v.coefficients, v.pose) for k, v in enumerate(views)],
+        created_from='test',
+        overwrite=True,
+    )
     current = next(v for v in recording.views if v.label == 'translation')
     with in_process([SPEC], ['-p', f'map:={path}']) as graph:
         graph.keep_outputs = True
@@ -272,8 +293,13 @@ def test_views_and_snapshots_without_a_skyline_get_no_estimate_and_are_counted(r
     blank_map = tmp_path / 'blank.db'
     build_map(blank_map, 'blank', 16, [Snapshot(0, reference.stamp, all_sky, reference.pose)], created_from='test')
     reference_map = tmp_path / 'reference.db'
-    build_map(reference_map, 'reference', 16, [Snapshot(0, reference.stamp, reference.coefficients, reference.pose)],
-              created_from='test')
+    build_map(
+        reference_map,
+        'reference',
+        16,
+        [Snapshot(0, reference.stamp, reference.coefficients, reference.pose)],
+        created_from='test',
+    )
     with in_process([SPEC], ['-p', f'map:={reference_map}']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]

@@ -60,8 +60,9 @@ def test_exhaustive_search_finds_the_rotation_to_its_final_step(cost):
 def test_exhaustive_search_respects_the_tilt_limit():
     f = band_limited(2)
     truth = Rotation.from_euler('ZYZ', [10.0, 60.0, 30.0], degrees=True)  # tilt 60 deg, outside a 30 deg limit
-    estimate = ExhaustiveCompass(DEGREE, ExhaustiveConfig(cost='plain', max_tilt=np.radians(30),
-                                                          final_step=np.radians(1.0))).estimate(rotate(f, truth), f)
+    estimate = ExhaustiveCompass(
+        DEGREE, ExhaustiveConfig(cost='plain', max_tilt=np.radians(30), final_step=np.radians(1.0))
+    ).estimate(rotate(f, truth), f)
     assert np.degrees(estimate.euler_zyz[1]) < 45.0
 
 
@@ -79,8 +80,9 @@ def test_panoramic_compass_recovers_a_yaw_of_a_turned_mask(garden):
 
     camera = garden.camera
     truth = Rotation.from_euler('z', 33.0, degrees=True)  # the camera turned by +33 deg about its own z
-    source = camera.project(truth.apply(camera.pixel_directions().reshape(-1, 3))).reshape(camera.height,
-                                                                                          camera.width, 2)
+    source = camera.project(truth.apply(camera.pixel_directions().reshape(-1, 3))).reshape(
+        camera.height, camera.width, 2
+    )
     mask = garden.masks[0]
     turned = cv2.remap(mask, source[..., 0].astype(np.float32), source[..., 1].astype(np.float32), cv2.INTER_LINEAR)
     estimate = PanoramicCompass(camera).estimate(mask, turned)

@@ -66,8 +66,9 @@ def test_prepared_snapshot_gives_the_same_estimates(kind, normalise):
 
 @pytest.mark.parametrize('kind', ['masked', 'plain'])
 def test_prepared_snapshot_for_the_exhaustive_search(kind):
-    compass = ExhaustiveCompass(DEGREE, ExhaustiveConfig(cost=kind, max_tilt=np.radians(60),
-                                                         final_step=np.radians(0.5)))
+    compass = ExhaustiveCompass(
+        DEGREE, ExhaustiveConfig(cost=kind, max_tilt=np.radians(60), final_step=np.radians(0.5))
+    )
     snapshot, currents = views(kind, False, 1)
     prepared = compass.prepare(snapshot)
     cold, warm = compass.estimate(snapshot, currents[0]), compass.estimate(prepared, currents[0])
@@ -88,9 +89,13 @@ def test_a_snapshot_prepared_for_another_setting_is_refused():
 def test_degree_first_rotation_matches_rotate_by_matrix():
     padded = to_padded(np.stack([band_limited(k) for k in range(3)]))  # (3, L+1, 2L+1)
     by_degree = np.ascontiguousarray(padded.transpose(1, 0, 2))
-    matrices = np.concatenate([Rotation.random(5, random_state=3).as_matrix(),
-                               Rotation.from_euler('ZYZ', [[0.3, 0.0, 0.2], [0.3, np.pi, -1.0], [0, np.pi / 2, 0]])
-                               .as_matrix(), np.eye(3)[None]])
+    matrices = np.concatenate(
+        [
+            Rotation.random(5, random_state=3).as_matrix(),
+            Rotation.from_euler('ZYZ', [[0.3, 0.0, 0.2], [0.3, np.pi, -1.0], [0, np.pi / 2, 0]]).as_matrix(),
+            np.eye(3)[None],
+        ]
+    )
     expected = rotate_by_matrix(padded, matrices)  # (K, 3, L+1, 2L+1)
     assert np.allclose(rotate_degree_major(by_degree, matrices).transpose(0, 2, 1, 3), expected, atol=1e-12)
     assert np.allclose(rotate_degree_major(by_degree, matrices[0]).transpose(1, 0, 2), expected[0], atol=1e-12)

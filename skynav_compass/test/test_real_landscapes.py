@@ -50,14 +50,20 @@ def evaluations(stellarium, tmp_path_factory):
     camera = EquidistantCamera.for_field_of_view(320, 240, np.radians(200.0), distortion)
     out = {}
     for time in TIMES:
-        params = ScenarioParameters(hours=TIMES_OF_DAY['morning'], count=COUNT, max_tilt=30.0, max_translation=0.5,
-                                    reference_hours=None if time == 'same' else TIMES_OF_DAY[time])
+        params = ScenarioParameters(
+            hours=TIMES_OF_DAY['morning'],
+            count=COUNT,
+            max_tilt=30.0,
+            max_translation=0.5,
+            reference_hours=None if time == 'same' else TIMES_OF_DAY[time],
+        )
         for name in LANDSCAPES:
             world = generate(name, SEED)
             frames = build('compass', world, params, SEED)
             path = folder / f'synthetic_{name}_{time}_compass.mcap'
-            recording.write(path, world, camera, frames, 'mono8', SEED,
-                            describe('compass', world, params, SEED, frames))
+            recording.write(
+                path, world, camera, frames, 'mono8', SEED, describe('compass', world, params, SEED, frames)
+            )
             for degree in DEGREES:
                 out[name, time, degree] = evaluate_recording(path, ['fft-masked'], ros_args=arguments[degree])
     return out

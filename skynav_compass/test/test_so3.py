@@ -65,8 +65,10 @@ def test_generators_are_derivatives_of_rotations(axis):
     h = 1e-6
     w = np.zeros(3)
     w[axis] = h
-    numeric = (rotate_by_matrix(c, Rotation.from_rotvec(w).as_matrix())
-               - rotate_by_matrix(c, Rotation.from_rotvec(-w).as_matrix())) / (2 * h)
+    numeric = (
+        rotate_by_matrix(c, Rotation.from_rotvec(w).as_matrix())
+        - rotate_by_matrix(c, Rotation.from_rotvec(-w).as_matrix())
+    ) / (2 * h)
     analytic = np.matmul(generators(DEGREE)[axis], c[..., None])[..., 0]
     assert np.allclose(numeric, analytic, atol=1e-7)
 

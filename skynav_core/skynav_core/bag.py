@@ -62,9 +62,7 @@ def _check_mcap_file(path: Path) -> None:
     if head != MCAP_MAGIC:
         raise BagError(f'{path}: not an MCAP file (it does not start with the MCAP magic bytes)')
     if tail != MCAP_MAGIC:
-        raise BagError(
-            f'{path}: truncated MCAP file (no footer; the recording was cut off before it was closed)'
-        )
+        raise BagError(f'{path}: truncated MCAP file (no footer; the recording was cut off before it was closed)')
 
 
 class BagReader:

@@ -134,9 +134,7 @@ class EquidistantCamera(_PixelCamera):
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3); theta past 90 degrees included."""
         theta, phi = angles_from_directions(directions)
         theta_d = self.distort(theta)
-        return np.stack(
-            [self.cx + self.fx * theta_d * np.cos(phi), self.cy + self.fy * theta_d * np.sin(phi)], axis=-1
-        )
+        return np.stack([self.cx + self.fx * theta_d * np.cos(phi), self.cy + self.fy * theta_d * np.sin(phi)], axis=-1)
 
     def unproject(self, pixels: np.ndarray) -> np.ndarray:
         """Return unit directions (..., 3) of pixel coordinates (..., 2) given as (u, v)."""
@@ -177,12 +175,20 @@ class EquidistantCamera(_PixelCamera):
             raise ValueError('camera info has non-finite or non-positive intrinsics')
         if int(info.width) <= 0 or int(info.height) <= 0:
             raise ValueError(f'camera info has no image size ({info.width}x{info.height})')
-        return cls(int(info.width), int(info.height), float(k[0, 0]), float(k[1, 1]), float(k[0, 2]),
-                   float(k[1, 2]), tuple(float(x) for x in d))
+        return cls(
+            int(info.width),
+            int(info.height),
+            float(k[0, 0]),
+            float(k[1, 1]),
+            float(k[0, 2]),
+            float(k[1, 2]),
+            tuple(float(x) for x in d),
+        )
 
     @classmethod
-    def for_field_of_view(cls, width: int, height: int, fov: float,
-                          k: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)) -> EquidistantCamera:
+    def for_field_of_view(
+        cls, width: int, height: int, fov: float, k: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    ) -> EquidistantCamera:
         """Return a centred camera whose image circle touches the shorter image side at `fov` (rad, full angle)."""
         cx, cy = (width - 1) / 2, (height - 1) / 2
         radius = min(cx, cy)
@@ -228,8 +234,11 @@ class OCamCamera(_PixelCamera):
     @classmethod
     def from_calib_file(cls, path: str | os.PathLike, centre_origin: int = OCAM_CENTRE_ORIGIN) -> OCamCamera:
         """Return the camera of an OCamCalib calib_results.txt (comment lines start with '#')."""
-        lines = [line.split() for line in Path(path).read_text().splitlines()
-                 if line.strip() and not line.lstrip().startswith('#')]
+        lines = [
+            line.split()
+            for line in Path(path).read_text().splitlines()
+            if line.strip() and not line.lstrip().startswith('#')
+        ]
         if len(lines) < 5:
             raise ValueError(f'{path}: expected pol, invpol, centre, affine and size lines, found {len(lines)}')
         pol_line, invpol_line, centre, affine, size = lines[:5]
@@ -241,18 +250,29 @@ class OCamCamera(_PixelCamera):
             return tuple(float(v) for v in values[1 : count + 1])
 
         height, width = (int(float(v)) for v in size[:2])
-        return cls(width, height, counted(pol_line, 'pol'), counted(invpol_line, 'invpol'),
-                   float(centre[0]) - centre_origin, float(centre[1]) - centre_origin,
-                   *(float(v) for v in affine[:3]))
+        return cls(
+            width,
+            height,
+            counted(pol_line, 'pol'),
+            counted(invpol_line, 'invpol'),
+            float(centre[0]) - centre_origin,
+            float(centre[1]) - centre_origin,
+            *(float(v) for v in affine[:3]),
+        )
 
     @cached_property
     def theta_max(self) -> float:
         """Polar angle (rad) of the image circle: the least theta over the image's border pixels."""
         u = np.arange(self.width, dtype=float)
         v = np.arange(self.height, dtype=float)
-        border = np.concatenate([
-            np.stack([u, np.zeros_like(u)], -1), np.stack([u, np.full_like(u, self.height - 1)], -1),
-            np.stack([np.zeros_like(v), v], -1), np.stack([np.full_like(v, self.width - 1), v], -1)])
+        border = np.concatenate(
+            [
+                np.stack([u, np.zeros_like(u)], -1),
+                np.stack([u, np.full_like(u, self.height - 1)], -1),
+                np.stack([np.zeros_like(v), v], -1),
+                np.stack([np.full_like(v, self.width - 1), v], -1),
+            ]
+        )
         theta, _ = angles_from_directions(self.unproject(border))
         return float(min(theta.min(), self.fov_limit / 2))
 

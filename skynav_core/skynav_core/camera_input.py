@@ -44,16 +44,18 @@ class CameraInput:
         """Narrow the field of view to `fov` (rad, full angle; 0 or less: the whole image circle)."""
         self.fov_limit = fov if fov > 0 else 2 * np.pi
         if self.camera is not None:
-            self.camera = EquidistantCamera(*(getattr(self.camera, f) for f in
-                                              ('width', 'height', 'fx', 'fy', 'cx', 'cy', 'k')), self.fov_limit)
+            self.camera = EquidistantCamera(
+                *(getattr(self.camera, f) for f in ('width', 'height', 'fx', 'fy', 'cx', 'cy', 'k')), self.fov_limit
+            )
 
     def hold(self, item: Any) -> None:
         """Keep an input until a camera is known; beyond the capacity the oldest is dropped and counted."""
         self._held.append(item)
         if len(self._held) > self._capacity:
             self._held.popleft()
-            self.reject('no_camera_info', f'no camera info on {CAMERA_INFO_TOPIC} yet; the oldest waiting '
-                                          'input was dropped')
+            self.reject(
+                'no_camera_info', f'no camera info on {CAMERA_INFO_TOPIC} yet; the oldest waiting input was dropped'
+            )
 
     def release(self) -> list[Any]:
         """Return (and forget) the inputs held so far, oldest first."""
@@ -64,7 +66,10 @@ class CameraInput:
     def matches(self, shape: tuple[int, int]) -> bool:
         """Return whether an image of `shape` (height, width) fits the camera; reject it otherwise."""
         if (self.camera.height, self.camera.width) != tuple(shape):
-            self.reject('camera_info_mismatch', f'image of {shape[1]}x{shape[0]} pixels, but the camera info '
-                                                f'says {self.camera.width}x{self.camera.height}')
+            self.reject(
+                'camera_info_mismatch',
+                f'image of {shape[1]}x{shape[0]} pixels, but the camera info '
+                f'says {self.camera.width}x{self.camera.height}',
+            )
             return False
         return True

@@ -28,15 +28,17 @@ def unknown_methods(chosen: Iterable[str], known: Iterable[str]) -> str | None:
     return None
 
 
-def add_methods_argument(parser: argparse.ArgumentParser, known: Sequence[str],
-                         default: Sequence[str] | None = None) -> None:
+def add_methods_argument(
+    parser: argparse.ArgumentParser, known: Sequence[str], default: Sequence[str] | None = None
+) -> None:
     """Add --methods: some of a stage's registry `known`, by default `default` (None: all of them)."""
     if default is None:
         default, text = known, f'default all: {", ".join(known)}'
     else:
         text = f'default {" ".join(default)}; one of {", ".join(known)}'
-    parser.add_argument('--methods', nargs='+', default=list(default), metavar='METHOD',
-                        help=f'methods to compare ({text})')
+    parser.add_argument(
+        '--methods', nargs='+', default=list(default), metavar='METHOD', help=f'methods to compare ({text})'
+    )
 
 
 def check_methods(chosen: Iterable[str], known: Iterable[str]) -> None:
@@ -47,8 +49,9 @@ def check_methods(chosen: Iterable[str], known: Iterable[str]) -> None:
 
 def add_plots_argument(parser: argparse.ArgumentParser, default: str, what: str = 'the plots') -> None:
     """Add --plots: the folder the command saves `what` in (created when missing)."""
-    parser.add_argument('--plots', type=Path, default=Path(default), metavar='DIR',
-                        help=f'folder for {what} (default {default})')
+    parser.add_argument(
+        '--plots', type=Path, default=Path(default), metavar='DIR', help=f'folder for {what} (default {default})'
+    )
 
 
 def plots_folder(path: Path) -> Path:
@@ -105,6 +108,7 @@ def text_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]], gap: st
 
     Columns are joined by `gap`; a row shorter than the columns ends early (e.g. a second header line).
     """
+
     def line(cells: Sequence[Any]) -> str:
         return gap.join(column.cell(value) for column, value in zip(columns, cells))
 

@@ -125,8 +125,9 @@ class InProcessGraph:
 
 
 @contextmanager
-def in_process(specs: Iterable[NodeSpec], ros_args: list[str] | None = None,
-               sink: Sink | None = None) -> Iterator[InProcessGraph]:
+def in_process(
+    specs: Iterable[NodeSpec], ros_args: list[str] | None = None, sink: Sink | None = None
+) -> Iterator[InProcessGraph]:
     """Yield an InProcessGraph of the given nodes in an rclpy context of its own (ros_args: --params-file, -p)."""
     from .environment import apply_ros_environment
 

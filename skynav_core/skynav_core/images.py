@@ -32,8 +32,7 @@ def image_to_array(message: object, encodings: tuple[str, ...] = tuple(DTYPES)) 
         raise ImageError('malformed', f'image size {width}x{height} is empty')
     if step < width * dtype.itemsize:
         raise ImageError('malformed', f'step {step} is shorter than a row of {width} {encoding} pixels')
-    data = np.frombuffer(bytes(message.data) if not isinstance(message.data, np.ndarray) else message.data,
-                         np.uint8)
+    data = np.frombuffer(bytes(message.data) if not isinstance(message.data, np.ndarray) else message.data, np.uint8)
     if data.size != step * height:
         raise ImageError('malformed', f'{data.size} data bytes for {height} rows of {step} bytes')
     rows = data.reshape(height, step)[:, : width * dtype.itemsize]

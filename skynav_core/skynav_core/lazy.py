@@ -9,8 +9,9 @@ from importlib import import_module
 from typing import Any
 
 
-def lazy_exports(package: str, exports: Mapping[str, tuple[str, ...]]) \
-        -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
+def lazy_exports(
+    package: str, exports: Mapping[str, tuple[str, ...]]
+) -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
     """Return the __getattr__, __dir__ and __all__ of `package` whose public names are {submodule: names}."""
     module_of = {name: module for module, names in exports.items() for name in names}
     public = sorted(module_of)

@@ -159,18 +159,30 @@ class MapStore:
     # --- opening -------------------------------------------------------------------------------------------------
 
     @classmethod
-    def create(cls, path: str | os.PathLike, name: str, max_degree: int, *, created_from: str = '',
-               metadata: Mapping[str, Any] | None = None, overwrite: bool = False) -> MapStore:
+    def create(
+        cls,
+        path: str | os.PathLike,
+        name: str,
+        max_degree: int,
+        *,
+        created_from: str = '',
+        metadata: Mapping[str, Any] | None = None,
+        overwrite: bool = False,
+    ) -> MapStore:
         """Create an empty map file at path (SH degree L) and return it open for adding snapshots one by one."""
         path = Path(path)
         if int(max_degree) < 0:
             raise MapError(f'{path}: SH degree must be >= 0, got {max_degree}')
         if not path.parent.is_dir():
             raise MapError(f'{path}: no such directory {path.parent}')
-        meta = {'format': MAP_FORMAT, 'schema_version': str(SCHEMA_VERSION), 'name': str(name),
-                'max_degree': str(int(max_degree)),
-                'created_utc': datetime.now(UTC).isoformat(timespec='seconds'),
-                'created_from': str(created_from)}
+        meta = {
+            'format': MAP_FORMAT,
+            'schema_version': str(SCHEMA_VERSION),
+            'name': str(name),
+            'max_degree': str(int(max_degree)),
+            'created_utc': datetime.now(UTC).isoformat(timespec='seconds'),
+            'created_from': str(created_from),
+        }
         for key, value in (metadata or {}).items():
             if key in RESERVED_META:
                 raise MapError(f'{path}: metadata key {key!r} is reserved')
@@ -223,8 +235,12 @@ class MapStore:
             if writable:
                 db = sqlite3.connect(path, isolation_level=None, check_same_thread=False)
             else:
-                db = sqlite3.connect(f'file:{quote(str(path.resolve()))}?mode=ro', uri=True, isolation_level=None,
-                                     check_same_thread=False)
+                db = sqlite3.connect(
+                    f'file:{quote(str(path.resolve()))}?mode=ro',
+                    uri=True,
+                    isolation_level=None,
+                    check_same_thread=False,
+                )
         except sqlite3.Error as exc:
             raise MapError(f'{path}: cannot open the map: {exc}') from None
         store = cls(path, db, writable)
@@ -248,9 +264,18 @@ class MapStore:
         return store
 
     @classmethod
-    def build(cls, path: str | os.PathLike, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
-              created_from: str = '', metadata: Mapping[str, Any] | None = None,
-              overwrite: bool = False, finish: Callable[[MapStore], None] | None = None) -> MapStore:
+    def build(
+        cls,
+        path: str | os.PathLike,
+        name: str,
+        max_degree: int,
+        snapshots: Iterable[Snapshot],
+        *,
+        created_from: str = '',
+        metadata: Mapping[str, Any] | None = None,
+        overwrite: bool = False,
+        finish: Callable[[MapStore], None] | None = None,
+    ) -> MapStore:
         """Write a whole map in one go under a temporary name, rename it to path at the end; return it read-only.
 
         `finish(store)` may add map-level data (a vocabulary) before the rename.
@@ -259,8 +284,7 @@ class MapStore:
         if path.exists() and not overwrite:
             raise MapError(f'{path}: exists already; choose another name or pass overwrite')
         partial = path.with_name(f'.{path.name}.partial')
-        store = cls.create(partial, name, max_degree, created_from=created_from, metadata=metadata,
-                           overwrite=True)
+        store = cls.create(partial, name, max_degree, created_from=created_from, metadata=metadata, overwrite=True)
         store._db.execute('PRAGMA synchronous=OFF')  # a crash leaves only the partial file, removed or redone
         try:
             for snapshot in snapshots:
@@ -290,16 +314,21 @@ class MapStore:
         except sqlite3.OperationalError:
             raise MapError(f'{self.path}: an SQLite database but not a skynav map (alien meta table)') from None
         if meta.get('format') != MAP_FORMAT:
-            raise MapError(f'{self.path}: an SQLite database but not a skynav map (meta format is '
-                           f'{meta.get("format")!r}, expected {MAP_FORMAT!r})')
+            raise MapError(
+                f'{self.path}: an SQLite database but not a skynav map (meta format is '
+                f'{meta.get("format")!r}, expected {MAP_FORMAT!r})'
+            )
         try:
             version = int(meta.get('schema_version', ''))
         except ValueError:
-            raise MapError(f'{self.path}: damaged map (schema_version {meta.get("schema_version")!r} '
-                           'is not a number)') from None
+            raise MapError(
+                f'{self.path}: damaged map (schema_version {meta.get("schema_version")!r} is not a number)'
+            ) from None
         if version > SCHEMA_VERSION:
-            raise MapError(f'{self.path}: map schema version {version} is newer than this skynav reads '
-                           f'({SCHEMA_VERSION}); update skynav')
+            raise MapError(
+                f'{self.path}: map schema version {version} is newer than this skynav reads '
+                f'({SCHEMA_VERSION}); update skynav'
+            )
         if version < 1:
             raise MapError(f'{self.path}: damaged map (schema version {version})')
         optional = {table: columns for table, columns in _OPTIONAL_COLUMNS.items() if table in tables}
@@ -317,21 +346,25 @@ class MapStore:
 
     def _load_snapshots(self) -> None:
         """Read every snapshot's stamp, coefficients and pose, checking order, sizes and checksums."""
-        rows = self._db.execute('SELECT idx, stamp_ns, coefficients, checksum, ' + ', '.join(POSE_COLUMNS)
-                                + ' FROM snapshots ORDER BY idx').fetchall()
+        rows = self._db.execute(
+            'SELECT idx, stamp_ns, coefficients, checksum, ' + ', '.join(POSE_COLUMNS) + ' FROM snapshots ORDER BY idx'
+        ).fetchall()
         size = (self.max_degree + 1) ** 2
         indices = np.fromiter((row[0] for row in rows), dtype=np.int64, count=len(rows))
         if len(rows) and not np.array_equal(indices, np.arange(len(rows))):
             gap = int(np.flatnonzero(indices != np.arange(len(rows)))[0])
-            raise MapError(f'{self.path}: damaged map (snapshot indices are not 0..{len(rows) - 1}; '
-                           f'index {gap} is missing)')
+            raise MapError(
+                f'{self.path}: damaged map (snapshot indices are not 0..{len(rows) - 1}; index {gap} is missing)'
+            )
         coefficients = np.empty((len(rows), size))
         poses = np.full((len(rows), 7), np.nan)
         for row in rows:
             index, blob = row[0], row[2]
             if not isinstance(blob, bytes) or len(blob) != 8 * size:
-                raise MapError(f'{self.path}: damaged map (snapshot {index} has {len(blob or b"")} bytes of '
-                               f'coefficients, expected {8 * size} for degree {self.max_degree})')
+                raise MapError(
+                    f'{self.path}: damaged map (snapshot {index} has {len(blob or b"")} bytes of '
+                    f'coefficients, expected {8 * size} for degree {self.max_degree})'
+                )
             if _crc(blob) != row[3]:
                 raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
             coefficients[index] = np.frombuffer(blob, dtype='<f8')
@@ -353,15 +386,21 @@ class MapStore:
         if self._db is None:
             raise MapError(f'{self.path}: map is closed')
 
-    def add_snapshot(self, coefficients: np.ndarray, stamp_ns: int, pose: np.ndarray | None = None,
-                     descriptors: Mapping[str, np.ndarray] | None = None) -> int:
+    def add_snapshot(
+        self,
+        coefficients: np.ndarray,
+        stamp_ns: int,
+        pose: np.ndarray | None = None,
+        descriptors: Mapping[str, np.ndarray] | None = None,
+    ) -> int:
         """Append one snapshot (coefficients, stamp in ns, optional pose, named descriptors) in one transaction."""
         self._require_writable()
         coefficients = np.asarray(coefficients, dtype=float)
         size = (self.max_degree + 1) ** 2
         if coefficients.shape != (size,):
-            raise ValueError(f'{self.path}: expected {size} coefficients (degree {self.max_degree}), '
-                             f'got shape {coefficients.shape}')
+            raise ValueError(
+                f'{self.path}: expected {size} coefficients (degree {self.max_degree}), got shape {coefficients.shape}'
+            )
         if not np.all(np.isfinite(coefficients)):
             raise ValueError(f'{self.path}: coefficients must be finite')
         pose_values: tuple = (None,) * 7
@@ -376,12 +415,15 @@ class MapStore:
             index = len(self)
             try:
                 with self._transaction():
-                    self._db.execute('INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
-                                     (index, int(stamp_ns), blob, _crc(blob), *pose_values))
+                    self._db.execute(
+                        'INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
+                        (index, int(stamp_ns), blob, _crc(blob), *pose_values),
+                    )
                     if packed:
                         self._create_table('descriptors')
-                        self._db.executemany('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
-                                             [(index, *row) for row in packed])
+                        self._db.executemany(
+                            'INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)', [(index, *row) for row in packed]
+                        )
             except sqlite3.Error as exc:
                 raise MapError(f'{self.path}: cannot write snapshot {index}: {exc}') from None
             self._append(int(stamp_ns), coefficients, np.asarray(pose_values, dtype=float))
@@ -435,8 +477,7 @@ class MapStore:
         try:
             with self._transaction():
                 self._create_table('artifacts')
-                self._db.execute('INSERT OR REPLACE INTO artifacts VALUES (?, ?, ?, ?, ?)',
-                                 (str(name), *_pack(array)))
+                self._db.execute('INSERT OR REPLACE INTO artifacts VALUES (?, ?, ?, ?, ?)', (str(name), *_pack(array)))
         except sqlite3.Error as exc:
             raise MapError(f'{self.path}: cannot write artifact {name!r}: {exc}') from None
 
@@ -455,8 +496,10 @@ class MapStore:
 
     def _has_table(self, table: str) -> bool:
         """Return whether the file holds table `table` (the optional tables appear with their first rows)."""
-        return self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?",
-                                (table,)).fetchone() is not None
+        return (
+            self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)).fetchone()
+            is not None
+        )
 
     def _create_table(self, table: str) -> None:
         """Create optional table `table` unless it exists (inside the caller's transaction)."""
@@ -555,12 +598,20 @@ class MapStore:
         """Return one snapshot with all its descriptors."""
         if not 0 <= index < len(self):
             raise IndexError(f'{self.path}: no snapshot {index} (the map has {len(self)})')
-        rows = self._read_optional('descriptors', 'SELECT name, dtype, shape, data, checksum FROM descriptors '
-                                   'WHERE snapshot_idx = ?', (int(index),))
+        rows = self._read_optional(
+            'descriptors',
+            'SELECT name, dtype, shape, data, checksum FROM descriptors WHERE snapshot_idx = ?',
+            (int(index),),
+        )
         descriptors = {row[0]: self._checked(row[1:], f'descriptor {row[0]!r} of snapshot {index}') for row in rows}
         pose = self._poses[index]
-        return Snapshot(index, int(self._stamps[index]), self._coefficients[index].copy(),
-                        pose.copy() if np.all(np.isfinite(pose)) else None, descriptors)
+        return Snapshot(
+            index,
+            int(self._stamps[index]),
+            self._coefficients[index].copy(),
+            pose.copy() if np.all(np.isfinite(pose)) else None,
+            descriptors,
+        )
 
     def snapshots(self) -> list[Snapshot]:
         """Return every snapshot (index order) with its descriptors."""
@@ -568,22 +619,29 @@ class MapStore:
 
     def descriptor_names(self) -> list[str]:
         """Return the names of the stored per-snapshot descriptors."""
-        return [row[0] for row in self._read_optional('descriptors',
-                                                      'SELECT DISTINCT name FROM descriptors ORDER BY name')]
+        return [
+            row[0] for row in self._read_optional('descriptors', 'SELECT DISTINCT name FROM descriptors ORDER BY name')
+        ]
 
     def descriptor_list(self, name: str) -> list[np.ndarray]:
         """Return descriptor `name` of every snapshot as a list (for variable-size ones such as ORB)."""
-        rows = self._read_optional('descriptors', 'SELECT snapshot_idx, dtype, shape, data, checksum FROM descriptors '
-                                   'WHERE name = ? '
-                          'ORDER BY snapshot_idx', (str(name),))
+        rows = self._read_optional(
+            'descriptors',
+            'SELECT snapshot_idx, dtype, shape, data, checksum FROM descriptors WHERE name = ? ORDER BY snapshot_idx',
+            (str(name),),
+        )
         if not rows:
-            raise KeyError(f'{self.path}: no descriptor {name!r} in this map '
-                           f'(it has: {", ".join(self.descriptor_names()) or "none"})')
+            raise KeyError(
+                f'{self.path}: no descriptor {name!r} in this map '
+                f'(it has: {", ".join(self.descriptor_names()) or "none"})'
+            )
         if len(rows) != len(self) or any(row[0] != i for i, row in enumerate(rows)):
             have = {row[0] for row in rows}
             first = next(i for i in range(len(self)) if i not in have)
-            raise MapError(f'{self.path}: descriptor {name!r} is stored for {len(rows)} of {len(self)} snapshots '
-                           f'(snapshot {first} lacks it)')
+            raise MapError(
+                f'{self.path}: descriptor {name!r} is stored for {len(rows)} of {len(self)} snapshots '
+                f'(snapshot {first} lacks it)'
+            )
         return [self._checked(row[1:], f'descriptor {name!r} of snapshot {row[0]}') for row in rows]
 
     def descriptor_matrix(self, name: str) -> np.ndarray:
@@ -610,8 +668,9 @@ class MapStore:
 
     def artifact(self, name: str) -> np.ndarray | None:
         """Return the map-level array stored under `name`, None if there is none."""
-        rows = self._read_optional('artifacts', 'SELECT dtype, shape, data, checksum FROM artifacts WHERE name = ?',
-                                   (str(name),))
+        rows = self._read_optional(
+            'artifacts', 'SELECT dtype, shape, data, checksum FROM artifacts WHERE name = ?', (str(name),)
+        )
         return self._checked(rows[0], f'artifact {name!r}') if rows else None
 
     def _read(self, sql: str, parameters: tuple = ()) -> list[tuple]:
@@ -653,8 +712,9 @@ class MapStore:
         info['file_bytes'] = self.path.stat().st_size if self.path.exists() else 0
         info['snapshots'] = len(self)
         info['descriptors'] = self.descriptor_names()
-        info['artifacts'] = [row[0] for row in self._read_optional('artifacts',
-                                                                   'SELECT name FROM artifacts ORDER BY name')]
+        info['artifacts'] = [
+            row[0] for row in self._read_optional('artifacts', 'SELECT name FROM artifacts ORDER BY name')
+        ]
         info['has_poses'] = self.has_poses
         if len(self):
             info['first_stamp_ns'] = int(self._stamps[0])
@@ -668,7 +728,6 @@ class MapStore:
 
     def __repr__(self) -> str:
         return f'MapStore({str(self.path)!r}, name={self.name!r}, snapshots={len(self)}, L={self.max_degree})'
-
 
 
 def map_for_parameter(current: MapStore | None, path: str) -> MapStore | None:

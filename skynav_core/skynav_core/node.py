@@ -128,8 +128,9 @@ class SkynavNode(Node):
 
     # --- topics -----------------------------------------------------------------------------
 
-    def input(self, topic: str, message_type: type, callback: Callable[[Any], None],
-              qos: QoSProfile = STREAM_QOS) -> None:
+    def input(
+        self, topic: str, message_type: type, callback: Callable[[Any], None], qos: QoSProfile = STREAM_QOS
+    ) -> None:
         """Receive `topic`: live through a subscription, in `skynav run` through the router."""
 
         def receive(message: Any) -> None:
@@ -139,8 +140,9 @@ class SkynavNode(Node):
             except Exception:  # a bug must not take the node down; it is logged and counted
                 self.errors += 1
                 if self.errors <= 3:
-                    self.get_logger().error(f'error handling {topic} (counted in /diagnostics):\n'
-                                            f'{traceback.format_exc()}')
+                    self.get_logger().error(
+                        f'error handling {topic} (counted in /diagnostics):\n{traceback.format_exc()}'
+                    )
 
         if self.router is not None:
             self.router.subscribe(topic, receive)
@@ -149,7 +151,9 @@ class SkynavNode(Node):
 
     def output(self, topic: str, message_type: type, qos: QoSProfile = STREAM_QOS) -> None:
         """Declare a topic this node publishes."""
-        self._output_publishers[topic] = None if self.router is not None else self.create_publisher(message_type, topic, qos)
+        self._output_publishers[topic] = (
+            None if self.router is not None else self.create_publisher(message_type, topic, qos)
+        )
 
     def emit(self, topic: str, message: Any) -> None:
         """Publish `message` on a declared output topic."""
@@ -166,8 +170,10 @@ class SkynavNode(Node):
         """Count a rejected input; log one clear line the first time each `reason` occurs."""
         self.rejected[reason] += 1
         if self.rejected[reason] == 1:
-            self.get_logger().warning(f'rejected input ({reason}): {detail}; '
-                                      f'further inputs rejected for this reason are counted in /diagnostics')
+            self.get_logger().warning(
+                f'rejected input ({reason}): {detail}; '
+                f'further inputs rejected for this reason are counted in /diagnostics'
+            )
 
     def in_order(self, stamp: int, last: int, what: str = 'view') -> bool:
         """Return whether an input stamped `stamp` (ns) is newer than the last one taken; reject it otherwise."""
@@ -204,7 +210,8 @@ class SkynavNode(Node):
         problems = sum(self.rejected.values()) + self.errors
         values = {
             'rate_hz': f'{rate:.2f}',
-            'processing_ms_mean': f'{1e3 * sum(self._processing) / len(self._processing):.2f}' if self._processing
+            'processing_ms_mean': f'{1e3 * sum(self._processing) / len(self._processing):.2f}'
+            if self._processing
             else 'nan',
             'processing_ms_max': f'{1e3 * max(self._processing):.2f}' if self._processing else 'nan',
             'received': str(sum(self.received.values())),
@@ -221,8 +228,13 @@ class SkynavNode(Node):
             level, text = DiagnosticStatus.WARN, f'{fresh_problems} inputs rejected or failed since the last report'
         else:
             level, text = DiagnosticStatus.OK, f'{rate:.1f} Hz'
-        return DiagnosticStatus(level=level, name=f'skynav/{self.get_name()}', message=text, hardware_id='skynav',
-                                values=[KeyValue(key=k, value=v) for k, v in values.items()])
+        return DiagnosticStatus(
+            level=level,
+            name=f'skynav/{self.get_name()}',
+            message=text,
+            hardware_id='skynav',
+            values=[KeyValue(key=k, value=v) for k, v in values.items()],
+        )
 
     def publish_diagnostics(self) -> None:
         """Publish the status on /diagnostics."""

@@ -34,9 +34,15 @@ def installed_nodes() -> list[NodeSpec]:
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         dist = ep.dist
         module = ep.value.partition(':')[0]
-        scripts = [] if dist is None else [
-            s.name for s in dist.entry_points if s.group == 'console_scripts' and s.value.partition(':')[0] == module
-        ]
+        scripts = (
+            []
+            if dist is None
+            else [
+                s.name
+                for s in dist.entry_points
+                if s.group == 'console_scripts' and s.value.partition(':')[0] == module
+            ]
+        )
         package = dist.metadata['Name'] if dist is not None else ep.module.split('.')[0]
         specs.append(NodeSpec(ep.name, package, ep.value, scripts[0] if scripts else None))
 

@@ -51,9 +51,13 @@ def load_parameter_file(path: str | Path) -> dict[str, dict]:
         raise ParameterFileError(f'parameter file {path} is not valid YAML: {str(exc).splitlines()[0]}') from None
     if content is None:
         return {}
-    if not (isinstance(content, dict) and all(isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict)
-                                              for v in content.values())):
-        raise ParameterFileError(f'parameter file {path} is not in the ROS 2 format (node_name: {{ros__parameters: ...}})')
+    if not (
+        isinstance(content, dict)
+        and all(isinstance(v, dict) and isinstance(v.get('ros__parameters'), dict) for v in content.values())
+    ):
+        raise ParameterFileError(
+            f'parameter file {path} is not in the ROS 2 format (node_name: {{ros__parameters: ...}})'
+        )
     return content
 
 

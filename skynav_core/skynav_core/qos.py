@@ -85,4 +85,3 @@ def bag_qos(profile: QoSProfile) -> Qos:
         liveliness_lease_duration=_bag_time(profile.liveliness_lease_duration),
         avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
     )
-

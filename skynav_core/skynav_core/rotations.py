@@ -18,7 +18,9 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
 
-RotationLike = Union['Rotation', np.ndarray, tuple, list]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
+RotationLike = Union[
+    'Rotation', np.ndarray, tuple, list
+]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
 
 
 def _scipy_rotation() -> type[Rotation]:
@@ -52,10 +54,14 @@ def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
     """Return the matrices Rz(alpha) Ry(beta) Rz(gamma) (..., 3, 3) of ZYZ angles (rad; arrays broadcast)."""
     angles = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (alpha, beta, gamma)))
     ca, sa, cb, sb, cg, sg = (f(x) for x in angles for f in (np.cos, np.sin))
-    return np.stack([
-        np.stack([ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb], -1),
-        np.stack([sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb], -1),
-        np.stack([-sb * cg, sb * sg, cb], -1)], -2)
+    return np.stack(
+        [
+            np.stack([ca * cb * cg - sa * sg, -ca * cb * sg - sa * cg, ca * sb], -1),
+            np.stack([sa * cb * cg + ca * sg, -sa * cb * sg + ca * cg, sa * sb], -1),
+            np.stack([-sb * cg, sb * sg, cb], -1),
+        ],
+        -2,
+    )
 
 
 def yaw_matrix(angle) -> np.ndarray:
@@ -109,8 +115,9 @@ def relative_rotation(snapshot_orientation: RotationLike, current_orientation: R
     return np.swapaxes(as_matrix(snapshot_orientation), -1, -2) @ as_matrix(current_orientation)
 
 
-def home_direction(snapshot_position: np.ndarray, current_position: np.ndarray,
-                   current_orientation: RotationLike) -> np.ndarray:
+def home_direction(
+    snapshot_position: np.ndarray, current_position: np.ndarray, current_orientation: RotationLike
+) -> np.ndarray:
     """Return unit vectors (..., 3) towards the snapshot's place in the current camera_link: Q_c^-1 (p_s - p_c)."""
     offset = np.asarray(snapshot_position, dtype=float) - np.asarray(current_position, dtype=float)
     vector = np.einsum('...ji,...j->...i', as_matrix(current_orientation), offset)

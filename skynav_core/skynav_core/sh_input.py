@@ -24,8 +24,9 @@ from .images import stamp_ns
 SH_REJECTIONS = ('malformed', 'non_finite', 'degree', 'fill')  # the reasons, in the order they are checked
 
 
-def usable_coefficients(message: Any, reject: Callable[[str, str], None], degree: int = 0,
-                        fills: Collection[str] | None = None) -> np.ndarray | None:
+def usable_coefficients(
+    message: Any, reject: Callable[[str, str], None], degree: int = 0, fills: Collection[str] | None = None
+) -> np.ndarray | None:
     """Return the coefficients (float64) of an ShCoefficients message, or None after rejecting it with its reason.
 
     degree: the least degree the node needs; fills: the fills it takes (None: any).

@@ -73,9 +73,12 @@ class SnapshotChoice:
             reject('no_match', 'no accepted place match yet to choose the snapshot')
             return None
         if self.match.index >= n_snapshots:
-            reject('match_beyond_map', f'the place match names snapshot {self.match.index} of map '
-                                       f'{self.match.map_name!r}; this node has {n_snapshots} snapshots of '
-                                       f'{self.store.name!r}')
+            reject(
+                'match_beyond_map',
+                f'the place match names snapshot {self.match.index} of map '
+                f'{self.match.map_name!r}; this node has {n_snapshots} snapshots of '
+                f'{self.store.name!r}',
+            )
             return None
         if self.rule == 'next':
             return min(self.match.index + self.lookahead, n_snapshots - 1)

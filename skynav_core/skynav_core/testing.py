@@ -68,7 +68,6 @@ def wait_text(process: subprocess.Popen, text: str, stream: str = 'stderr') -> l
     raise AssertionError(f'{text!r} never appeared; the process wrote: {"".join(lines)}')
 
 
-
 def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[tuple[str, str, int, object]]:
     """Return (topic, type, log time ns, rosbags message) of every kind a recording holds, at 10 Hz.
 
@@ -93,27 +92,90 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         quaternion = T['geometry_msgs/msg/Quaternion'](*(lambda q: q / np.linalg.norm(q))(rng.normal(size=4)))
         for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
             pixels = rng.integers(0, 65535, (height, width), dtype=np.uint16)
-            out.append((topic, 'sensor_msgs/msg/Image', t, T['sensor_msgs/msg/Image'](
-                header, height, width, 'mono16', 0, 2 * width, pixels.view(np.uint8).ravel())))
+            out.append(
+                (
+                    topic,
+                    'sensor_msgs/msg/Image',
+                    t,
+                    T['sensor_msgs/msg/Image'](
+                        header, height, width, 'mono16', 0, 2 * width, pixels.view(np.uint8).ravel()
+                    ),
+                )
+            )
         roi = T['sensor_msgs/msg/RegionOfInterest'](0, 0, 0, 0, False)
         k = np.array([20.0, 0, width / 2 - 0.5, 0, 20.0, height / 2 - 0.5, 0, 0, 1])
-        out.append(('/camera/uv/camera_info', 'sensor_msgs/msg/CameraInfo', t, T['sensor_msgs/msg/CameraInfo'](
-            header, height, width, 'equidistant', np.array([0.01, -0.002, 0.0003, -0.00004]), k,
-            np.eye(3).ravel(), np.concatenate([k.reshape(3, 3), np.zeros((3, 1))], axis=1).ravel(), 1, 1, roi)))
+        out.append(
+            (
+                '/camera/uv/camera_info',
+                'sensor_msgs/msg/CameraInfo',
+                t,
+                T['sensor_msgs/msg/CameraInfo'](
+                    header,
+                    height,
+                    width,
+                    'equidistant',
+                    np.array([0.01, -0.002, 0.0003, -0.00004]),
+                    k,
+                    np.eye(3).ravel(),
+                    np.concatenate([k.reshape(3, 3), np.zeros((3, 1))], axis=1).ravel(),
+                    1,
+                    1,
+                    roi,
+                ),
+            )
+        )
         pose = T['geometry_msgs/msg/Pose'](T['geometry_msgs/msg/Point'](*rng.normal(size=3)), quaternion)
         map_header = T['std_msgs/msg/Header'](stamp, 'map')
-        out.append(('/ground_truth/pose', 'geometry_msgs/msg/PoseStamped', t,
-                    T['geometry_msgs/msg/PoseStamped'](map_header, pose)))
-        out.append(('/skyline/sh', 'skynav_msgs/msg/ShCoefficients', t, T['skynav_msgs/msg/ShCoefficients'](
-            header, 4, rng.normal(size=25), 'zero', np.float32(3.4906585))))
-        out.append(('/localization/match', 'skynav_msgs/msg/PlaceMatch', t, T['skynav_msgs/msg/PlaceMatch'](
-            header, 'garden', i - 1, T['builtin_interfaces/msg/Time'](i, 500), float('inf') if i == 0 else 0.5 * i,
-            i % 2 == 1, np.array([i, i + 1, i + 2], dtype=np.int32), np.array([0.5, 0.75, 2.0]) * i)))
-        out.append(('/compass/orientation', 'skynav_msgs/msg/CompassEstimate', t,
-                    T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i)))
+        out.append(
+            (
+                '/ground_truth/pose',
+                'geometry_msgs/msg/PoseStamped',
+                t,
+                T['geometry_msgs/msg/PoseStamped'](map_header, pose),
+            )
+        )
+        out.append(
+            (
+                '/skyline/sh',
+                'skynav_msgs/msg/ShCoefficients',
+                t,
+                T['skynav_msgs/msg/ShCoefficients'](header, 4, rng.normal(size=25), 'zero', np.float32(3.4906585)),
+            )
+        )
+        out.append(
+            (
+                '/localization/match',
+                'skynav_msgs/msg/PlaceMatch',
+                t,
+                T['skynav_msgs/msg/PlaceMatch'](
+                    header,
+                    'garden',
+                    i - 1,
+                    T['builtin_interfaces/msg/Time'](i, 500),
+                    float('inf') if i == 0 else 0.5 * i,
+                    i % 2 == 1,
+                    np.array([i, i + 1, i + 2], dtype=np.int32),
+                    np.array([0.5, 0.75, 2.0]) * i,
+                ),
+            )
+        )
+        out.append(
+            (
+                '/compass/orientation',
+                'skynav_msgs/msg/CompassEstimate',
+                t,
+                T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i),
+            )
+        )
         direction = T['geometry_msgs/msg/Vector3'](*(lambda v: v / np.linalg.norm(v))(rng.normal(size=3)))
-        out.append(('/homing/home_vector', 'skynav_msgs/msg/HomeVector', t,
-                    T['skynav_msgs/msg/HomeVector'](header, i, direction, quaternion, 0.02 * i)))
+        out.append(
+            (
+                '/homing/home_vector',
+                'skynav_msgs/msg/HomeVector',
+                t,
+                T['skynav_msgs/msg/HomeVector'](header, i, direction, quaternion, 0.02 * i),
+            )
+        )
     return out
 
 
@@ -157,8 +219,9 @@ SKY_LEVELS = (80, 43)  # mono8 (UV, green) of the uniform sky: the bundled garde
 GROUND_LEVELS = (5, 20)  # mono8 (UV, green) of the uniform ground: the same drive's medians
 
 
-def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int = 30,
-                                source: str = 'synthetic_garden_teach.mcap') -> Path:
+def write_featureless_recording(
+    path: str | os.PathLike, kind: str, frames: int = 30, source: str = 'synthetic_garden_teach.mcap'
+) -> Path:
     """Write the first frames of a bundled synthetic drive (camera, poses, stamps) with uniform, noise-free images.
 
     kind 'sky': every pixel sky; 'ground': every pixel ground; 'open-field': sky above a level horizon at
@@ -206,10 +269,14 @@ def write_featureless_recording(path: str | os.PathLike, kind: str, frames: int 
                 else:
                     sky = np.full(circle.shape, kind == 'sky')
                 channel = {'/camera/uv/image_raw': 0, '/camera/green/image_raw': 1}.get(topic)
-                pixels = (sky * np.uint8(255) if channel is None
-                          else np.where(sky, SKY_LEVELS[channel], GROUND_LEVELS[channel]) * circle)
-                message = dataclasses.replace(message, encoding='mono8', step=message.width,
-                                              data=np.ascontiguousarray(pixels, np.uint8).ravel())
+                pixels = (
+                    sky * np.uint8(255)
+                    if channel is None
+                    else np.where(sky, SKY_LEVELS[channel], GROUND_LEVELS[channel]) * circle
+                )
+                message = dataclasses.replace(
+                    message, encoding='mono8', step=message.width, data=np.ascontiguousarray(pixels, np.uint8).ravel()
+                )
             if topic not in writer.topics:
                 writer.add_topic(topic, msgtype)
             writer.write(topic, log_time, store.serialize_cdr(message, msgtype))

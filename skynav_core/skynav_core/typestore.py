@@ -75,9 +75,7 @@ def ensure_type(msgtype: str, msgdef: str = '', store: Typestore | None = None) 
             continue
         text = msgdef if (msgdef and name == msgtype) else find_msg_file(name)
         if text is None:
-            raise UnknownMessageType(
-                f'no definition of {name}: its package is not installed under any ament prefix'
-            )
+            raise UnknownMessageType(f'no definition of {name}: its package is not installed under any ament prefix')
         types = get_types_from_msg(text, name)
         store.register(types)
         for _, fields in types.values():

@@ -75,14 +75,20 @@ class RecordedFrames(Described):
     description: dict  # the skynav_sim metadata of a synthetic recording, {} otherwise
 
 
-def recorded_frames(bag: Any, image_topics: Sequence[str] = (),
-                    encodings: tuple[str, ...] = tuple(DTYPES)) -> RecordedFrames:
+def recorded_frames(
+    bag: Any, image_topics: Sequence[str] = (), encodings: tuple[str, ...] = tuple(DTYPES)
+) -> RecordedFrames:
     """Return the camera, ground-truth poses and images of `image_topics` of an open recording (skynav_core.bag).
 
     Topics the recording lacks are left out (their tables empty); an image in another encoding is an ImageError.
     """
-    frames = RecordedFrames(None, [], {}, {topic: {} for topic in image_topics},
-                            yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {})
+    frames = RecordedFrames(
+        None,
+        [],
+        {},
+        {topic: {} for topic in image_topics},
+        yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {},
+    )
     wanted = [t for t in (CAMERA_INFO_TOPIC, POSE_TOPIC, *image_topics) if t in bag.topics]
     for raw in bag.messages(wanted):
         message = bag.deserialize(raw)
@@ -98,8 +104,9 @@ def recorded_frames(bag: Any, image_topics: Sequence[str] = (),
     return frames
 
 
-def recording_views(path: str | Path, ros_args: list[str] | None = None, images: bool = True,
-                    progress=None, masks: bool = False) -> RecordingViews:
+def recording_views(
+    path: str | Path, ros_args: list[str] | None = None, images: bool = True, progress=None, masks: bool = False
+) -> RecordingViews:
     """Run the skyline and SH nodes over a recording in this process and return its views in stamp order.
 
     `images` keeps each view's raw UV image, `masks` the skyline node's mask.
@@ -126,14 +133,27 @@ def recording_views(path: str | Path, ros_args: list[str] | None = None, images:
                     node_masks[stamp_ns(output.message.header)] = image_to_array(output.message)
                 if output.topic == '/skyline/sh':
                     message = output.message
-                    coefficients[stamp_ns(message.header)] = (np.asarray(message.coefficients, np.float64),
-                                                              int(message.max_degree),
-                                                              float(message.field_of_view), str(message.fill))
+                    coefficients[stamp_ns(message.header)] = (
+                        np.asarray(message.coefficients, np.float64),
+                        int(message.max_degree),
+                        float(message.field_of_view),
+                        str(message.fill),
+                    )
         recorded = recorded_frames(bag, ['/camera/uv/image_raw'] if images else [])
     labels, uvs = recorded.labels(), recorded.images.get('/camera/uv/image_raw', {})
     frame_index = {stamp: k for k, stamp in enumerate(sorted(set(recorded.stamps) | set(coefficients)))}
-    views = [View(stamp, c, degree, uvs.get(stamp), recorded.poses.get(stamp),
-                  labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '', node_masks.get(stamp),
-                  field_of_view, fill)
-             for stamp, (c, degree, field_of_view, fill) in sorted(coefficients.items())]
+    views = [
+        View(
+            stamp,
+            c,
+            degree,
+            uvs.get(stamp),
+            recorded.poses.get(stamp),
+            labels[frame_index[stamp]] if frame_index[stamp] < len(labels) else '',
+            node_masks.get(stamp),
+            field_of_view,
+            fill,
+        )
+        for stamp, (c, degree, field_of_view, fill) in sorted(coefficients.items())
+    ]
     return RecordingViews(path, views, recorded.camera, recorded.description)

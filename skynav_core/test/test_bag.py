@@ -112,7 +112,13 @@ def test_closes_with_data_even_after_an_error(tmp_path):
         writer.add_topic('/camera/uv/image_raw', 'sensor_msgs/msg/Image')
         image = sh['sensor_msgs/msg/Image'](
             sh['std_msgs/msg/Header'](sh['builtin_interfaces/msg/Time'](1, 0), 'camera_link'),
-            1, 1, 'mono8', 0, 1, __import__('numpy').zeros(1, 'uint8'))
+            1,
+            1,
+            'mono8',
+            0,
+            1,
+            __import__('numpy').zeros(1, 'uint8'),
+        )
         writer.write('/camera/uv/image_raw', 10**9, typestore().serialize_cdr(image, 'sensor_msgs/msg/Image'))
         raise RuntimeError('processing failed')
     with open_bag(path) as bag:

@@ -85,8 +85,7 @@ def test_ocam_matches_ocamcalib_formulas_written_out():
     yp = (-camera.e * (row - camera.xc) + camera.c * (column - camera.yc)) / (camera.c - camera.d * camera.e)
     zp = np.polynomial.polynomial.polyval(np.hypot(xp, yp), camera.pol)
     ocam_ray = np.array([xp, yp, zp]) / np.linalg.norm([xp, yp, zp])
-    np.testing.assert_allclose(camera.unproject(np.array([column, row])), ocam_ray[[1, 0, 2]] * [1, 1, -1],
-                               atol=1e-14)
+    np.testing.assert_allclose(camera.unproject(np.array([column, row])), ocam_ray[[1, 0, 2]] * [1, 1, -1], atol=1e-14)
 
 
 def test_load_camera_dispatch():

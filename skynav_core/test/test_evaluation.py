@@ -51,10 +51,12 @@ def test_numbers_out_of_range_are_a_malformed_command_line():
     check_at_least(1, 1, '--repeats')
     check_not_negative(0, '--index')
     check_positive(0.5, '--tolerance')
-    for check, message in ((lambda: check_at_least(0, 1, '--repeats'), '--repeats must be at least 1'),
-                           (lambda: check_not_negative(-1, '--index'), '--index must not be negative'),
-                           (lambda: check_positive(0.0, '--tolerance'), '--tolerance must be more than 0'),
-                           (lambda: check_positive(math.nan, '--tolerance'), '--tolerance must be more than 0')):
+    for check, message in (
+        (lambda: check_at_least(0, 1, '--repeats'), '--repeats must be at least 1'),
+        (lambda: check_not_negative(-1, '--index'), '--index must not be negative'),
+        (lambda: check_positive(0.0, '--tolerance'), '--tolerance must be more than 0'),
+        (lambda: check_positive(math.nan, '--tolerance'), '--tolerance must be more than 0'),
+    ):
         with pytest.raises(CliError, match=message) as refused:
             check()
         assert refused.value.exit_code == 2
@@ -74,10 +76,12 @@ def test_folders_and_recordings(tmp_path):
 def test_a_table_aligns_its_columns_under_a_rule():
     columns = (Column('method', 8, align='<'), Column('n', 3, 'd'), Column('median', 7, '.2f'), Column('ok', 5))
     table = text_table(columns, [('fast', 12, 0.125, '100%'), ('slow', 3, math.nan, '-')])
-    assert table.splitlines() == ['method     n  median    ok',
-                                  '--------------------------',
-                                  'fast      12    0.12  100%',
-                                  'slow       3     nan     -']
+    assert table.splitlines() == [
+        'method     n  median    ok',
+        '--------------------------',
+        'fast      12    0.12  100%',
+        'slow       3     nan     -',
+    ]
 
 
 def test_a_table_without_gap_or_rule_and_a_short_row():

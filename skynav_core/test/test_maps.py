@@ -30,9 +30,12 @@ def pose_of(index: int) -> np.ndarray:
 def write_map(path, count: int = 5, poses: bool = True) -> None:
     with MapStore.create(path, 'garden', DEGREE, created_from='test.mcap') as store:
         for i in range(count):
-            store.add_snapshot(coefficients_of(i), 1_000_000_000 + i, pose_of(i) if poses else None,
-                               {'amplitude': np.arange(DEGREE, dtype=float) + i,
-                                'orb': np.full((i + 1, 32), i, np.uint8)})
+            store.add_snapshot(
+                coefficients_of(i),
+                1_000_000_000 + i,
+                pose_of(i) if poses else None,
+                {'amplitude': np.arange(DEGREE, dtype=float) + i, 'orb': np.full((i + 1, 32), i, np.uint8)},
+            )
 
 
 def assert_one_line_map_error(excinfo, path, *words):
@@ -136,9 +139,16 @@ def test_a_map_of_coefficients_holds_meta_and_snapshots_only(tmp_path):
 
 def test_removed_descriptors_leave_no_free_pages_in_a_built_map(tmp_path):
     path = tmp_path / 'built.db'
-    snapshots = [Snapshot(i, i, coefficients_of(i), pose_of(i), {'orb': np.full((200, 32), i, np.uint8),
-                                                                 'raw_uv': np.full(768, i, np.float32)})
-                 for i in range(6)]
+    snapshots = [
+        Snapshot(
+            i,
+            i,
+            coefficients_of(i),
+            pose_of(i),
+            {'orb': np.full((200, 32), i, np.uint8), 'raw_uv': np.full(768, i, np.float32)},
+        )
+        for i in range(6)
+    ]
     store = MapStore.build(path, 'built', DEGREE, snapshots, finish=lambda s: s.remove_descriptors('orb'))
     assert store.descriptor_names() == ['raw_uv'] and len(store) == 6
     with sqlite3.connect(path) as db:
@@ -165,15 +175,21 @@ def test_a_version_1_map_still_opens(tmp_path):
     path = tmp_path / 'old.db'
     with sqlite3.connect(path) as db:
         db.executescript(V1_SCHEMA)
-        db.executemany('INSERT INTO meta VALUES (?, ?)', [('format', 'skynav-map'), ('schema_version', '1'),
-                                                         ('name', 'old'), ('max_degree', str(DEGREE))])
+        db.executemany(
+            'INSERT INTO meta VALUES (?, ?)',
+            [('format', 'skynav-map'), ('schema_version', '1'), ('name', 'old'), ('max_degree', str(DEGREE))],
+        )
         for i in range(3):
             blob = coefficients_of(i).astype('<f8').tobytes()
-            db.execute('INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
-                       (i, 100 + i, blob, _crc(blob), *pose_of(i)))
+            db.execute(
+                'INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
+                (i, 100 + i, blob, _crc(blob), *pose_of(i)),
+            )
             amplitude = np.full(DEGREE, float(i)).astype('<f8').tobytes()
-            db.execute('INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
-                       (i, 'amplitude', '<f8', str(DEGREE), amplitude, _crc(amplitude)))
+            db.execute(
+                'INSERT INTO descriptors VALUES (?, ?, ?, ?, ?, ?)',
+                (i, 'amplitude', '<f8', str(DEGREE), amplitude, _crc(amplitude)),
+            )
     db.close()
     store = MapStore.open(path)
     assert len(store) == 3 and store.info()['schema_version'] == 1 and store.name == 'old'
@@ -214,6 +230,7 @@ def test_bad_input_is_refused(tmp_path):
 
 
 # --- errors: one MapError line naming the file and the problem --------------------------------------------------
+
 
 def test_missing_file(tmp_path):
     with pytest.raises(MapError) as excinfo:
@@ -324,7 +341,7 @@ def test_corrupt_descriptor_is_caught_when_read(tmp_path):
         store.descriptor_matrix('amplitude')
 
 
-WRITER = textwrap.dedent('''
+WRITER = textwrap.dedent("""
     import itertools, sys
     import numpy as np
     from skynav_core.maps import MapStore
@@ -332,13 +349,17 @@ WRITER = textwrap.dedent('''
     for i in itertools.count():
         store.add_snapshot(np.sin(np.arange({size}) * 0.37 + i), i, None, {{'amplitude': np.full({degree}, float(i))}})
         print(i, flush=True)
-''')
+""")
 
 
 def test_sigkill_while_building_keeps_every_committed_snapshot(tmp_path):
     path = tmp_path / 'killed.db'
-    writer = subprocess.Popen([sys.executable, '-c', WRITER.format(degree=DEGREE, size=SIZE), str(path)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    writer = subprocess.Popen(
+        [sys.executable, '-c', WRITER.format(degree=DEGREE, size=SIZE), str(path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         for line in writer.stdout:
             if int(line) >= 40:

@@ -40,11 +40,13 @@ def test_each_problem_of_a_message_has_its_reason_the_first_that_applies_countin
     good = np.ones((DEGREE + 1) ** 2)
     broken = good.copy()
     broken[3] = np.inf
-    messages = [sh_message(good[:-1]),  # 24 values for degree 4
-                sh_message(broken),
-                sh_message(good, fill='mirror'),  # fine but for the fill ...
-                sh_message(good[:9], max_degree=2, fill='mirror'),  # ... which counts after the degree
-                sh_message(np.full(9, np.nan), max_degree=3)]  # 9 values for degree 3: malformed before non-finite
+    messages = [
+        sh_message(good[:-1]),  # 24 values for degree 4
+        sh_message(broken),
+        sh_message(good, fill='mirror'),  # fine but for the fill ...
+        sh_message(good[:9], max_degree=2, fill='mirror'),  # ... which counts after the degree
+        sh_message(np.full(9, np.nan), max_degree=3),
+    ]  # 9 values for degree 3: malformed before non-finite
     assert all(usable_coefficients(m, reject, DEGREE, ('zero',)) is None for m in messages)
     assert reject == ['malformed', 'non_finite', 'fill', 'degree', 'malformed']
     assert set(reject) == set(SH_REJECTIONS)
@@ -64,8 +66,9 @@ def match(index: int, accepted: bool = True):
     return SimpleNamespace(index=index, accepted=accepted, map_name='route')
 
 
-@pytest.mark.parametrize('rule, expected', [('match', [None, 1, 1, 2, None]), ('next', [None, 2, 2, 2, None]),
-                                            ('index', [2, 2, 2, 2, 2])])
+@pytest.mark.parametrize(
+    'rule, expected', [('match', [None, 1, 1, 2, None]), ('next', [None, 2, 2, 2, None]), ('index', [2, 2, 2, 2, 2])]
+)
 def test_the_rule_chooses_the_snapshot(three_snapshots, rule, expected):
     reject = Rejections()
     choice = SnapshotChoice(reject, lambda coefficients, fov: (coefficients[0], fov))

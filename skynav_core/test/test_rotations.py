@@ -29,8 +29,9 @@ def random_rotations(seed: int, count: int) -> Rotation:
     """Return `count` uniformly random rotations, some of them at gimbal lock (beta 0 or pi)."""
     rng = np.random.default_rng(seed)
     rotations = Rotation.random(count, random_state=rng)
-    locked = Rotation.from_euler('ZYZ', np.column_stack([rng.uniform(-np.pi, np.pi, 2), [0.0, np.pi],
-                                                         rng.uniform(-np.pi, np.pi, 2)]))
+    locked = Rotation.from_euler(
+        'ZYZ', np.column_stack([rng.uniform(-np.pi, np.pi, 2), [0.0, np.pi], rng.uniform(-np.pi, np.pi, 2)])
+    )
     return Rotation.concatenate([rotations, locked])
 
 
@@ -40,9 +41,11 @@ def test_zyz_angles_rebuild_the_matrix_to_rounding_and_match_scipys_convention(s
     rotations = random_rotations(seed, 50)
     alpha, beta, gamma = zyz_angles(rotations.as_matrix())
     np.testing.assert_allclose(zyz_matrix(alpha, beta, gamma), rotations.as_matrix(), atol=1e-12)
-    np.testing.assert_allclose(zyz_matrix(alpha, beta, gamma),
-                               Rotation.from_euler('ZYZ', np.column_stack([alpha, beta, gamma])).as_matrix(),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        zyz_matrix(alpha, beta, gamma),
+        Rotation.from_euler('ZYZ', np.column_stack([alpha, beta, gamma])).as_matrix(),
+        atol=1e-12,
+    )
     assert np.all((beta >= 0) & (beta <= np.pi)) and np.all((gamma >= -np.pi) & (gamma < np.pi))
 
 
@@ -70,7 +73,9 @@ def test_angle_between_rotations_is_scipys_magnitude(seed):
 def test_tilt_is_the_zyz_beta_and_ignores_turns_about_z(seed):
     rotations = random_rotations(seed, 20)
     np.testing.assert_allclose(tilt(rotations), zyz_angles(rotations)[1], atol=1e-7)
-    turned = Rotation.from_euler('z', np.random.default_rng(seed).uniform(-np.pi, np.pi, (len(rotations), 1))) * rotations
+    turned = (
+        Rotation.from_euler('z', np.random.default_rng(seed).uniform(-np.pi, np.pi, (len(rotations), 1))) * rotations
+    )
     np.testing.assert_allclose(tilt(turned), tilt(rotations), atol=1e-7)
 
 
@@ -81,8 +86,9 @@ def test_quaternions_round_trip_in_ros_order(seed):
     quaternions = as_quaternion(rotations)
     assert np.all(quaternions[..., 3] >= 0)
     np.testing.assert_allclose(as_matrix(quaternions), rotations.as_matrix(), atol=1e-12)
-    np.testing.assert_allclose(as_matrix(quaternions.reshape(2, -1, 4)), rotations.as_matrix().reshape(2, -1, 3, 3),
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        as_matrix(quaternions.reshape(2, -1, 4)), rotations.as_matrix().reshape(2, -1, 3, 3), atol=1e-12
+    )
 
 
 @settings(max_examples=25, deadline=None)
@@ -103,8 +109,9 @@ def test_home_direction_points_at_the_snapshot_in_the_current_view(seed):
     rng = np.random.default_rng(seed)
     current, positions, home = Rotation.random(10, random_state=rng), rng.normal(size=(10, 3)), rng.normal(size=3)
     directions = home_direction(home, positions, current.as_quat())
-    np.testing.assert_allclose(current.apply(directions) * np.linalg.norm(home - positions, axis=1)[:, None],
-                               home - positions, atol=1e-12)
+    np.testing.assert_allclose(
+        current.apply(directions) * np.linalg.norm(home - positions, axis=1)[:, None], home - positions, atol=1e-12
+    )
 
 
 def test_a_rotation_of_the_wrong_shape_is_refused_in_one_line():

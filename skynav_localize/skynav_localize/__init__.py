@@ -19,16 +19,46 @@ from typing import TYPE_CHECKING
 from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
-    'descriptors': ('DESCRIPTOR_VERSION', 'DescriptorIndex', 'amplitude_descriptor', 'bispectrum_descriptor',
-                    'describe', 'descriptor_distance', 'distance_matrix'),
-    'matching': ('Acceptance', 'Match', 'SequenceBuffer', 'SequenceParams', 'best_candidates',
-                 'contrast_normalise', 'sequence_match', 'sequence_scores', 'single_frame'),
+    'descriptors': (
+        'DESCRIPTOR_VERSION',
+        'DescriptorIndex',
+        'amplitude_descriptor',
+        'bispectrum_descriptor',
+        'describe',
+        'descriptor_distance',
+        'distance_matrix',
+    ),
+    'matching': (
+        'Acceptance',
+        'Match',
+        'SequenceBuffer',
+        'SequenceParams',
+        'best_candidates',
+        'contrast_normalise',
+        'sequence_match',
+        'sequence_scores',
+        'single_frame',
+    ),
     'baselines': ('BowVocabulary', 'orb_descriptors', 'raw_uv_descriptor', 'train_bow'),
     'mapping': ('SnapshotSelector', 'build_map', 'create_map', 'descriptor_settings', 'snapshot_descriptors'),
     'localizer': ('BASELINE_METHODS', 'METHODS', 'OUR_METHODS', 'Localizer', 'Matches', 'Method', 'method'),
-    'evaluation': ('DEFAULT_TOLERANCE', 'LocalizationResult', 'PRCurve', 'compare', 'correct_matches', 'evaluate',
-                   'format_table', 'has_true_place', 'plot_matches_along_route', 'plot_pr_curves', 'pr_auc',
-                   'precision_recall', 'recall_at_1', 'recall_at_full_precision', 'threshold_at_full_precision'),
+    'evaluation': (
+        'DEFAULT_TOLERANCE',
+        'LocalizationResult',
+        'PRCurve',
+        'compare',
+        'correct_matches',
+        'evaluate',
+        'format_table',
+        'has_true_place',
+        'plot_matches_along_route',
+        'plot_pr_curves',
+        'pr_auc',
+        'precision_recall',
+        'recall_at_1',
+        'recall_at_full_precision',
+        'threshold_at_full_precision',
+    ),
 }
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 

@@ -37,8 +37,7 @@ def image_as_float(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32, copy=False)
 
 
-def raw_uv_descriptor(image: np.ndarray, size: tuple[int, int] = RAW_UV_SIZE,
-                      patch: int = RAW_UV_PATCH) -> np.ndarray:
+def raw_uv_descriptor(image: np.ndarray, size: tuple[int, int] = RAW_UV_SIZE, patch: int = RAW_UV_PATCH) -> np.ndarray:
     """Return SeqSLAM's patch-normalised down-sampled image (width x height values, float32) of a UV image."""
     import cv2
 
@@ -78,8 +77,7 @@ def orb_mask(circle: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray | 
     return cv2.erode(circle.astype(np.uint8) * 255, kernel)
 
 
-def orb_descriptors(image: np.ndarray, circle: np.ndarray | None = None,
-                    n_features: int = ORB_FEATURES) -> np.ndarray:
+def orb_descriptors(image: np.ndarray, circle: np.ndarray | None = None, n_features: int = ORB_FEATURES) -> np.ndarray:
     """Return the ORB descriptors (n, 32) uint8 of a UV image, features inside the image circle (bool mask) only."""
     import cv2
 
@@ -94,8 +92,7 @@ def _bits(descriptors: np.ndarray) -> np.ndarray:
     return np.unpackbits(np.asarray(descriptors, dtype=np.uint8), axis=1).astype(np.float32)
 
 
-def kmeans(points: np.ndarray, count: int, rng: np.random.Generator,
-           iterations: int = BOW_ITERATIONS) -> np.ndarray:
+def kmeans(points: np.ndarray, count: int, rng: np.random.Generator, iterations: int = BOW_ITERATIONS) -> np.ndarray:
     """Return `count` k-means centres (count, D) float32 of points (n, D), started from distinct random points."""
     from scipy.sparse import csr_matrix
 
@@ -107,8 +104,9 @@ def kmeans(points: np.ndarray, count: int, rng: np.random.Generator,
         if previous is not None and np.array_equal(nearest, previous):
             break
         previous = nearest
-        members = csr_matrix((np.ones(len(points), np.float32), (nearest, np.arange(len(points)))),
-                             shape=(count, len(points)))
+        members = csr_matrix(
+            (np.ones(len(points), np.float32), (nearest, np.arange(len(points)))), shape=(count, len(points))
+        )
         sizes = np.bincount(nearest, minlength=count)
         sums = np.asarray(members @ points)
         filled = sizes > 0  # an empty cluster keeps its centre
@@ -128,8 +126,9 @@ class BowVocabulary:
     idf: np.ndarray  # (K,) float64, log((1 + N) / (1 + snapshots containing the word))
 
     @classmethod
-    def train(cls, descriptor_sets: list[np.ndarray], size: int = BOW_WORDS, seed: int = 0,
-              max_samples: int = BOW_MAX_SAMPLES) -> BowVocabulary:
+    def train(
+        cls, descriptor_sets: list[np.ndarray], size: int = BOW_WORDS, seed: int = 0, max_samples: int = BOW_MAX_SAMPLES
+    ) -> BowVocabulary:
         """Return a vocabulary by k-means on (a sample of) the snapshots' ORB descriptors and their idf."""
         pool = np.concatenate([np.asarray(d, np.uint8).reshape(-1, 32) for d in descriptor_sets])
         if len(pool) == 0:
@@ -138,8 +137,7 @@ class BowVocabulary:
         if len(pool) > max_samples:
             pool = pool[rng.choice(len(pool), max_samples, replace=False)]
         vocabulary = cls(kmeans(_bits(pool), min(int(size), len(pool)), rng), np.zeros(0))
-        present = np.stack([np.bincount(vocabulary.assign(d), minlength=vocabulary.size) > 0
-                            for d in descriptor_sets])
+        present = np.stack([np.bincount(vocabulary.assign(d), minlength=vocabulary.size) > 0 for d in descriptor_sets])
         idf = np.log((1.0 + len(descriptor_sets)) / (1.0 + present.sum(axis=0)))
         return cls(vocabulary.words, idf)
 

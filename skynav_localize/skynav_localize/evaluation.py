@@ -37,8 +37,12 @@ def _distances_to(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[:, None, :] - targets[None, :, :], axis=-1)
 
 
-def correct_matches(matched: np.ndarray, query_positions: np.ndarray, snapshot_positions: np.ndarray,
-                    tolerance: float = DEFAULT_TOLERANCE) -> np.ndarray:
+def correct_matches(
+    matched: np.ndarray,
+    query_positions: np.ndarray,
+    snapshot_positions: np.ndarray,
+    tolerance: float = DEFAULT_TOLERANCE,
+) -> np.ndarray:
     """Return per query (Q,) whether its matched snapshot index lies within tolerance (m) of its true position."""
     matched = np.asarray(matched, dtype=np.intp)
     query_positions = np.asarray(query_positions, float)
@@ -51,8 +55,9 @@ def correct_matches(matched: np.ndarray, query_positions: np.ndarray, snapshot_p
     return out
 
 
-def has_true_place(query_positions: np.ndarray, snapshot_positions: np.ndarray,
-                   tolerance: float = DEFAULT_TOLERANCE) -> np.ndarray:
+def has_true_place(
+    query_positions: np.ndarray, snapshot_positions: np.ndarray, tolerance: float = DEFAULT_TOLERANCE
+) -> np.ndarray:
     """Return per query (Q,) whether any snapshot lies within tolerance (m) of it (an on-route, positive query)."""
     if len(snapshot_positions) == 0:
         return np.zeros(len(query_positions), dtype=bool)
@@ -83,8 +88,11 @@ def precision_recall(scores: np.ndarray, correct: np.ndarray, positives: int) ->
     sorted_scores = scores[order]
     true_positives = np.cumsum(correct[order])
     accepted = np.arange(1, scores.size + 1)
-    last_of_tie = np.flatnonzero(np.append(sorted_scores[1:] != sorted_scores[:-1], True)) if scores.size else \
-        np.zeros(0, dtype=np.intp)
+    last_of_tie = (
+        np.flatnonzero(np.append(sorted_scores[1:] != sorted_scores[:-1], True))
+        if scores.size
+        else np.zeros(0, dtype=np.intp)
+    )
     tp, acc = true_positives[last_of_tie], accepted[last_of_tie]
     recall = tp / positives if positives > 0 else np.zeros(tp.shape)
     return PRCurve(sorted_scores[last_of_tie], tp / acc, recall)
@@ -157,38 +165,76 @@ class LocalizationResult:
         return int(np.count_nonzero(self.accepted & ~self.positive))
 
 
-def evaluate(method: str, matched: np.ndarray, scores: np.ndarray, query_positions: np.ndarray,
-             snapshot_positions: np.ndarray, tolerance: float = DEFAULT_TOLERANCE,
-             accepted: np.ndarray | None = None) -> LocalizationResult:
+def evaluate(
+    method: str,
+    matched: np.ndarray,
+    scores: np.ndarray,
+    query_positions: np.ndarray,
+    snapshot_positions: np.ndarray,
+    tolerance: float = DEFAULT_TOLERANCE,
+    accepted: np.ndarray | None = None,
+) -> LocalizationResult:
     """Return the figures of per-query matched indices and scores given true query and snapshot positions (m)."""
     matched = np.asarray(matched)
     correct = correct_matches(matched, query_positions, snapshot_positions, tolerance)
     positive = has_true_place(query_positions, snapshot_positions, tolerance)
     curve = precision_recall(scores, correct, int(np.count_nonzero(positive)))
-    return LocalizationResult(method, float(tolerance), int(matched.size), int(np.count_nonzero(positive)),
-                              recall_at_full_precision(curve), pr_auc(curve), recall_at_1(correct, positive),
-                              threshold_at_full_precision(curve), curve, correct, matched,
-                              np.asarray(scores, float), None if accepted is None else np.asarray(accepted, bool),
-                              positive)
+    return LocalizationResult(
+        method,
+        float(tolerance),
+        int(matched.size),
+        int(np.count_nonzero(positive)),
+        recall_at_full_precision(curve),
+        pr_auc(curve),
+        recall_at_1(correct, positive),
+        threshold_at_full_precision(curve),
+        curve,
+        correct,
+        matched,
+        np.asarray(scores, float),
+        None if accepted is None else np.asarray(accepted, bool),
+        positive,
+    )
 
 
-TABLE_COLUMNS = (Column('method', 24, align='<'), Column('R@100%P', 8, '.3f'), Column('AUC', 6, '.3f'),
-                 Column('R@1', 6, '.3f'), Column('acc. P', 7, '.3f'), Column('acc. R', 7, '.3f'),
-                 Column('off acc.', 9), Column('thr@100%P', 10, '.4g'))
+TABLE_COLUMNS = (
+    Column('method', 24, align='<'),
+    Column('R@100%P', 8, '.3f'),
+    Column('AUC', 6, '.3f'),
+    Column('R@1', 6, '.3f'),
+    Column('acc. P', 7, '.3f'),
+    Column('acc. R', 7, '.3f'),
+    Column('off acc.', 9),
+    Column('thr@100%P', 10, '.4g'),
+)
 
 
 def format_table(results: Sequence[LocalizationResult]) -> str:
     """Return a plain-text table of results: method, recall@100%P, AUC, recall@1, and of the accepted matches
     precision, recall and the off-route queries accepted."""
-    rows = [(r.method, r.recall_at_full_precision, r.auc, r.recall_at_1, r.accepted_precision, r.accepted_recall,
-             f'{r.off_route_accepted}/{r.queries - r.positives}', r.threshold_at_full_precision) for r in results]
+    rows = [
+        (
+            r.method,
+            r.recall_at_full_precision,
+            r.auc,
+            r.recall_at_1,
+            r.accepted_precision,
+            r.accepted_recall,
+            f'{r.off_route_accepted}/{r.queries - r.positives}',
+            r.threshold_at_full_precision,
+        )
+        for r in results
+    ]
     tolerance = results[0].tolerance if results else DEFAULT_TOLERANCE
-    return (text_table(TABLE_COLUMNS, rows) + f'\n(tolerance {tolerance:g} m; R@1 counts positive queries; acc. = accepted '
-            'by the default acceptance test: precision, recall over positive queries, off-route queries accepted of '
-            'all off-route)')
+    return (
+        text_table(TABLE_COLUMNS, rows) + f'\n(tolerance {tolerance:g} m; R@1 counts positive queries; acc. = accepted '
+        'by the default acceptance test: precision, recall over positive queries, off-route queries accepted of '
+        'all off-route)'
+    )
 
 
 # --- plots --------------------------------------------------------------------------------------------------------
+
 
 def _title(title: str, synthetic: bool) -> str:
     """Return the title with the data's nature said plainly."""
@@ -202,8 +248,12 @@ def _save(figure, path: str | Path | None):
     return figure
 
 
-def plot_pr_curves(results: Sequence[LocalizationResult], title: str = 'Place recognition: precision-recall',
-                   synthetic: bool = False, path: str | Path | None = None):
+def plot_pr_curves(
+    results: Sequence[LocalizationResult],
+    title: str = 'Place recognition: precision-recall',
+    synthetic: bool = False,
+    path: str | Path | None = None,
+):
     """Return (and save to path) a figure with the PR curves of several methods, figures in the legend."""
     from matplotlib.figure import Figure
 
@@ -212,8 +262,12 @@ def plot_pr_curves(results: Sequence[LocalizationResult], title: str = 'Place re
     for result in results:
         recall = np.concatenate([[0.0], result.curve.recall])
         precision = np.concatenate([[1.0], result.curve.precision])
-        axes.step(recall, precision, where='post',
-                  label=f'{result.method}: R@100%P {result.recall_at_full_precision:.2f}, AUC {result.auc:.2f}')
+        axes.step(
+            recall,
+            precision,
+            where='post',
+            label=f'{result.method}: R@100%P {result.recall_at_full_precision:.2f}, AUC {result.auc:.2f}',
+        )
     axes.set_xlim(0.0, 1.02)
     axes.set_ylim(0.0, 1.02)
     axes.set_xlabel('recall (share of on-route queries matched and accepted)')
@@ -225,10 +279,16 @@ def plot_pr_curves(results: Sequence[LocalizationResult], title: str = 'Place re
     return _save(figure, path)
 
 
-def plot_matches_along_route(snapshot_positions: np.ndarray, query_positions: np.ndarray, matched: np.ndarray,
-                             correct: np.ndarray, accepted: np.ndarray | None = None,
-                             title: str = 'Matches along the route', synthetic: bool = False,
-                             path: str | Path | None = None):
+def plot_matches_along_route(
+    snapshot_positions: np.ndarray,
+    query_positions: np.ndarray,
+    matched: np.ndarray,
+    correct: np.ndarray,
+    accepted: np.ndarray | None = None,
+    title: str = 'Matches along the route',
+    synthetic: bool = False,
+    path: str | Path | None = None,
+):
     """Return (and save) a top view of snapshots, queries and query->match lines, and matched vs true snapshot index."""
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -247,18 +307,31 @@ def plot_matches_along_route(snapshot_positions: np.ndarray, query_positions: np
     top.plot(queries[:, 0], queries[:, 1], 'x', color='tab:blue', ms=4, zorder=3)
     for q in np.flatnonzero(valid):
         s = snapshots[matched[q]]
-        top.plot([queries[q, 0], s[0]], [queries[q, 1], s[1]], '-' if accepted[q] else ':',
-                 color='tab:green' if correct[q] else 'tab:red', lw=0.9, alpha=0.9 if accepted[q] else 0.5, zorder=2)
+        top.plot(
+            [queries[q, 0], s[0]],
+            [queries[q, 1], s[1]],
+            '-' if accepted[q] else ':',
+            color='tab:green' if correct[q] else 'tab:red',
+            lw=0.9,
+            alpha=0.9 if accepted[q] else 0.5,
+            zorder=2,
+        )
     top.set_aspect('equal', adjustable='datalim')
     top.set_xlabel('x in map (m)')
     top.set_ylabel('y in map (m)')
     top.set_title('top view')
     top.grid(True, alpha=0.3)
-    top.legend(handles=[Line2D([], [], color='0.3', marker='o', ls='-', ms=3, label='snapshots (taught route)'),
-                        Line2D([], [], color='tab:blue', marker='x', ls='', label='queries (true position)'),
-                        Line2D([], [], color='tab:green', label='correct match'),
-                        Line2D([], [], color='tab:red', label='wrong match'),
-                        Line2D([], [], color='0.4', ls=':', label='not accepted')], fontsize='small', loc='best')
+    top.legend(
+        handles=[
+            Line2D([], [], color='0.3', marker='o', ls='-', ms=3, label='snapshots (taught route)'),
+            Line2D([], [], color='tab:blue', marker='x', ls='', label='queries (true position)'),
+            Line2D([], [], color='tab:green', label='correct match'),
+            Line2D([], [], color='tab:red', label='wrong match'),
+            Line2D([], [], color='0.4', ls=':', label='not accepted'),
+        ],
+        fontsize='small',
+        loc='best',
+    )
 
     order = np.arange(matched.size)
     if len(snapshots) and len(queries):
@@ -267,9 +340,15 @@ def plot_matches_along_route(snapshot_positions: np.ndarray, query_positions: np
     for is_correct, colour, label in ((True, 'tab:green', 'correct'), (False, 'tab:red', 'wrong')):
         for is_accepted in (True, False):
             chosen = valid & (correct == is_correct) & (accepted == is_accepted)
-            index_axes.plot(order[chosen], matched[chosen], 'o', ms=4, color=colour,
-                            mfc=colour if is_accepted else 'none',
-                            label=f'{label}, {"accepted" if is_accepted else "not accepted"}')
+            index_axes.plot(
+                order[chosen],
+                matched[chosen],
+                'o',
+                ms=4,
+                color=colour,
+                mfc=colour if is_accepted else 'none',
+                label=f'{label}, {"accepted" if is_accepted else "not accepted"}',
+            )
     index_axes.set_xlabel('query (frame number of the repeat drive)')
     index_axes.set_ylabel('matched snapshot index')
     index_axes.set_title('matched vs true snapshot')
@@ -282,6 +361,12 @@ def plot_matches_along_route(snapshot_positions: np.ndarray, query_positions: np
 def compare(results: Mapping[str, LocalizationResult], ours: str, baselines: Sequence[str]) -> dict[str, bool]:
     """Return per baseline whether `ours` beats it: higher recall at 100 % precision, or equal and higher AUC."""
     mine = results[ours]
-    return {name: (mine.recall_at_full_precision > results[name].recall_at_full_precision
-                   or (mine.recall_at_full_precision == results[name].recall_at_full_precision
-                       and mine.auc > results[name].auc)) for name in baselines}
+    return {
+        name: (
+            mine.recall_at_full_precision > results[name].recall_at_full_precision
+            or (
+                mine.recall_at_full_precision == results[name].recall_at_full_precision and mine.auc > results[name].auc
+            )
+        )
+        for name in baselines
+    }

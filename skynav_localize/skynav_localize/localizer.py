@@ -99,18 +99,26 @@ LOOK_ALIKE_CHUNK = 256
 SH_SINGLE_MAX_RATIO = 0.45
 SH_SEQUENCE_MAX_RATIO = 0.4
 SH_MAX_SELF_SIMILARITY = 0.3
-SH_SEQUENCE_ACCEPTANCE = Acceptance(SH_SEQUENCE_MAX_RATIO, max_view_score=SH_SINGLE_MAX_RATIO,
-                                    motion_slack=MOTION_SLACK, max_self_similarity=SH_MAX_SELF_SIMILARITY)
-METHODS: dict[str, Method] = {m.name: m for m in (
-    Method('amplitude', 'amplitude', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False),
-    Method('amplitude-seq', 'amplitude', 'euclidean', True, 'sh', SH_SEQUENCE_ACCEPTANCE, False),
-    Method('bispectrum', 'bispectrum', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False,
-           np.float32),
-    Method('bispectrum-seq', 'bispectrum', 'euclidean', True, 'sh', SH_SEQUENCE_ACCEPTANCE, False, np.float32),
-    Method('raw-uv', 'raw_uv', 'sad', False, 'uv', Acceptance(0.85), True, np.float32),
-    Method('seqslam-raw-uv', 'raw_uv', 'sad', True, 'uv', Acceptance(0.8), True, np.float32),
-    Method('bow-orb', 'bow-orb', 'cosine', False, 'uv', Acceptance(0.45), True, np.float32),
-)}
+SH_SEQUENCE_ACCEPTANCE = Acceptance(
+    SH_SEQUENCE_MAX_RATIO,
+    max_view_score=SH_SINGLE_MAX_RATIO,
+    motion_slack=MOTION_SLACK,
+    max_self_similarity=SH_MAX_SELF_SIMILARITY,
+)
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method('amplitude', 'amplitude', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False),
+        Method('amplitude-seq', 'amplitude', 'euclidean', True, 'sh', SH_SEQUENCE_ACCEPTANCE, False),
+        Method(
+            'bispectrum', 'bispectrum', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False, np.float32
+        ),
+        Method('bispectrum-seq', 'bispectrum', 'euclidean', True, 'sh', SH_SEQUENCE_ACCEPTANCE, False, np.float32),
+        Method('raw-uv', 'raw_uv', 'sad', False, 'uv', Acceptance(0.85), True, np.float32),
+        Method('seqslam-raw-uv', 'raw_uv', 'sad', True, 'uv', Acceptance(0.8), True, np.float32),
+        Method('bow-orb', 'bow-orb', 'cosine', False, 'uv', Acceptance(0.45), True, np.float32),
+    )
+}
 OUR_METHODS = tuple(name for name, m in METHODS.items() if not m.baseline)
 BASELINE_METHODS = tuple(name for name, m in METHODS.items() if m.baseline)
 
@@ -134,8 +142,11 @@ def missing_descriptors(store: MapStore, method_name: str) -> str:
     stored = set(store.descriptor_names())
     if wanted.descriptor == 'raw_uv' and 'raw_uv' not in stored:
         return "raw UV descriptors ('raw_uv')"
-    if wanted.descriptor == 'bow-orb' and 'orb' not in stored and not (
-            'bow-orb' in stored and baselines.BowVocabulary.load(store) is not None):
+    if (
+        wanted.descriptor == 'bow-orb'
+        and 'orb' not in stored
+        and not ('bow-orb' in stored and baselines.BowVocabulary.load(store) is not None)
+    ):
         return "ORB descriptors ('orb') or their vocabulary"
     return ''
 
@@ -160,16 +171,30 @@ class Matches:
         if self.values.shape[1] == 0:
             return Match.empty()
         indices, values = best_candidates(self.values[query], candidates)
-        return Match(int(self.index[query]), float(self.distance[query]), float(self.score[query]),
-                     bool(self.accepted[query]), indices, values)
+        return Match(
+            int(self.index[query]),
+            float(self.distance[query]),
+            float(self.score[query]),
+            bool(self.accepted[query]),
+            indices,
+            values,
+        )
 
 
 class Localizer:
     """Localizes views on one map with one method; feed queries to query() in recording order."""
 
-    def __init__(self, store: MapStore, method_name: str = 'amplitude-seq', *, acceptance: Acceptance | None = None,
-                 sequence: SequenceParams | None = None, candidates: int = DEFAULT_CANDIDATES,
-                 circle: np.ndarray | None = None, degree: int = DESCRIPTOR_DEGREE) -> None:
+    def __init__(
+        self,
+        store: MapStore,
+        method_name: str = 'amplitude-seq',
+        *,
+        acceptance: Acceptance | None = None,
+        sequence: SequenceParams | None = None,
+        candidates: int = DEFAULT_CANDIDATES,
+        circle: np.ndarray | None = None,
+        degree: int = DESCRIPTOR_DEGREE,
+    ) -> None:
         """Prepare the map's descriptor matrix for the method (SH descriptors up to `degree`, at most the map's);
         circle (bool image) limits ORB to the image circle."""
         self.store = store
@@ -203,13 +228,17 @@ class Localizer:
             if len(store) == 0:
                 return np.zeros((0, describe(name, np.zeros((self.degree + 1) ** 2)).size))
             # derived once per map and shared by its Localizers (the bispectrum: ~0.5 ms per snapshot at L = 16)
-            return store.derived(f'{name}-v{DESCRIPTOR_VERSION}-L{self.degree}',
-                                 lambda: describe(name, store.coefficients(), self.degree))
+            return store.derived(
+                f'{name}-v{DESCRIPTOR_VERSION}-L{self.degree}',
+                lambda: describe(name, store.coefficients(), self.degree),
+            )
         if len(store) == 0:
             return np.zeros((0, 1))
         if missing := missing_descriptors(store, self.method.name):
-            raise MapError(f'{store.path}: method {self.method.name!r} needs {missing}, which this map does not '
-                           f'hold ({BASELINES_HINT})')
+            raise MapError(
+                f'{store.path}: method {self.method.name!r} needs {missing}, which this map does not '
+                f'hold ({BASELINES_HINT})'
+            )
         if name == 'raw_uv':
             return store.descriptor_matrix('raw_uv')
         # bow-orb: the stored vocabulary and vectors, or a vocabulary trained now from the stored ORB features
@@ -220,8 +249,9 @@ class Localizer:
         try:
             self.vocabulary = baselines.BowVocabulary.train(orb)
         except baselines.NoFeatures:
-            raise MapError(f'{store.path}: method bow-orb needs ORB features, and no snapshot of this map has '
-                           'any') from None
+            raise MapError(
+                f'{store.path}: method bow-orb needs ORB features, and no snapshot of this map has any'
+            ) from None
         return self.vocabulary.vectors(orb)
 
     def describe(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> np.ndarray:
@@ -270,8 +300,7 @@ class Localizer:
         exclusion = self.acceptance.exclusion
         if self._local_step is None:
             matrix = self.index.matrix
-            self._local_step = local_steps(descriptor_distance(matrix[:-1], matrix[1:], self.method.metric),
-                                           exclusion)
+            self._local_step = local_steps(descriptor_distance(matrix[:-1], matrix[1:], self.method.metric), exclusion)
             self._look_alike = np.full(len(self.index), np.nan)
         indices = np.asarray(indices, dtype=np.intp)
         missing = np.unique(indices[np.isnan(self._look_alike[indices])])
@@ -313,8 +342,13 @@ class Localizer:
             self._featureless_snapshots[key] = self.featureless(self.store.coefficients(), field_of_view, fill)
         return self._featureless_snapshots[key]
 
-    def query(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None,
-              field_of_view: float | None = None, fill: str = 'zero') -> Match:
+    def query(
+        self,
+        coefficients: np.ndarray | None = None,
+        uv: np.ndarray | None = None,
+        field_of_view: float | None = None,
+        fill: str = 'zero',
+    ) -> Match:
         """Return the match of the newest query (coefficients or UV image), using the history for sequences.
 
         With the view's field of view (rad) and fill, a featureless view (no skyline: all sky or all ground in what
@@ -338,8 +372,9 @@ class Localizer:
             self._history.append((int(best[0]), vouched))
         return Match(int(best[0]), float(best_distance[0]), float(score[0]), accepted, indices, candidate_values)
 
-    def _matches(self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray] | None
-                 ) -> tuple[np.ndarray, ...]:
+    def _matches(
+        self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray] | None
+    ) -> tuple[np.ndarray, ...]:
         """Return (best index, distance, score, view score or None, candidate values) of distance rows (Q, N), given
         the rows' (sequence distances, choice values) for sequence methods."""
         exclusion = self.acceptance.exclusion
@@ -353,8 +388,13 @@ class Localizer:
         index, view_distance, view_score, place = view_in_place(distances, best, exclusion)
         return index, view_distance, score, view_score, place
 
-    def match_sequence(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None,
-                       field_of_view: float | None = None, fill: str = 'zero') -> Matches:
+    def match_sequence(
+        self,
+        coefficients: np.ndarray | None = None,
+        uvs: np.ndarray | None = None,
+        field_of_view: float | None = None,
+        fill: str = 'zero',
+    ) -> Matches:
         """Return the matches of a whole query sequence in one go (as query() would give them from a reset)."""
         featureless = None if coefficients is None else self.featureless(coefficients, field_of_view, fill)
         if len(self.index) == 0:
@@ -363,8 +403,12 @@ class Localizer:
         blank_snapshots = None if field_of_view is None else self.featureless_snapshots(field_of_view, fill)
         return self.match_descriptors(self.describe_all(coefficients, uvs), featureless, blank_snapshots)
 
-    def match_descriptors(self, descriptors: np.ndarray, featureless: np.ndarray | None = None,
-                          featureless_snapshots: np.ndarray | None = None) -> Matches:
+    def match_descriptors(
+        self,
+        descriptors: np.ndarray,
+        featureless: np.ndarray | None = None,
+        featureless_snapshots: np.ndarray | None = None,
+    ) -> Matches:
         """Return the matches of a sequence of query descriptors (Q, D) (offline form of query() from a reset).
 
         featureless (Q,) bool: views without a skyline; featureless_snapshots (N,) bool: snapshots without one. A
@@ -373,8 +417,13 @@ class Localizer:
         queries = len(descriptors)
         if len(self.index) == 0:
             empty = np.zeros((queries, 0))
-            return Matches(np.full(queries, -1), np.full(queries, math.inf), np.full(queries, math.inf),
-                           np.zeros(queries, bool), empty)
+            return Matches(
+                np.full(queries, -1),
+                np.full(queries, math.inf),
+                np.full(queries, math.inf),
+                np.zeros(queries, bool),
+                empty,
+            )
         distances = self.index.distance_matrix(descriptors)
         sequences = sequence_scores(distances, self.sequence) if self.method.sequence else None
         best, best_distance, score, view_score, values = self._matches(distances, sequences)

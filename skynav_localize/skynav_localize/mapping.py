@@ -44,8 +44,12 @@ DEFAULT_MIN_CHANGE = 0.05  # amplitude-descriptor distance (dimensionless) that 
 
 def descriptor_settings() -> dict:
     """Return the settings the descriptors of this library are made with (stored in a map's meta)."""
-    return {'descriptor_version': DESCRIPTOR_VERSION, 'raw_uv_size': list(baselines.RAW_UV_SIZE),
-            'raw_uv_patch': baselines.RAW_UV_PATCH, 'orb_features': baselines.ORB_FEATURES}
+    return {
+        'descriptor_version': DESCRIPTOR_VERSION,
+        'raw_uv_size': list(baselines.RAW_UV_SIZE),
+        'raw_uv_patch': baselines.RAW_UV_PATCH,
+        'orb_features': baselines.ORB_FEATURES,
+    }
 
 
 def stored_settings(meta: Mapping[str, str]) -> dict:
@@ -56,9 +60,13 @@ def stored_settings(meta: Mapping[str, str]) -> dict:
         return {}
 
 
-def snapshot_descriptors(coefficients: np.ndarray, max_degree: int, uv: np.ndarray | None = None,
-                         circle: np.ndarray | None = None,
-                         names: Iterable[str] | None = None) -> dict[str, np.ndarray]:
+def snapshot_descriptors(
+    coefficients: np.ndarray,
+    max_degree: int,
+    uv: np.ndarray | None = None,
+    circle: np.ndarray | None = None,
+    names: Iterable[str] | None = None,
+) -> dict[str, np.ndarray]:
     """Return one snapshot's descriptors by name: SH ones from coefficients, 'raw_uv' and 'orb' from the UV image."""
     if names is None:
         names = SH_DESCRIPTOR_NAMES + (IMAGE_DESCRIPTOR_NAMES if uv is not None else ())
@@ -71,16 +79,21 @@ def snapshot_descriptors(coefficients: np.ndarray, max_degree: int, uv: np.ndarr
                 raise ValueError(f'descriptor {name!r} needs the UV image')
             out.update(baseline_descriptors(uv, circle, (name,)))
         else:
-            raise ValueError(f'unknown descriptor {name!r}; expected one of '
-                             f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}')
+            raise ValueError(
+                f'unknown descriptor {name!r}; expected one of '
+                f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}'
+            )
     return out
 
 
-def baseline_descriptors(uv: np.ndarray, circle: np.ndarray | None = None,
-                         names: Iterable[str] = IMAGE_DESCRIPTOR_NAMES) -> dict[str, np.ndarray]:
+def baseline_descriptors(
+    uv: np.ndarray, circle: np.ndarray | None = None, names: Iterable[str] = IMAGE_DESCRIPTOR_NAMES
+) -> dict[str, np.ndarray]:
     """Return the baselines' descriptors of one snapshot's UV image: 'raw_uv' and 'orb' (inside the image circle)."""
-    return {name: baselines.raw_uv_descriptor(uv) if name == 'raw_uv' else baselines.orb_descriptors(uv, circle)
-            for name in names}
+    return {
+        name: baselines.raw_uv_descriptor(uv) if name == 'raw_uv' else baselines.orb_descriptors(uv, circle)
+        for name in names
+    }
 
 
 def finish_baselines(store: MapStore) -> list[str]:
@@ -102,8 +115,9 @@ def finish_baselines(store: MapStore) -> list[str]:
 class SnapshotSelector:
     """Decides which frames of a teach drive become snapshots: every min_travel m, or when the view changed enough."""
 
-    def __init__(self, min_travel: float | None = DEFAULT_MIN_TRAVEL,
-                 min_change: float | None = DEFAULT_MIN_CHANGE) -> None:
+    def __init__(
+        self, min_travel: float | None = DEFAULT_MIN_TRAVEL, min_change: float | None = DEFAULT_MIN_CHANGE
+    ) -> None:
         """Keep a frame after min_travel (m) of travel or an amplitude-descriptor change of min_change (None: off)."""
         self.min_travel = min_travel
         self.min_change = min_change
@@ -114,10 +128,17 @@ class SnapshotSelector:
         """Return whether a frame (amplitude descriptor, position in m or None) becomes a snapshot (then kept)."""
         descriptor = np.asarray(descriptor, dtype=float)
         first = self._descriptor is None
-        travelled = (self.min_travel is not None and position is not None and self._position is not None
-                     and float(np.linalg.norm(np.asarray(position, float) - self._position)) >= self.min_travel)
-        changed = (self.min_change is not None and not first
-                   and float(np.linalg.norm(descriptor - self._descriptor)) >= self.min_change)
+        travelled = (
+            self.min_travel is not None
+            and position is not None
+            and self._position is not None
+            and float(np.linalg.norm(np.asarray(position, float) - self._position)) >= self.min_travel
+        )
+        changed = (
+            self.min_change is not None
+            and not first
+            and float(np.linalg.norm(descriptor - self._descriptor)) >= self.min_change
+        )
         if first or travelled or changed:
             self._descriptor = descriptor
             self._position = None if position is None else np.asarray(position, dtype=float)
@@ -125,22 +146,45 @@ class SnapshotSelector:
         return False
 
 
-
 def _with_settings(metadata: Mapping[str, Any] | None) -> dict[str, Any]:
     """Return caller metadata plus this library's descriptor settings."""
     return {**(metadata or {}), SETTINGS_KEY: descriptor_settings()}
 
 
-def create_map(path: str | Path, name: str, max_degree: int, *, created_from: str = '',
-               metadata: Mapping[str, Any] | None = None, overwrite: bool = False) -> MapStore:
+def create_map(
+    path: str | Path,
+    name: str,
+    max_degree: int,
+    *,
+    created_from: str = '',
+    metadata: Mapping[str, Any] | None = None,
+    overwrite: bool = False,
+) -> MapStore:
     """Create an empty map (MapStore.create) that records this library's descriptor settings; add snapshots to it."""
-    return MapStore.create(path, name, max_degree, created_from=created_from, metadata=_with_settings(metadata),
-                           overwrite=overwrite)
+    return MapStore.create(
+        path, name, max_degree, created_from=created_from, metadata=_with_settings(metadata), overwrite=overwrite
+    )
 
 
-def build_map(path: str | Path, name: str, max_degree: int, snapshots: Iterable[Snapshot], *,
-              created_from: str = '', metadata: Mapping[str, Any] | None = None,
-              overwrite: bool = False, finish=None) -> MapStore:
+def build_map(
+    path: str | Path,
+    name: str,
+    max_degree: int,
+    snapshots: Iterable[Snapshot],
+    *,
+    created_from: str = '',
+    metadata: Mapping[str, Any] | None = None,
+    overwrite: bool = False,
+    finish=None,
+) -> MapStore:
     """Write a whole map atomically (MapStore.build) with this library's descriptor settings; return it read-only."""
-    return MapStore.build(path, name, max_degree, snapshots, created_from=created_from,
-                          metadata=_with_settings(metadata), overwrite=overwrite, finish=finish)
+    return MapStore.build(
+        path,
+        name,
+        max_degree,
+        snapshots,
+        created_from=created_from,
+        metadata=_with_settings(metadata),
+        overwrite=overwrite,
+        finish=finish,
+    )

@@ -74,8 +74,9 @@ class Acceptance:
     # the matched snapshot's self-similarity, unless the sequence's views vouched for a steady drive; None: no bound
     max_self_similarity: float | None = None
 
-    def accepts(self, score: np.ndarray | float, distance: np.ndarray | float,
-                view_score: np.ndarray | float | None = None) -> np.ndarray | bool:
+    def accepts(
+        self, score: np.ndarray | float, distance: np.ndarray | float, view_score: np.ndarray | float | None = None
+    ) -> np.ndarray | bool:
         """Return whether matches with these scores, distances and view scores pass (vectorised)."""
         passed = (np.asarray(score) <= self.max_score) & (np.asarray(distance) <= self.max_distance)
         if self.max_view_score is not None and view_score is not None:
@@ -88,11 +89,13 @@ class Acceptance:
             return np.asarray(view_score) <= self.max_view_score
         return np.asarray(score) <= self.max_score
 
-    def passes_place_tests(self, consistent: np.ndarray, steady: np.ndarray,
-                           self_similarity: np.ndarray) -> np.ndarray:
+    def passes_place_tests(self, consistent: np.ndarray, steady: np.ndarray, self_similarity: np.ndarray) -> np.ndarray:
         """Return whether matches pass the tests of a route that looks alike (vectorised; see the module notes)."""
-        distinct = np.ones(np.shape(self_similarity), dtype=bool) if self.max_self_similarity is None else \
-            np.asarray(self_similarity) <= self.max_self_similarity
+        distinct = (
+            np.ones(np.shape(self_similarity), dtype=bool)
+            if self.max_self_similarity is None
+            else np.asarray(self_similarity) <= self.max_self_similarity
+        )
         if self.motion_slack is None:
             return distinct
         return np.asarray(consistent, dtype=bool) & (distinct | np.asarray(steady, dtype=bool))
@@ -156,6 +159,7 @@ class Match:
 
 # --- single frames ------------------------------------------------------------------------------------------------
 
+
 def best_candidates(distances: np.ndarray, count: int = DEFAULT_CANDIDATES) -> tuple[np.ndarray, np.ndarray]:
     """Return the `count` snapshot indices of lowest distance (best first) and their distances, from a row (N,)."""
     distances = np.asarray(distances, dtype=float)
@@ -196,6 +200,7 @@ def single_frame(distances: np.ndarray, exclusion: int = DEFAULT_EXCLUSION) -> t
 
 
 # --- SeqSLAM ------------------------------------------------------------------------------------------------------
+
 
 def contrast_normalise(distances: np.ndarray, window: int) -> np.ndarray:
     """Return distances (..., N) as z-scores against the snapshots of a (2 window + 1)-wide window (std units)."""
@@ -301,8 +306,9 @@ class SequenceBuffer:
         return raw, self._scores(self._normalised, n)
 
 
-def sequence_match(distances: np.ndarray, choice: np.ndarray | None = None,
-                   exclusion: int = DEFAULT_EXCLUSION) -> tuple[np.ndarray, ...]:
+def sequence_match(
+    distances: np.ndarray, choice: np.ndarray | None = None, exclusion: int = DEFAULT_EXCLUSION
+) -> tuple[np.ndarray, ...]:
     """Return (best index, its sequence distance, ratio score), each (Q,), from sequence distances (Q, N).
 
     The best index minimises `choice` (default: the distances themselves); the ratio is its sequence distance over
@@ -316,8 +322,9 @@ def sequence_match(distances: np.ndarray, choice: np.ndarray | None = None,
     return best, best_distance, distance_ratio(best_distance, runner_up(distances, best, exclusion))
 
 
-def view_in_place(distances: np.ndarray, place: np.ndarray, exclusion: int = DEFAULT_EXCLUSION
-                  ) -> tuple[np.ndarray, ...]:
+def view_in_place(
+    distances: np.ndarray, place: np.ndarray, exclusion: int = DEFAULT_EXCLUSION
+) -> tuple[np.ndarray, ...]:
     """Return the newest views' snapshots within `exclusion` of the places (Q,) their sequences chose, from their own
     distance rows (Q, N): (index, distance, single-frame ratio), each (Q,), and their rows with every snapshot
     outside the place at +inf (Q, N), for the candidates."""
@@ -331,6 +338,7 @@ def view_in_place(distances: np.ndarray, place: np.ndarray, exclusion: int = DEF
 
 
 # --- where the route looks alike ----------------------------------------------------------------------------------
+
 
 def local_steps(steps: np.ndarray, exclusion: int) -> np.ndarray:
     """Return per snapshot (N,) the route's step there: the median of the distances `steps` (N - 1,) between
@@ -361,8 +369,9 @@ def motion_window(params: SequenceParams, slack: float = MOTION_SLACK) -> int:
     return max(back, math.ceil(2.0 * slack / params.min_speed - 1e-9))
 
 
-def motion_tests(indices: np.ndarray, vouched: np.ndarray, params: SequenceParams,
-                 slack: float = MOTION_SLACK) -> tuple[np.ndarray, np.ndarray]:
+def motion_tests(
+    indices: np.ndarray, vouched: np.ndarray, params: SequenceParams, slack: float = MOTION_SLACK
+) -> tuple[np.ndarray, np.ndarray]:
     """Return per view (Q,), from the matched snapshot indices (Q,) and which views vouched for theirs, in order:
     (consistent, steady), each bool (Q,).
 

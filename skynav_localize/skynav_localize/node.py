@@ -62,7 +62,7 @@ class LocalizeNode(SkynavNode):
         if values['sequence_length'] < 1 or values['candidates'] < 1:
             raise ValueError('sequence_length and candidates must be at least 1')
         if values['max_self_similarity'] < 0:  # NaN (the method's) passes
-            raise ValueError('max_self_similarity must be at least 0 (NaN: the method\'s)')
+            raise ValueError("max_self_similarity must be at least 0 (NaN: the method's)")
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -70,18 +70,29 @@ class LocalizeNode(SkynavNode):
         method_acceptance = METHODS[values['method']].acceptance
         ratio = method_acceptance.max_score if math.isnan(values['max_ratio']) else values['max_ratio']
         view = method_acceptance.max_view_score if math.isnan(values['max_view_ratio']) else values['max_view_ratio']
-        alike = method_acceptance.max_self_similarity if math.isnan(values['max_self_similarity']) else \
-            values['max_self_similarity']
-        acceptance = Acceptance(ratio, values['max_distance'], method_acceptance.exclusion, view,
-                                method_acceptance.motion_slack, alike)
+        alike = (
+            method_acceptance.max_self_similarity
+            if math.isnan(values['max_self_similarity'])
+            else values['max_self_similarity']
+        )
+        acceptance = Acceptance(
+            ratio, values['max_distance'], method_acceptance.exclusion, view, method_acceptance.motion_slack, alike
+        )
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
-        self.localizer = Localizer(store, values['method'], acceptance=acceptance, sequence=sequence,
-                                   candidates=values['candidates'], degree=values['max_degree'])
+        self.localizer = Localizer(
+            store,
+            values['method'],
+            acceptance=acceptance,
+            sequence=sequence,
+            candidates=values['candidates'],
+            degree=values['max_degree'],
+        )
         if self.store is not None and self.store is not store:
             self.store.close()
         self.store = store
-        self.get_logger().info(f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, '
-                               f'method {values["method"]}')
+        self.get_logger().info(
+            f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, method {values["method"]}'
+        )
 
     def on_coefficients(self, message: ShCoefficients) -> None:
         """Match one view and publish the result."""
@@ -100,11 +111,17 @@ class LocalizeNode(SkynavNode):
             result.header = message.header
             result.index, result.distance, result.accepted = -1, math.inf, False
             if self.localizer is not None:
-                match = self.localizer.query(coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
-                                             field_of_view=float(message.field_of_view), fill=message.fill)
+                match = self.localizer.query(
+                    coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
+                    field_of_view=float(message.field_of_view),
+                    fill=message.fill,
+                )
                 result.map_name = self.store.name
-                result.index, result.distance, result.accepted = int(match.index), float(match.distance), \
-                    bool(match.accepted)
+                result.index, result.distance, result.accepted = (
+                    int(match.index),
+                    float(match.distance),
+                    bool(match.accepted),
+                )
                 if match.index >= 0:
                     sec, nanosec = divmod(self.store.snapshot_stamp(match.index), 1_000_000_000)
                     result.snapshot_stamp.sec, result.snapshot_stamp.nanosec = sec, nanosec

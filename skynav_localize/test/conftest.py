@@ -55,8 +55,9 @@ def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
 
     masks, uv, poses, info = {}, {}, {}, None
     with open_bag(BAGS / name) as bag:
-        for raw in bag.messages(['/ground_truth/mask', '/camera/uv/image_raw', '/ground_truth/pose',
-                                 '/camera/uv/camera_info']):
+        for raw in bag.messages(
+            ['/ground_truth/mask', '/camera/uv/image_raw', '/ground_truth/pose', '/camera/uv/camera_info']
+        ):
             msg = bag.deserialize(raw)
             stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             if raw.topic == '/camera/uv/camera_info':
@@ -70,8 +71,14 @@ def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
     camera = EquidistantCamera.from_camera_info(info)
     transform = FisheyeTransform(camera, degree, fill='zero')
     stamps = np.array(sorted(masks), dtype=np.int64)
-    return Recording(stamps, np.array([transform(masks[s]) for s in stamps]), np.array([uv[s] for s in stamps]),
-                     np.array([poses[s] for s in stamps], dtype=float), camera.image_circle(), camera)
+    return Recording(
+        stamps,
+        np.array([transform(masks[s]) for s in stamps]),
+        np.array([uv[s] for s in stamps]),
+        np.array([poses[s] for s in stamps], dtype=float),
+        camera.image_circle(),
+        camera,
+    )
 
 
 @pytest.fixture(scope='session')
@@ -92,7 +99,6 @@ def make_view():
     return random_view
 
 
-
 @pytest.fixture
 def featureless_recording(tmp_path):
     """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_core.testing)."""
@@ -100,4 +106,5 @@ def featureless_recording(tmp_path):
 
     def write(kind: str, frames: int = 30) -> Path:
         return write_featureless_recording(tmp_path / f'synthetic_featureless_{kind}.mcap', kind, frames)
+
     return write

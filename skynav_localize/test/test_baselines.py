@@ -27,8 +27,9 @@ def test_raw_uv_descriptor_is_patch_normalised_and_gain_free():
     image = rng.integers(0, 200, (240, 320)).astype(np.uint8)
     descriptor = raw_uv_descriptor(image)
     assert descriptor.shape == (RAW_UV_SIZE[0] * RAW_UV_SIZE[1],) and descriptor.dtype == np.float32
-    patches = descriptor.reshape(RAW_UV_SIZE[1] // RAW_UV_PATCH, RAW_UV_PATCH, RAW_UV_SIZE[0] // RAW_UV_PATCH,
-                                 RAW_UV_PATCH)
+    patches = descriptor.reshape(
+        RAW_UV_SIZE[1] // RAW_UV_PATCH, RAW_UV_PATCH, RAW_UV_SIZE[0] // RAW_UV_PATCH, RAW_UV_PATCH
+    )
     np.testing.assert_allclose(patches.mean(axis=(1, 3)), 0.0, atol=1e-5)
     np.testing.assert_allclose(patches.std(axis=(1, 3)), 1.0, atol=1e-4)
     # another exposure (gain and black level) or encoding gives the same descriptor
@@ -72,8 +73,9 @@ def test_bag_of_orb_words_recognises_the_taught_views(garden, tmp_path):
     loaded = BowVocabulary.load(MapStore.open(tmp_path / 'bow.db'))
     np.testing.assert_array_equal(loaded.words, saved.words)
     np.testing.assert_array_equal(loaded.idf, saved.idf)
-    np.testing.assert_allclose(MapStore.open(tmp_path / 'bow.db').descriptor_matrix('bow-orb'),
-                               saved.vectors(features), atol=1e-6)
+    np.testing.assert_allclose(
+        MapStore.open(tmp_path / 'bow.db').descriptor_matrix('bow-orb'), saved.vectors(features), atol=1e-6
+    )
 
 
 def test_orb_keeps_to_the_image_circle(garden):

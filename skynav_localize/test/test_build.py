@@ -75,8 +75,9 @@ def test_a_featureless_drive_builds_a_map_with_and_without_the_baselines(kind, f
         assert left_out == [] and full.artifact('bow-orb.words') is not None
         Localizer(full, 'bow-orb')
     else:
-        assert left_out == ['skynav map build: bow-orb: no ORB features in the teach drive; its descriptors are '
-                            'left out']
+        assert left_out == [
+            'skynav map build: bow-orb: no ORB features in the teach drive; its descriptors are left out'
+        ]
         assert full.artifact('bow-orb.words') is None
         with pytest.raises(MapError, match='needs ORB descriptors .* --baselines'):
             Localizer(full, 'bow-orb')
@@ -96,19 +97,46 @@ def test_eval_localization_leaves_out_the_baselines_a_map_does_not_hold(featurel
     assert build(bag, tmp_path / 'plain.db').returncode == 0
     assert build(bag, tmp_path / 'baselines.db', '--baselines').returncode == 0
     methods = ('--methods', 'amplitude-seq', 'seqslam-raw-uv')
-    plain = run_skynav('eval', 'localization', str(bag), '--map', str(tmp_path / 'plain.db'), *methods,
-                       '--plots', str(tmp_path / 'plots'))
+    plain = run_skynav(
+        'eval',
+        'localization',
+        str(bag),
+        '--map',
+        str(tmp_path / 'plain.db'),
+        *methods,
+        '--plots',
+        str(tmp_path / 'plots'),
+    )
     assert plain.returncode == 0, plain.stderr
     notes = [line for line in plain.stderr.splitlines() if 'left out' in line]
-    assert notes == [f'skynav eval localization: {tmp_path / "plain.db"} holds no descriptors of seqslam-raw-uv: '
-                     'their rows are left out (build the map with `skynav map build --baselines`)']
+    assert notes == [
+        f'skynav eval localization: {tmp_path / "plain.db"} holds no descriptors of seqslam-raw-uv: '
+        'their rows are left out (build the map with `skynav map build --baselines`)'
+    ]
     rows = [line.split()[0] for line in plain.stdout.splitlines() if line.strip()]
     assert 'amplitude-seq' in rows and 'seqslam-raw-uv' not in rows
-    full = run_skynav('eval', 'localization', str(bag), '--map', str(tmp_path / 'baselines.db'), *methods,
-                      '--plots', str(tmp_path / 'plots'))
+    full = run_skynav(
+        'eval',
+        'localization',
+        str(bag),
+        '--map',
+        str(tmp_path / 'baselines.db'),
+        *methods,
+        '--plots',
+        str(tmp_path / 'plots'),
+    )
     assert full.returncode == 0 and 'left out' not in full.stderr, full.stderr
     rows = [line.split()[0] for line in full.stdout.splitlines() if line.strip()]
     assert 'amplitude-seq' in rows and 'seqslam-raw-uv' in rows
-    only_baselines = run_skynav('eval', 'localization', str(bag), '--map', str(tmp_path / 'plain.db'),
-                                '--methods', 'raw-uv', '--plots', str(tmp_path / 'plots'))
+    only_baselines = run_skynav(
+        'eval',
+        'localization',
+        str(bag),
+        '--map',
+        str(tmp_path / 'plain.db'),
+        '--methods',
+        'raw-uv',
+        '--plots',
+        str(tmp_path / 'plots'),
+    )
     assert only_baselines.returncode == 1 and one_line_error(only_baselines.stderr), only_baselines.stderr

@@ -63,8 +63,10 @@ def test_the_recording_leaves_the_route_far_and_often(garden):
 def test_accepted_matches_of_the_default_method_reach_the_target(garden):
     result = figures(*garden, 'amplitude-seq')
     assert result.positives == 34 and result.queries - result.positives == 42
-    assert result.accepted_precision >= TARGET_PRECISION and result.accepted_recall >= TARGET_RECALL, \
-        (result.accepted_precision, result.accepted_recall)
+    assert result.accepted_precision >= TARGET_PRECISION and result.accepted_recall >= TARGET_RECALL, (
+        result.accepted_precision,
+        result.accepted_recall,
+    )
     assert result.off_route_accepted == 0
 
 

@@ -25,8 +25,9 @@ TARGET_RECALL = 0.9
 @pytest.mark.parametrize('world', ['garden', 'mineral'])
 def test_amplitude_sequences_beat_the_baselines(tmp_path, world):
     map_file = tmp_path / f'{world}.db'
-    result = run_skynav('map', 'build', str(BAGS / f'synthetic_{world}_teach.mcap'), '--out', str(map_file),
-                        '--baselines')
+    result = run_skynav(
+        'map', 'build', str(BAGS / f'synthetic_{world}_teach.mcap'), '--out', str(map_file), '--baselines'
+    )
     assert result.returncode == 0, result.stderr
     store = MapStore.open(map_file)
     assert 30 < len(store) < 80 and store.has_poses
@@ -37,8 +38,9 @@ def test_amplitude_sequences_beat_the_baselines(tmp_path, world):
     recall = {}
     for name in ('amplitude-seq', 'seqslam-raw-uv', 'bow-orb'):
         matches = Localizer(store, name, circle=repeat.camera.image_circle()).match_sequence(coefficients, uvs)
-        figures = evaluate(name, matches.index, matches.score, positions, store.positions(), 1.0,
-                           accepted=matches.accepted)
+        figures = evaluate(
+            name, matches.index, matches.score, positions, store.positions(), 1.0, accepted=matches.accepted
+        )
         recall[name] = figures.recall_at_full_precision
     store.close()
     assert recall['amplitude-seq'] >= TARGET_RECALL, recall

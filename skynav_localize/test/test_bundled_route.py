@@ -38,9 +38,10 @@ TURN = np.pi  # rad about the camera's axis: the robot drives the route turned a
 @pytest.fixture(scope='module')
 def garden_map(garden, tmp_path_factory):
     teach = garden['teach']
-    snapshots = [Snapshot(i, int(stamp), c, pose, snapshot_descriptors(c, 16, uv, teach.circle))
-                 for i, (stamp, c, pose, uv) in enumerate(zip(teach.stamps, teach.coefficients, teach.poses,
-                                                               teach.uv))]
+    snapshots = [
+        Snapshot(i, int(stamp), c, pose, snapshot_descriptors(c, 16, uv, teach.circle))
+        for i, (stamp, c, pose, uv) in enumerate(zip(teach.stamps, teach.coefficients, teach.poses, teach.uv))
+    ]
     path = tmp_path_factory.mktemp('maps') / 'garden.db'
     build_map(path, 'synthetic garden', 16, snapshots, created_from='bags/synthetic_garden_teach.mcap').close()
     with MapStore.open(path, writable=True) as store:
@@ -67,8 +68,9 @@ def run_all(store, recording, coefficients, images):
     results = {}
     for name in METHODS:
         matches = Localizer(store, name, circle=recording.circle).match_sequence(coefficients, images)
-        results[name] = evaluate(name, matches.index, matches.score, recording.poses[:, :3], store.positions(),
-                                 TOLERANCE, matches.accepted)
+        results[name] = evaluate(
+            name, matches.index, matches.score, recording.poses[:, :3], store.positions(), TOLERANCE, matches.accepted
+        )
     return results
 
 
@@ -76,8 +78,9 @@ def run_all(store, recording, coefficients, images):
 def plain(garden, garden_map):
     repeat = garden['repeat']
     results = run_all(garden_map, repeat, repeat.coefficients, repeat.uv)
-    print('\ngarden repeat vs teach map (synthetic, ground-truth masks, L = 16)\n'
-          + format_table(list(results.values())))
+    print(
+        '\ngarden repeat vs teach map (synthetic, ground-truth masks, L = 16)\n' + format_table(list(results.values()))
+    )
     return results
 
 

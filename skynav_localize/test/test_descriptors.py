@@ -49,8 +49,7 @@ def test_bispectrum_descriptor_is_rotation_invariant(quaternion, degree, seed):
     coefficients = view(degree, seed)
     turned = rotate(coefficients, unit_quaternion(quaternion))
     # log(1 + |b| / s) is linear near 0, so rounding errors of the bispectrum stay at rounding level
-    np.testing.assert_allclose(bispectrum_descriptor(turned), bispectrum_descriptor(coefficients), rtol=0,
-                               atol=1e-9)
+    np.testing.assert_allclose(bispectrum_descriptor(turned), bispectrum_descriptor(coefficients), rtol=0, atol=1e-9)
 
 
 def test_descriptors_of_a_real_skyline_are_invariant_to_tilt_and_heading(garden):

@@ -33,8 +33,7 @@ def test_correct_and_positive_queries():
     np.testing.assert_array_equal(has_true_place(QUERIES, SNAPSHOTS, 1.0), [True, True, True, False, True])
     np.testing.assert_array_equal(correct_matches(np.array([-1, 2]), QUERIES[:2], SNAPSHOTS), [False, False])
     # q0 and q2 are 0.22 m from their snapshots, q4 0.5 m
-    np.testing.assert_array_equal(correct_matches(MATCHED, QUERIES, SNAPSHOTS, 0.25), [True, False, True, False,
-                                                                                     False])
+    np.testing.assert_array_equal(correct_matches(MATCHED, QUERIES, SNAPSHOTS, 0.25), [True, False, True, False, False])
 
 
 def test_hand_computed_curve_with_an_off_route_query_first():
@@ -52,8 +51,7 @@ def test_hand_computed_curve_with_an_off_route_query_first():
 
 def test_hand_computed_curve_on_the_route_only():
     keep = [0, 1, 2, 4]
-    result = evaluate('m', MATCHED[keep], SCORES[keep], QUERIES[keep], SNAPSHOTS, 1.0,
-                      accepted=SCORES[keep] <= 0.3)
+    result = evaluate('m', MATCHED[keep], SCORES[keep], QUERIES[keep], SNAPSHOTS, 1.0, accepted=SCORES[keep] <= 0.3)
     assert result.recall_at_full_precision == pytest.approx(0.25)
     assert result.threshold_at_full_precision == pytest.approx(0.1)
     assert result.auc == pytest.approx(0.25 * 1 + 0.25 * 2 / 3 + 0.25 * 3 / 4)
@@ -81,8 +79,10 @@ def test_compare_and_table():
 
 
 def test_plots_are_labelled_and_saved(tmp_path):
-    results = [evaluate('ours', MATCHED, SCORES, QUERIES, SNAPSHOTS),
-               evaluate('peer', MATCHED, SCORES[::-1], QUERIES, SNAPSHOTS)]
+    results = [
+        evaluate('ours', MATCHED, SCORES, QUERIES, SNAPSHOTS),
+        evaluate('peer', MATCHED, SCORES[::-1], QUERIES, SNAPSHOTS),
+    ]
     figure = plot_pr_curves(results, 'garden repeat vs teach', synthetic=True, path=tmp_path / 'pr.png')
     axes = figure.axes[0]
     assert 'synthetic' in axes.get_title() and 'within 1 m' in axes.get_title()
@@ -90,8 +90,9 @@ def test_plots_are_labelled_and_saved(tmp_path):
     assert len(axes.get_legend().get_texts()) == 2
     assert (tmp_path / 'pr.png').stat().st_size > 10_000
     correct = correct_matches(MATCHED, QUERIES, SNAPSHOTS)
-    figure = plot_matches_along_route(SNAPSHOTS, QUERIES, MATCHED, correct, SCORES < 0.25, 'garden', synthetic=True,
-                                      path=tmp_path / 'route.png')
+    figure = plot_matches_along_route(
+        SNAPSHOTS, QUERIES, MATCHED, correct, SCORES < 0.25, 'garden', synthetic=True, path=tmp_path / 'route.png'
+    )
     top, index_axes = figure.axes
     assert '(m)' in top.get_xlabel() and '(m)' in top.get_ylabel()
     assert 'snapshot index' in index_axes.get_ylabel() and 'query' in index_axes.get_xlabel()

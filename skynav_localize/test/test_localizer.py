@@ -29,8 +29,9 @@ def route(make_route):
 def store(route, tmp_path):
     with create_map(tmp_path / 'route.db', 'route', DEGREE) as writer:
         for i, coefficients in enumerate(route):
-            writer.add_snapshot(coefficients, i, np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0]),
-                                snapshot_descriptors(coefficients, DEGREE))
+            writer.add_snapshot(
+                coefficients, i, np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0]), snapshot_descriptors(coefficients, DEGREE)
+            )
     return MapStore.open(tmp_path / 'route.db')
 
 
@@ -108,8 +109,10 @@ def test_where_every_place_looks_alike_only_a_steady_drive_is_accepted(make_view
     assert not np.any(Localizer(store, name).match_sequence(alike[stalled] + noise).accepted)
     ratios = METHODS[name].acceptance
     only_ratios = Acceptance(ratios.max_score, max_view_score=ratios.max_view_score)
-    assert np.count_nonzero(Localizer(store, name, acceptance=only_ratios).match_sequence(
-        alike[stalled] + noise).accepted) >= 2
+    assert (
+        np.count_nonzero(Localizer(store, name, acceptance=only_ratios).match_sequence(alike[stalled] + noise).accepted)
+        >= 2
+    )
 
 
 def test_empty_map_and_missing_baseline_data(tmp_path, route):
@@ -124,7 +127,7 @@ def test_empty_map_and_missing_baseline_data(tmp_path, route):
     with MapStore.create(tmp_path / 'sh.db', 'sh', DEGREE) as writer:
         writer.add_snapshot(route[0], 0)
     sh_only = MapStore.open(writer.path)
-    with pytest.raises(MapError, match="needs raw UV descriptors .* --baselines"):
+    with pytest.raises(MapError, match='needs raw UV descriptors .* --baselines'):
         Localizer(sh_only, 'seqslam-raw-uv')
     with pytest.raises(MapError, match='needs ORB descriptors .* --baselines'):
         Localizer(sh_only, 'bow-orb')

@@ -147,8 +147,9 @@ def test_best_candidates_best_first():
 
 def test_acceptance_is_vectorised():
     acceptance = Acceptance(max_score=0.5, max_distance=0.2)
-    np.testing.assert_array_equal(acceptance.accepts(np.array([0.4, 0.6, 0.4]), np.array([0.1, 0.1, 0.3])),
-                                  [True, False, False])
+    np.testing.assert_array_equal(
+        acceptance.accepts(np.array([0.4, 0.6, 0.4]), np.array([0.1, 0.1, 0.3])), [True, False, False]
+    )
 
 
 def test_acceptance_checks_the_newest_view_where_it_is_asked_to():
@@ -177,8 +178,9 @@ def test_the_route_step_is_the_median_between_successive_snapshots_within_the_pl
     np.testing.assert_allclose(local_steps(steps, 2), [1.0, 1.0, 1.0, 1.0, 1.5, 2.0, 2.0, 2.0])
     assert local_steps(np.zeros(0), 10).shape == (1,)
     # a place whose nearest look-alike is three steps away, one as close as its next snapshot, one with none
-    np.testing.assert_allclose(self_similarity(np.array([1.0, 1.0, 1.0]), np.array([3.0, 1.0, np.inf])),
-                               [1 / 3, 1.0, 0.0])
+    np.testing.assert_allclose(
+        self_similarity(np.array([1.0, 1.0, 1.0]), np.array([3.0, 1.0, np.inf])), [1 / 3, 1.0, 0.0]
+    )
 
 
 PARAMS = SequenceParams(length=10, min_speed=0.5, max_speed=2.0)
@@ -191,7 +193,7 @@ def test_motion_of_a_steady_drive_is_consistent_and_steady():
     np.testing.assert_array_equal(steady, np.arange(30) >= PARAMS.length - 1)  # a full sequence behind the view
     # every fifth view not vouching (two of a sequence's ten) changes nothing; every third (three or four) leaves it
     # unsure: too few views vouched for the drive
-    assert np.all(motion_tests(indices, np.arange(30) % 5 != 1, PARAMS)[1][PARAMS.length - 1:])
+    assert np.all(motion_tests(indices, np.arange(30) % 5 != 1, PARAMS)[1][PARAMS.length - 1 :])
     assert not np.any(motion_tests(indices, np.arange(30) % 3 != 1, PARAMS)[1])
 
 
@@ -201,7 +203,7 @@ def test_motion_of_a_stalled_or_jittering_sequence_is_neither():
     indices = 3 + np.tile([0, 1, -1], 10)
     consistent, steady = motion_tests(indices, np.ones(30, bool), PARAMS)
     assert not np.any(steady)
-    assert not np.any(consistent[PARAMS.length - 1:])  # 4.5 snapshots of travel expected over 9 views
+    assert not np.any(consistent[PARAMS.length - 1 :])  # 4.5 snapshots of travel expected over 9 views
     assert np.all(consistent[:3])  # a few views cannot tell a stall from the slack
     # the same against views that did not vouch: nothing to contradict
     assert np.all(motion_tests(indices, np.zeros(30, bool), PARAMS)[0])
@@ -214,7 +216,7 @@ def test_motion_of_a_stalled_or_jittering_sequence_is_neither():
     rng = np.random.default_rng(4)
     jitter = 3 + rng.integers(-2, 3, 30)
     consistent, steady = motion_tests(jitter, np.ones(30, bool), PARAMS)
-    assert not np.any(steady) and np.mean(consistent[PARAMS.length - 1:]) < 0.2
+    assert not np.any(steady) and np.mean(consistent[PARAMS.length - 1 :]) < 0.2
 
 
 def test_motion_refuses_a_jump_back_from_what_views_vouched_for_but_not_a_return_after_a_detour():
@@ -241,11 +243,14 @@ def test_acceptance_where_the_route_looks_alike():
     consistent = np.array([True, True, True, False, False])
     steady = np.array([False, True, False, True, False])
     alike = np.array([0.5, 0.5, 0.1, 0.1, 0.1])  # the place looks like another stretch, or stands out
-    np.testing.assert_array_equal(acceptance.passes_place_tests(consistent, steady, alike),
-                                  [False, True, True, False, False])
+    np.testing.assert_array_equal(
+        acceptance.passes_place_tests(consistent, steady, alike), [False, True, True, False, False]
+    )
     # without motion tests (single frames) only the place counts; without a bound every place stands out
-    np.testing.assert_array_equal(Acceptance(0.45, max_self_similarity=0.3).passes_place_tests(
-        consistent, steady, alike), [False, False, True, True, True])
+    np.testing.assert_array_equal(
+        Acceptance(0.45, max_self_similarity=0.3).passes_place_tests(consistent, steady, alike),
+        [False, False, True, True, True],
+    )
     assert np.all(Acceptance(0.45).passes_place_tests(consistent, steady, alike))
     # a view vouches by its own ratio at the snapshot it chose (sequences), or by the match's ratio (single frames)
     np.testing.assert_array_equal(acceptance.vouches(np.array([0.1, 0.9]), np.array([0.5, 0.3])), [False, True])

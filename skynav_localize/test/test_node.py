@@ -65,9 +65,15 @@ def test_off_the_route_the_node_accepts_nothing(garden_map):
         matches = feed(graph, views, start=10**18)
     assert len(matches) == len(views)
     with MapStore.open(garden_map) as store:
-        result = evaluate('localize node', np.array([m.index for m in matches]),
-                          np.array([m.distance for m in matches]), np.stack([v.pose[:3] for v in views]),
-                          store.positions(), 1.0, np.array([m.accepted for m in matches]))
+        result = evaluate(
+            'localize node',
+            np.array([m.index for m in matches]),
+            np.array([m.distance for m in matches]),
+            np.stack([v.pose[:3] for v in views]),
+            store.positions(),
+            1.0,
+            np.array([m.accepted for m in matches]),
+        )
     assert result.queries - result.positives >= 40 and result.off_route_accepted == 0
     assert result.accepted_precision >= 0.99 and result.accepted_recall >= 0.9
 
@@ -79,8 +85,11 @@ def test_views_it_cannot_use_are_rejected_by_the_shared_reasons(garden_map):
     broken = view.coefficients.copy()
     broken[5] = np.nan
     low = view.coefficients[:81]  # degree 8: the descriptors need 16
-    bad = [SimpleNamespace(max_degree=16, coefficients=low), SimpleNamespace(max_degree=16, coefficients=broken),
-           SimpleNamespace(max_degree=8, coefficients=low)]
+    bad = [
+        SimpleNamespace(max_degree=16, coefficients=low),
+        SimpleNamespace(max_degree=16, coefficients=broken),
+        SimpleNamespace(max_degree=8, coefficients=low),
+    ]
     with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]

@@ -26,8 +26,20 @@ from skynav_localize.matching import Acceptance
 LANDSCAPE, SEED = 'geneva', 1
 COMMON = ('--world', LANDSCAPE, '--seed', str(SEED), '--length', '8', '--size', '320x240', '--encoding', 'mono8')
 TEACH = ('--speed', '1.0', '--time', 'forenoon')
-REPEAT = ('--speed', '0.9', '--time', 'morning', '--clouds', '0.3', '--offset', '0.25', '--shake', '3',
-          '--wobble', '25')
+REPEAT = (
+    '--speed',
+    '0.9',
+    '--time',
+    'morning',
+    '--clouds',
+    '0.3',
+    '--offset',
+    '0.25',
+    '--shake',
+    '3',
+    '--wobble',
+    '25',
+)
 TOLERANCE = 1.0  # m: a match within it is correct
 TARGET_PRECISION = 0.99
 
@@ -53,10 +65,12 @@ def figures(store, views, acceptance=None):
     coefficients = np.stack([v.coefficients for v in views.views])
     positions = np.stack([v.pose[:3] for v in views.views])
     localizer = Localizer(store, 'amplitude-seq', acceptance=acceptance)
-    matches = localizer.match_sequence(coefficients, field_of_view=views.views[0].field_of_view,
-                                       fill=views.views[0].fill)
-    return evaluate('amplitude-seq', matches.index, matches.score, positions, store.positions(), TOLERANCE,
-                    matches.accepted)
+    matches = localizer.match_sequence(
+        coefficients, field_of_view=views.views[0].field_of_view, fill=views.views[0].fill
+    )
+    return evaluate(
+        'amplitude-seq', matches.index, matches.score, positions, store.positions(), TOLERANCE, matches.accepted
+    )
 
 
 def test_the_route_that_looks_alike_fooled_the_ratio_tests(drive):

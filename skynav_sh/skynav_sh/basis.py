@@ -84,8 +84,9 @@ def normalised_legendre(max_degree: int, x: np.ndarray) -> np.ndarray:
     expand = (slice(None),) + (None,) * x.ndim
     for l in range(1, L + 1):
         # orders m <= l - 1: m = l - 1 has no P_(l-2)m term (b = 0 there)
-        out[l, :l] = a[l, :l][expand] * (x * out[l - 1, :l] - b[l, :l][expand] * out[l - 2, :l] if l >= 2
-                                         else x * out[l - 1, :l])
+        out[l, :l] = a[l, :l][expand] * (
+            x * out[l - 1, :l] - b[l, :l][expand] * out[l - 2, :l] if l >= 2 else x * out[l - 1, :l]
+        )
     return np.moveaxis(out, (0, 1), (-2, -1))
 
 

@@ -57,10 +57,12 @@ def _azimuth_integral(m1: np.ndarray, m2: np.ndarray, m3: np.ndarray) -> np.ndar
     # all three cosines
     value = np.where(n_sin == 0, 0.5 * np.pi * (diff + total), value)
     # two sines and a cosine: the sine pair gives (cos(x-y) - cos(x+y)) / 2 with x, y the sine orders
-    sin_pair_diff = np.where(m1 >= 0, delta(b - c - a) + delta(b - c + a),
-                             np.where(m2 >= 0, delta(a - c - b) + delta(a - c + b), diff))
-    sin_pair_total = np.where(m1 >= 0, delta(b + c - a) + delta(b + c + a),
-                              np.where(m2 >= 0, delta(a + c - b) + delta(a + c + b), total))
+    sin_pair_diff = np.where(
+        m1 >= 0, delta(b - c - a) + delta(b - c + a), np.where(m2 >= 0, delta(a - c - b) + delta(a - c + b), diff)
+    )
+    sin_pair_total = np.where(
+        m1 >= 0, delta(b + c - a) + delta(b + c + a), np.where(m2 >= 0, delta(a + c - b) + delta(a + c + b), total)
+    )
     value = np.where(n_sin == 2, 0.5 * np.pi * (sin_pair_diff - sin_pair_total), value)
     return scale * value  # an odd number of sines integrates to zero
 
@@ -104,12 +106,12 @@ def real_gaunt(degree_1: int, degree_2: int, degree_3: int, ordered: bool = Fals
             phi_part = _azimuth_integral(a, b, c)
             nonzero = np.abs(phi_part) > 1e-12
             a, b, c, phi_part = a[nonzero], b[nonzero], c[nonzero], phi_part[nonzero]
-            theta_part = np.einsum('kn,kn,kn->n', weighted[:, l1, np.abs(a)], legendre[:, l2, np.abs(b)],
-                                   legendre[:, l3, np.abs(c)])
+            theta_part = np.einsum(
+                'kn,kn,kn->n', weighted[:, l1, np.abs(a)], legendre[:, l2, np.abs(b)], legendre[:, l3, np.abs(c)]
+            )
             value = theta_part * phi_part
             nonzero = np.abs(value) > 1e-14
-            parts.append((lm_index(l1, a[nonzero]), lm_index(l2, b[nonzero]), lm_index(l3, c[nonzero]),
-                          value[nonzero]))
+            parts.append((lm_index(l1, a[nonzero]), lm_index(l2, b[nonzero]), lm_index(l3, c[nonzero]), value[nonzero]))
     if parts:
         first, second, third, values = (np.concatenate(column) for column in zip(*parts))
     else:

@@ -51,8 +51,15 @@ def camera_image_values(image: np.ndarray, camera: Camera) -> np.ndarray:
 class FisheyeTransform:
     """Fish-eye image (H, W) -> SH coefficients of degree L; built once per (camera, L, fill, sampling)."""
 
-    def __init__(self, camera: Camera, max_degree: int, fill: str = 'zero', supersampling: int = 2,
-                 oversampling: int = 4, sampling: str = 'area') -> None:
+    def __init__(
+        self,
+        camera: Camera,
+        max_degree: int,
+        fill: str = 'zero',
+        supersampling: int = 2,
+        oversampling: int = 4,
+        sampling: str = 'area',
+    ) -> None:
         """Precompute remap tables: a grid `oversampling` x finer than L needs, supersampling^2 sub-samples per cell."""
         # sampling 'point' reads each node only (k = 1; a cell counts as seen if its node is). The defaults gave a
         # relative coefficient error of ~0.3 % on a skyline mask at L = 32 (the pixel floor), 2.3 ms per 640x480 mask
@@ -68,8 +75,9 @@ class FisheyeTransform:
         if self.oversampling < 1:
             raise ValueError('oversampling must be >= 1')
         # a finer quadrature than degree L needs, analysed only up to L: the sampled function is not band-limited
-        self.grid: GaussLegendreGrid = grid(self.max_degree, self.oversampling * (2 * self.max_degree + 2),
-                                            self.oversampling * (self.max_degree + 1))
+        self.grid: GaussLegendreGrid = grid(
+            self.max_degree, self.oversampling * (2 * self.max_degree + 2), self.oversampling * (self.max_degree + 1)
+        )
         self.theta_max = float(camera.theta_max)
         k = 1 if sampling == 'point' else int(supersampling)
         if k < 1:
@@ -163,8 +171,16 @@ class FisheyeTransform:
         import cv2
 
         values = camera_image_values(image, self.camera)
-        return self._cell_means(cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR,
-                                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0))
+        return self._cell_means(
+            cv2.remap(
+                values,
+                self._map_fixed,
+                self._map_fraction,
+                cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=0.0,
+            )
+        )
 
     def function_samples(self, function: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Return grid samples of a function of unit directions (..., 3) taken, averaged and filled as images are."""

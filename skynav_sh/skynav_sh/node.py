@@ -80,13 +80,15 @@ class ShNode(SkynavNode):
             return
         if self.transform is None:
             s = self.settings
-            self.transform = FisheyeTransform(self.camera_input.camera, s['max_degree'], s['fill'],
-                                              s['supersampling'])
+            self.transform = FisheyeTransform(self.camera_input.camera, s['max_degree'], s['fill'], s['supersampling'])
         with self.processing(stamp):
             coefficients = self.transform.coefficients(mask)
-            message = ShCoefficients(max_degree=self.transform.max_degree, coefficients=coefficients.tolist(),
-                                     fill=self.transform.fill,
-                                     field_of_view=float(self.camera_input.camera.field_of_view))
+            message = ShCoefficients(
+                max_degree=self.transform.max_degree,
+                coefficients=coefficients.tolist(),
+                fill=self.transform.fill,
+                field_of_view=float(self.camera_input.camera.field_of_view),
+            )
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             message.header.frame_id = 'camera_link'
         self.emit(SH_TOPIC, message)

@@ -76,25 +76,31 @@ class MaskedView:
 
     def rotated(self, rotation: RotationLike) -> MaskedView:
         """Return the terms of the view turned by R (see rotate(): f(R^T d)); products commute with rotations."""
-        return MaskedView(rotate(self.visibility, rotation), rotate(self.weighted, rotation),
-                          rotate(self.weighted_square, rotation))
+        return MaskedView(
+            rotate(self.visibility, rotation), rotate(self.weighted, rotation), rotate(self.weighted_square, rotation)
+        )
 
 
 def masked_distance_views(a: MaskedView, b: MaskedView) -> np.ndarray:
     """Return the integral of v_a v_b (f_a - f_b)^2 over that of v_a v_b (value^2); inf where the overlap is empty."""
     if a.visibility.shape[-1] != b.visibility.shape[-1] or a.weighted.shape[-1] != b.weighted.shape[-1]:
         raise ValueError('masked views of different degrees')
-    squared = inner(a.weighted_square, b.visibility) - 2 * inner(a.weighted, b.weighted) + inner(
-        a.visibility, b.weighted_square)
+    squared = (
+        inner(a.weighted_square, b.visibility)
+        - 2 * inner(a.weighted, b.weighted)
+        + inner(a.visibility, b.weighted_square)
+    )
     area = inner(a.visibility, b.visibility)
     return np.where(area > 0, squared / np.where(area > 0, area, 1.0), np.inf)
 
 
-def masked_distance(f: np.ndarray, g: np.ndarray, visibility_f: np.ndarray, visibility_g: np.ndarray,
-                    method: str = 'grid') -> np.ndarray:
+def masked_distance(
+    f: np.ndarray, g: np.ndarray, visibility_f: np.ndarray, visibility_g: np.ndarray, method: str = 'grid'
+) -> np.ndarray:
     """Return the mean of (f - g)^2 over the region both views see (integral of v_f v_g (f - g)^2 / its area)."""
-    return masked_distance_views(MaskedView.from_coefficients(f, visibility_f, method),
-                                 MaskedView.from_coefficients(g, visibility_g, method))
+    return masked_distance_views(
+        MaskedView.from_coefficients(f, visibility_f, method), MaskedView.from_coefficients(g, visibility_g, method)
+    )
 
 
 def overlap_area(visibility_f: np.ndarray, visibility_g: np.ndarray) -> np.ndarray:

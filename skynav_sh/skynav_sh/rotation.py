@@ -20,6 +20,7 @@ from skynav_sh.basis import degree_from_size, degree_order, degree_slices
 
 # --- Ivanic-Ruedenberg recurrence (J. Phys. Chem. 100, 6342 (1996), with the 1998 erratum) ---------------
 
+
 def _degree_one(matrix: np.ndarray) -> np.ndarray:
     """Return D_1(R): the l = 1 real SH are proportional to (y, z, x) (no Condon-Shortley phase)."""
     order = [1, 2, 0]
@@ -50,10 +51,16 @@ def _next_degree(d1: np.ndarray, previous: np.ndarray, l: int) -> np.ndarray:
     delta_m0 = (m == 0).astype(float)
     denominator = np.where(np.abs(n) == l, 2.0 * l * (2 * l - 1), (l + n) * (l - n)).astype(float)
     u = np.sqrt(((l + m) * (l - m))[:, None] / denominator[None, :])
-    v = 0.5 * np.sqrt(((1 + delta_m0) * (l + abs_m - 1) * (l + abs_m))[:, None] / denominator[None, :]) \
+    v = (
+        0.5
+        * np.sqrt(((1 + delta_m0) * (l + abs_m - 1) * (l + abs_m))[:, None] / denominator[None, :])
         * (1 - 2 * delta_m0)[:, None]
-    w = -0.5 * np.sqrt((np.clip(l - abs_m - 1, 0, None) * (l - abs_m))[:, None] / denominator[None, :]) \
+    )
+    w = (
+        -0.5
+        * np.sqrt((np.clip(l - abs_m - 1, 0, None) * (l - abs_m))[:, None] / denominator[None, :])
         * (1 - delta_m0)[:, None]
+    )
 
     big_u = p_zero[row(m)]
     big_v = np.empty((size, size))
@@ -61,10 +68,12 @@ def _next_degree(d1: np.ndarray, previous: np.ndarray, l: int) -> np.ndarray:
     positive, negative = m > 0, m < 0
     mp, mn = m[positive], m[negative]
     big_v[m == 0] = p_plus[row(1)] + p_minus[row(-1)]
-    big_v[positive] = (p_plus[row(mp - 1)] * np.sqrt(1.0 + (mp == 1))[:, None]
-                       - p_minus[row(-mp + 1)] * (1.0 - (mp == 1))[:, None])
-    big_v[negative] = (p_plus[row(mn + 1)] * (1.0 - (mn == -1))[:, None]
-                       + p_minus[row(-mn - 1)] * np.sqrt(1.0 + (mn == -1))[:, None])
+    big_v[positive] = (
+        p_plus[row(mp - 1)] * np.sqrt(1.0 + (mp == 1))[:, None] - p_minus[row(-mp + 1)] * (1.0 - (mp == 1))[:, None]
+    )
+    big_v[negative] = (
+        p_plus[row(mn + 1)] * (1.0 - (mn == -1))[:, None] + p_minus[row(-mn - 1)] * np.sqrt(1.0 + (mn == -1))[:, None]
+    )
     inner_p = positive & (m <= l - 2)
     inner_n = negative & (m >= -(l - 2))
     mp, mn = m[inner_p], m[inner_n]
@@ -87,6 +96,7 @@ def wigner_d_recurrence(rotation: RotationLike, max_degree: int) -> list[np.ndar
 
 
 # --- y-rotations from Wigner's small d, the fixed quarter turn and the ZYZ factorisation -----------------
+
 
 def wigner_small_d(degree: int, beta: float) -> np.ndarray:
     """Return Wigner's small d^l_(m' m)(beta) (complex basis, beta in rad) as an array [m' + l, m + l]."""
@@ -112,11 +122,14 @@ def wigner_small_d(degree: int, beta: float) -> np.ndarray:
     wedge_sign = np.where((m_col >= m_row) | ((m_row - m_col) % 2 == 0), 1.0, -1.0)
     half_sin, half_cos = np.sin(beta / 2), np.cos(beta / 2)
     with np.errstate(divide='ignore', invalid='ignore'):
-        log_size = (0.5 * (gammaln(s + 1) + gammaln(s + mu + nu + 1) - gammaln(s + mu + 1) - gammaln(s + nu + 1))
-                    + np.where(mu > 0, mu * np.log(np.abs(half_sin)), 0.0)
-                    + np.where(nu > 0, nu * np.log(np.abs(half_cos)), 0.0))
-    power_sign = np.where((mu % 2 == 1) & (half_sin < 0), -1.0, 1.0) * np.where((nu % 2 == 1) & (half_cos < 0),
-                                                                                 -1.0, 1.0)
+        log_size = (
+            0.5 * (gammaln(s + 1) + gammaln(s + mu + nu + 1) - gammaln(s + mu + 1) - gammaln(s + nu + 1))
+            + np.where(mu > 0, mu * np.log(np.abs(half_sin)), 0.0)
+            + np.where(nu > 0, nu * np.log(np.abs(half_cos)), 0.0)
+        )
+    power_sign = np.where((mu % 2 == 1) & (half_sin < 0), -1.0, 1.0) * np.where(
+        (nu % 2 == 1) & (half_cos < 0), -1.0, 1.0
+    )
     wedge = np.zeros((2 * l + 1, 2 * l + 1))
     wedge[wedge_row, wedge_col] = wedge_sign * power_sign * np.exp(log_size) * eval_jacobi(s, mu, nu, np.cos(beta))
     return sign * wedge[p + l, q + l]

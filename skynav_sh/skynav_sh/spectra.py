@@ -30,8 +30,13 @@ def amplitude_spectrum(coefficients: np.ndarray) -> np.ndarray:
 @cache
 def bispectrum_triples(max_degree: int) -> np.ndarray:
     """Return the (l1, l2, l3) rows of the bispectrum in output order, shape (count, 3), read-only."""
-    rows = [(l1, l2, l3) for l1 in range(max_degree + 1) for l2 in range(l1, max_degree + 1)
-            for l3 in range(l2, min(l1 + l2, max_degree) + 1) if (l1 + l2 + l3) % 2 == 0]
+    rows = [
+        (l1, l2, l3)
+        for l1 in range(max_degree + 1)
+        for l2 in range(l1, max_degree + 1)
+        for l3 in range(l2, min(l1 + l2, max_degree) + 1)
+        if (l1 + l2 + l3) % 2 == 0
+    ]
     table = np.array(rows, dtype=np.intp).reshape(-1, 3)
     table.flags.writeable = False
     return table
@@ -61,7 +66,8 @@ def _bispectrum_gaunt(flat: np.ndarray, degree: int) -> np.ndarray:
     terms = values * flat[:, first] * flat[:, second] * flat[:, third]  # (B, nnz)
     offsets = (np.arange(flat.shape[0]) * count)[:, None]
     return np.bincount((target + offsets).ravel(), terms.ravel(), minlength=flat.shape[0] * count).reshape(
-        flat.shape[0], count)
+        flat.shape[0], count
+    )
 
 
 #: Views per batch of the grid bispectrum: bounds its working arrays (~0.7 MB per view at L = 32).

@@ -60,8 +60,9 @@ class GaussLegendreGrid:
     @cached_property
     def _legendre(self) -> np.ndarray:
         """Table [m, l, k] = s_m N_lm P_l^m(x_k), s_0 = 1 and s_m = sqrt(2) for m > 0; zero for l < m."""
-        table = np.ascontiguousarray(np.moveaxis(normalised_legendre(self.max_degree, self.cos_theta), 0, -1)
-                                     .transpose(1, 0, 2))
+        table = np.ascontiguousarray(
+            np.moveaxis(normalised_legendre(self.max_degree, self.cos_theta), 0, -1).transpose(1, 0, 2)
+        )
         table[1:] *= SQRT2
         table.flags.writeable = False
         return table

@@ -69,8 +69,10 @@ def translate_z(coefficients: np.ndarray, distance_ratio: float, n_nodes: int | 
 def _order_indices(max_degree: int) -> tuple[tuple[int, np.ndarray], ...]:
     """Return (|m|, flat indices of degrees |m|..L with order m) for m = 0, 1, -1, 2, -2, ..."""
     _, m = degree_order(max_degree)
-    return tuple((abs(order), np.flatnonzero(m == order)) for order in
-                 [0] + [sign * k for k in range(1, max_degree + 1) for sign in (1, -1)])
+    return tuple(
+        (abs(order), np.flatnonzero(m == order))
+        for order in [0] + [sign * k for k in range(1, max_degree + 1) for sign in (1, -1)]
+    )
 
 
 def translate(coefficients: np.ndarray, translation: np.ndarray, n_nodes: int | None = None) -> np.ndarray:

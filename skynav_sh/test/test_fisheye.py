@@ -127,8 +127,10 @@ def test_area_averaging_aliases_less_than_point_sampling(mask, reference):
 
 
 def test_finer_sampling_grids_converge(mask, reference):
-    errors = [np.linalg.norm(FisheyeTransform(CAMERA, DEGREE, 'zero', oversampling=o).coefficients(mask) - reference)
-              for o in (1, 2, 4)]
+    errors = [
+        np.linalg.norm(FisheyeTransform(CAMERA, DEGREE, 'zero', oversampling=o).coefficients(mask) - reference)
+        for o in (1, 2, 4)
+    ]
     assert errors[0] > errors[1] > errors[2]
 
 
@@ -177,7 +179,9 @@ def test_visibility_is_the_image_circle_cap():
 
 
 def test_ocam_camera_cap_mask():
-    camera = OCamCamera.from_calib_file(Path(__file__).parents[2] / 'skynav_core' / 'test' / 'data' / 'calib_results.txt')
+    camera = OCamCamera.from_calib_file(
+        Path(__file__).parents[2] / 'skynav_core' / 'test' / 'data' / 'calib_results.txt'
+    )
 
     def cap(directions):
         return (angles_from_directions(directions)[0] < np.radians(75)).astype(float)

@@ -56,8 +56,7 @@ def test_product_equals_the_pointwise_product(method):
     h = product(f, g_, method=method)
     assert h.shape == (n_coefficients(9),)
     quadrature = grid(9)
-    np.testing.assert_allclose(quadrature.synthesis(h), quadrature.synthesis(f) * quadrature.synthesis(g_),
-                               atol=1e-12)
+    np.testing.assert_allclose(quadrature.synthesis(h), quadrature.synthesis(f) * quadrature.synthesis(g_), atol=1e-12)
     truncated = product(f, g_, max_degree=3, method=method)
     np.testing.assert_allclose(truncated, h[: n_coefficients(3)], atol=1e-13)
 
@@ -84,8 +83,9 @@ def test_masked_distance_equals_the_grid_integral(method):
     vg = cap_visibility(degree_v, np.array([0.3, -0.2, 1.0]), 1.7)
     expected = masked_distance_on_grid(f, g, vf, vg, degree + degree_v)
     assert masked_distance(f, g, vf, vg, method=method) == pytest.approx(expected, rel=1e-11)
-    assert overlap_area(vf, vg) == pytest.approx(grid(degree_v).integrate(
-        grid(degree_v).synthesis(vf) * grid(degree_v).synthesis(vg)), rel=1e-12)
+    assert overlap_area(vf, vg) == pytest.approx(
+        grid(degree_v).integrate(grid(degree_v).synthesis(vf) * grid(degree_v).synthesis(vg)), rel=1e-12
+    )
 
 
 def test_masked_distance_with_full_visibility_is_the_mean_squared_error():
@@ -94,7 +94,8 @@ def test_masked_distance_with_full_visibility_is_the_mean_squared_error():
     everywhere = np.zeros(n_coefficients(2))
     everywhere[0] = np.sqrt(4 * np.pi)  # v = 1
     assert masked_distance(f, g, everywhere, everywhere) == pytest.approx(
-        coefficient_distance(f, g) / (4 * np.pi), rel=1e-12)
+        coefficient_distance(f, g) / (4 * np.pi), rel=1e-12
+    )
 
 
 def test_masked_view_rotates_with_its_view():
@@ -103,8 +104,9 @@ def test_masked_view_rotates_with_its_view():
     vf = cap_visibility(4, np.array([0.0, 0.0, 1.0]), 1.6)
     vg = cap_visibility(4, np.array([0.0, 0.2, 1.0]), 1.6)
     matrix = Rotation.from_rotvec([0.1, -0.3, 0.8]).as_matrix()
-    by_terms = masked_distance_views(MaskedView.from_coefficients(f, vf).rotated(matrix),
-                                     MaskedView.from_coefficients(g, vg))
+    by_terms = masked_distance_views(
+        MaskedView.from_coefficients(f, vf).rotated(matrix), MaskedView.from_coefficients(g, vg)
+    )
     direct = masked_distance(rotate(f, matrix), g, rotate(vf, matrix), vg)
     assert by_terms == pytest.approx(direct, rel=1e-11)
 
@@ -130,10 +132,15 @@ def featureless_masks(camera) -> dict[str, np.ndarray]:
     up = camera.pixel_directions()[..., 2]
     circle = camera.image_circle()
     azimuth = np.arctan2(*camera.pixel_directions()[..., 1::-1].transpose(2, 0, 1))
-    return {name: (sky & circle).astype(np.uint8) * 255 for name, sky in {
-        'sky': np.ones_like(circle), 'ground': np.zeros_like(circle),
-        'open field': up > np.sin(np.radians(1.5)),  # a level horizon, nothing on it
-        'skyline': up > np.sin(np.radians(20 + 15 * np.sin(3 * azimuth)))}.items()}
+    return {
+        name: (sky & circle).astype(np.uint8) * 255
+        for name, sky in {
+            'sky': np.ones_like(circle),
+            'ground': np.zeros_like(circle),
+            'open field': up > np.sin(np.radians(1.5)),  # a level horizon, nothing on it
+            'skyline': up > np.sin(np.radians(20 + 15 * np.sin(3 * azimuth))),
+        }.items()
+    }
 
 
 @pytest.mark.parametrize('fill', ['zero', 'mean', 'mirror'])

@@ -75,8 +75,9 @@ def test_compass_convention_snapshot_from_current():
     d_current = rng.standard_normal((20, 3))
     d_current /= np.linalg.norm(d_current, axis=1, keepdims=True)
     d_snapshot = d_current @ matrix.T
-    np.testing.assert_allclose(grid(6).synthesis_at(f_snapshot, d_snapshot),
-                               grid(6).synthesis_at(f_current, d_current), atol=1e-12)
+    np.testing.assert_allclose(
+        grid(6).synthesis_at(f_snapshot, d_snapshot), grid(6).synthesis_at(f_current, d_current), atol=1e-12
+    )
 
 
 @settings(max_examples=30, deadline=None, database=None)
@@ -119,8 +120,9 @@ def test_z_and_y_paths_equal_the_general_rotation(angle, degree, seed):
     np.testing.assert_allclose(rotate_z(coefficients, angle), resampled_rotation(coefficients, about_z), atol=1e-11)
     np.testing.assert_allclose(rotate_y(coefficients, angle), rotate(coefficients, about_y), atol=1e-11)
     np.testing.assert_allclose(rotate_y(coefficients, angle), resampled_rotation(coefficients, about_y), atol=1e-11)
-    by_blocks = np.concatenate([y_rotation_block(l, angle) @ coefficients[part]
-                                for l, part in enumerate(degree_slices(degree))])
+    by_blocks = np.concatenate(
+        [y_rotation_block(l, angle) @ coefficients[part] for l, part in enumerate(degree_slices(degree))]
+    )
     np.testing.assert_allclose(by_blocks, rotate_y(coefficients, angle), atol=1e-11)
 
 

@@ -81,8 +81,13 @@ def test_bispectrum_is_the_triple_integral_of_degree_parts():
 def test_bispectrum_triples_and_count():
     for degree in (0, 1, 5, 16):
         triples = bispectrum_triples(degree)
-        brute = {(a, b, c) for a in range(degree + 1) for b in range(degree + 1) for c in range(degree + 1)
-                 if a <= b <= c <= a + b and (a + b + c) % 2 == 0}
+        brute = {
+            (a, b, c)
+            for a in range(degree + 1)
+            for b in range(degree + 1)
+            for c in range(degree + 1)
+            if a <= b <= c <= a + b and (a + b + c) % 2 == 0
+        }
         assert set(map(tuple, triples)) == brute and len(triples) == len(brute) == bispectrum_size(degree)
     assert [bispectrum_size(d) for d in (16, 32)] == [285, 1785]
 

@@ -23,8 +23,12 @@ def test_analysis_inverts_synthesis(degree):
 
 
 @settings(max_examples=30, deadline=None, database=None)
-@given(degree=st.integers(0, 24), extra_theta=st.integers(0, 5), extra_phi=st.integers(-1, 6),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    degree=st.integers(0, 24),
+    extra_theta=st.integers(0, 5),
+    extra_phi=st.integers(-1, 6),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_round_trip_on_any_large_enough_grid(degree, extra_theta, extra_phi, seed):
     # n_phi = 2L + 1 (odd, the least) up to larger grids; more nodes than needed must stay exact
     coefficients = np.random.default_rng(seed).standard_normal((2, n_coefficients(degree)))

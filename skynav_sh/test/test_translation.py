@@ -62,8 +62,9 @@ def test_general_direction_is_the_rotated_z_step():
     np.testing.assert_allclose(translate(f, [0.0, 0.0, 0.3]), translate_z(f, 0.3), atol=1e-13)
     # stepping along -z equals turning the view upside down, stepping along +z, turning back
     half_turn = np.diag([1.0, -1.0, -1.0])
-    np.testing.assert_allclose(translate(f, [0.0, 0.0, -0.3]),
-                               rotate(translate_z(rotate(f, half_turn), 0.3), half_turn), atol=1e-12)
+    np.testing.assert_allclose(
+        translate(f, [0.0, 0.0, -0.3]), rotate(translate_z(rotate(f, half_turn), 0.3), half_turn), atol=1e-12
+    )
 
 
 def test_no_step_and_constant_views():

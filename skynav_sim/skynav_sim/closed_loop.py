@@ -94,16 +94,19 @@ class SimRobotNode(SkynavNode):
         self.input('/compass/orientation', CompassEstimate, lambda m: setattr(self, 'compass', m))
         self.input('/localization/match', PlaceMatch, lambda m: setattr(self, 'match', m))
 
-    def publish_frame(self, stamp: int, uv: np.ndarray, green: np.ndarray, encoding: str,
-                      camera: EquidistantCamera) -> None:
+    def publish_frame(
+        self, stamp: int, uv: np.ndarray, green: np.ndarray, encoding: str, camera: EquidistantCamera
+    ) -> None:
         """Publish one exposure as the camera topics carry it."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
         info = self.info_type()
         for key, value in camera.camera_info_fields().items():
             setattr(info, key, value)
-        messages = [('/camera/uv/camera_info', info), ('/camera/uv/image_raw', fill_image(self.image_type(), uv,
-                                                                                          encoding)),
-                    ('/camera/green/image_raw', fill_image(self.image_type(), green, encoding))]
+        messages = [
+            ('/camera/uv/camera_info', info),
+            ('/camera/uv/image_raw', fill_image(self.image_type(), uv, encoding)),
+            ('/camera/green/image_raw', fill_image(self.image_type(), green, encoding)),
+        ]
         self.home_vector = self.compass = None
         for topic, message in messages:
             message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
@@ -114,8 +117,15 @@ class SimRobotNode(SkynavNode):
 class Simulation:
     """A world, a camera and the light of one moment, rendered for a moving robot."""
 
-    def __init__(self, world: World, camera: EquidistantCamera, hours: float, seed: int,
-                 encoding: str = 'mono8', bump_tilt: float = 0.0) -> None:
+    def __init__(
+        self,
+        world: World,
+        camera: EquidistantCamera,
+        hours: float,
+        seed: int,
+        encoding: str = 'mono8',
+        bump_tilt: float = 0.0,
+    ) -> None:
         """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump)."""
         self.world, self.camera, self.encoding, self.seed = world, camera, encoding, seed
         self.bump_tilt = bump_tilt
@@ -131,8 +141,11 @@ class Simulation:
         pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt))
         view = self.renderer.render(pose, self.sky)
         self.frames += 1
-        return (self.sensor.capture(view.uv, view.inside, self.encoding, rng),
-                self.sensor.capture(view.green, view.inside, self.encoding, rng), pose)
+        return (
+            self.sensor.capture(view.uv, view.inside, self.encoding, rng),
+            self.sensor.capture(view.green, view.inside, self.encoding, rng),
+            pose,
+        )
 
     def stamp(self) -> int:
         """Return the stamp of the next frame (ns), FRAME_RATE apart."""
@@ -161,8 +174,16 @@ def route_direction(pose, compass) -> np.ndarray:
     return ground_direction(pose, as_matrix([q.x, q.y, q.z, q.w])[0])
 
 
-def drive(simulation: Simulation, robot: SimRobotNode, start: np.ndarray, heading: float, goal: np.ndarray,
-          max_steps: int, done: Callable[[SimRobotNode], str] | None = None, homing: bool = True) -> Run:
+def drive(
+    simulation: Simulation,
+    robot: SimRobotNode,
+    start: np.ndarray,
+    heading: float,
+    goal: np.ndarray,
+    max_steps: int,
+    done: Callable[[SimRobotNode], str] | None = None,
+    homing: bool = True,
+) -> Run:
     """Drive the robot by its home vectors from `start` until it stops; return the run.
 
     Homing (`homing`): towards the home vector; halve the step when home was passed, stop when the
@@ -207,9 +228,19 @@ def drive(simulation: Simulation, robot: SimRobotNode, start: np.ndarray, headin
     return run
 
 
-def home_runs(world: World, camera: EquidistantCamera, goal: np.ndarray, starts: list[tuple[np.ndarray, float]],
-              map_path, hours: float, seed: int, max_steps: int, progress: Callable[[Run], None] | None = None,
-              ros_args: list[str] | None = None, bump_tilt: float = 0.0) -> list[Run]:
+def home_runs(
+    world: World,
+    camera: EquidistantCamera,
+    goal: np.ndarray,
+    starts: list[tuple[np.ndarray, float]],
+    map_path,
+    hours: float,
+    seed: int,
+    max_steps: int,
+    progress: Callable[[Run], None] | None = None,
+    ros_args: list[str] | None = None,
+    bump_tilt: float = 0.0,
+) -> list[Run]:
     """Home from each start to the one snapshot of the map at `goal` (views bumped up to bump_tilt degrees)."""
     runs = []
     arguments = ['-p', f'map:={map_path}', '-p', 'reference:=index', '-p', 'target:=index', *(ros_args or [])]
@@ -224,8 +255,18 @@ def home_runs(world: World, camera: EquidistantCamera, goal: np.ndarray, starts:
     return runs
 
 
-def snapshot_map(world: World, camera: EquidistantCamera, place: np.ndarray, heading: float, hours: float,
-                 seed: int, path, name: str = 'home', ros_args: list[str] | None = None, bump_tilt: float = 0.0):
+def snapshot_map(
+    world: World,
+    camera: EquidistantCamera,
+    place: np.ndarray,
+    heading: float,
+    hours: float,
+    seed: int,
+    path,
+    name: str = 'home',
+    ros_args: list[str] | None = None,
+    bump_tilt: float = 0.0,
+):
     """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
     from skynav_core.maps import Snapshot
     from skynav_localize.mapping import build_map
@@ -245,12 +286,14 @@ def snapshot_map(world: World, camera: EquidistantCamera, place: np.ndarray, hea
     message = sh[0]
     coefficients = np.asarray(message.coefficients)
     snapshot = Snapshot(0, stamp, coefficients, np.concatenate([pose.position, pose.quaternion]))
-    return build_map(path, name, int(message.max_degree), [snapshot], created_from='skynav sim home (synthetic)',
-                     overwrite=True)
+    return build_map(
+        path, name, int(message.max_degree), [snapshot], created_from='skynav sim home (synthetic)', overwrite=True
+    )
 
 
-def random_starts(world: World, goal: np.ndarray, count: int, min_distance: float, max_distance: float,
-                  rng: np.random.Generator) -> list[tuple[np.ndarray, float]]:
+def random_starts(
+    world: World, goal: np.ndarray, count: int, min_distance: float, max_distance: float, rng: np.random.Generator
+) -> list[tuple[np.ndarray, float]]:
     """Return `count` free start places (and headings) between min and max distance (m) from the goal."""
     starts = []
     for _ in range(count * 200):
@@ -267,8 +310,17 @@ def random_starts(world: World, goal: np.ndarray, count: int, min_distance: floa
 ROUTE_LOOKAHEAD = 6  # snapshots ahead of the matched one that route following homes to (0.6-1.2 m here)
 
 
-def follow_route(world: World, camera: EquidistantCamera, map_path, start: np.ndarray, heading: float,
-                 hours: float, seed: int, max_steps: int, ros_args: list[str] | None = None) -> tuple[Run, np.ndarray]:
+def follow_route(
+    world: World,
+    camera: EquidistantCamera,
+    map_path,
+    start: np.ndarray,
+    heading: float,
+    hours: float,
+    seed: int,
+    max_steps: int,
+    ros_args: list[str] | None = None,
+) -> tuple[Run, np.ndarray]:
     """Follow the route of a map from `start`: localize, home to a snapshot further on, step, repeat.
 
     Returns the run and the route (snapshot positions x, y in m).
@@ -279,8 +331,17 @@ def follow_route(world: World, camera: EquidistantCamera, map_path, start: np.nd
     route = store.positions()[:, :2]
     last = len(store) - 1
     store.close()
-    arguments = ['-p', f'map:={map_path}', '-p', 'reference:=match', '-p', 'target:=next',
-                 '-p', f'lookahead:={ROUTE_LOOKAHEAD}', *(ros_args or [])]
+    arguments = [
+        '-p',
+        f'map:={map_path}',
+        '-p',
+        'reference:=match',
+        '-p',
+        'target:=next',
+        '-p',
+        f'lookahead:={ROUTE_LOOKAHEAD}',
+        *(ros_args or []),
+    ]
 
     def at_end(robot: SimRobotNode) -> str:
         match = robot.match
@@ -297,7 +358,8 @@ def route_deviation(run: Run, route: np.ndarray) -> np.ndarray:
     points = np.array(run.path)
     a, b = route[:-1], route[1:]
     ab = b - a
-    t = np.clip(np.einsum('pij,ij->pi', points[:, None] - a, ab) / np.maximum(np.einsum('ij,ij->i', ab, ab), 1e-12),
-                0, 1)
+    t = np.clip(
+        np.einsum('pij,ij->pi', points[:, None] - a, ab) / np.maximum(np.einsum('ij,ij->i', ab, ab), 1e-12), 0, 1
+    )
     nearest = a + t[..., None] * ab
     return np.min(np.linalg.norm(points[:, None] - nearest, axis=2), axis=1)

@@ -108,10 +108,13 @@ def _wanted(member: tarfile.TarInfo) -> str | None:
     """Return the path below landscapes/ of an archive member of the four landscapes (texts in English only)."""
     if not member.isfile() or not member.name.startswith(PACKAGE_PREFIX):
         return None
-    relative = member.name[len(PACKAGE_PREFIX):]
+    relative = member.name[len(PACKAGE_PREFIX) :]
     landscape, _, file = relative.partition('/')
-    if landscape not in LANDSCAPES or '/' in file or (file.startswith('description.') and
-                                                      file != 'description.en.utf8'):
+    if (
+        landscape not in LANDSCAPES
+        or '/' in file
+        or (file.startswith('description.') and file != 'description.en.utf8')
+    ):
         return None
     return relative
 
@@ -119,8 +122,9 @@ def _wanted(member: tarfile.TarInfo) -> str | None:
 def _run(command: list[str], folder: str) -> int:
     """Run a command quietly in a folder; return its exit code (127 when it could not start)."""
     try:
-        return subprocess.run(command, cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                              timeout=FETCH_TIMEOUT).returncode
+        return subprocess.run(
+            command, cwd=folder, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=FETCH_TIMEOUT
+        ).returncode
     except (OSError, subprocess.TimeoutExpired):
         return 127
 
@@ -226,8 +230,10 @@ def _old_style(name: str, folder: Path, section: configparser.SectionProxy) -> L
         image = textures[texture]
         rows, columns = image.shape[:2]
         # texture coordinates run upwards from the image's bottom row
-        crop = image[int(round((1 - float(y1)) * rows)):int(round((1 - float(y0)) * rows)),
-                     int(round(float(x0) * columns)):int(round(float(x1) * columns))]
+        crop = image[
+            int(round((1 - float(y1)) * rows)) : int(round((1 - float(y0)) * rows)),
+            int(round(float(x0) * columns)) : int(round(float(x1) * columns)),
+        ]
         sides.append(crop)
     height = max(side.shape[0] for side in sides)
     sides = [cv2.resize(side, (side.shape[1], height), interpolation=cv2.INTER_AREA) for side in sides]
@@ -235,10 +241,16 @@ def _old_style(name: str, folder: Path, section: configparser.SectionProxy) -> L
     bottom = np.radians(section.getfloat('decor_angle_shift'))
     top = bottom + np.radians(section.getfloat('decor_alt_angle'))
     ground = _image(folder / section['groundtex'])[..., :3]
-    return Landscape(name, _wrap(panorama), float(top), float(bottom),
-                     section.get('tan_mode', 'false').strip().lower() == 'true', np.ascontiguousarray(ground),
-                     float(np.radians(section.getfloat('ground_angle_shift'))),
-                     float(np.radians(section.getfloat('ground_angle_rotatez'))))
+    return Landscape(
+        name,
+        _wrap(panorama),
+        float(top),
+        float(bottom),
+        section.get('tan_mode', 'false').strip().lower() == 'true',
+        np.ascontiguousarray(ground),
+        float(np.radians(section.getfloat('ground_angle_shift'))),
+        float(np.radians(section.getfloat('ground_angle_rotatez'))),
+    )
 
 
 def _polygonal(name: str, folder: Path, section: configparser.SectionProxy) -> Landscape:
@@ -258,8 +270,16 @@ def _polygonal(name: str, folder: Path, section: configparser.SectionProxy) -> L
     panorama[..., :3] = colour
     panorama[..., 3] = row_altitude[:, None] <= skyline[None, :]
     ground = np.broadcast_to(colour, (8, 8, 3)).astype(np.float32)
-    return Landscape(name, _wrap(panorama), float(np.radians(top)), float(np.radians(bottom)), False, ground,
-                     float(np.radians(bottom)), 0.0)
+    return Landscape(
+        name,
+        _wrap(panorama),
+        float(np.radians(top)),
+        float(np.radians(bottom)),
+        False,
+        ground,
+        float(np.radians(bottom)),
+        0.0,
+    )
 
 
 def _rotate_columns(panorama: np.ndarray, azimuth: float) -> np.ndarray:
@@ -276,8 +296,9 @@ def _wrap(panorama: np.ndarray) -> np.ndarray:
 class Backdrop:
     """A landscape on a cylinder around the map origin, lit by the synthetic daylight: what rays from a camera see."""
 
-    def __init__(self, landscape: Landscape, distance: float = BACKDROP_DISTANCE,
-                 eye_height: float = CAMERA_HEIGHT) -> None:
+    def __init__(
+        self, landscape: Landscape, distance: float = BACKDROP_DISTANCE, eye_height: float = CAMERA_HEIGHT
+    ) -> None:
         """Put a landscape on a cylinder of radius `distance` (m), seen undistorted from `eye_height` (m) above its centre."""
         self.landscape = landscape
         self.distance = float(distance)
@@ -286,29 +307,33 @@ class Backdrop:
     @property
     def source(self) -> str:
         """Return one line saying what is real in views of this backdrop and where it comes from."""
-        return (f'skyline and ground colours of the Stellarium landscape {self.landscape.name!r} ({PACKAGE}, GPL), '
-                f'on a {self.distance:g} m backdrop under the synthetic sky')
+        return (
+            f'skyline and ground colours of the Stellarium landscape {self.landscape.name!r} ({PACKAGE}, GPL), '
+            f'on a {self.distance:g} m backdrop under the synthetic sky'
+        )
 
     def intersect(self, origin: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return (distance m, compass azimuth rad, altitude rad from the centre's eye) where rays meet the cylinder."""
         origin = np.asarray(origin, float)
         horizontal = np.einsum('ij,ij->i', directions[:, :2], directions[:, :2])
         along = directions[:, :2] @ origin[:2]
-        outside = self.distance ** 2 - origin[:2] @ origin[:2]
+        outside = self.distance**2 - origin[:2] @ origin[:2]
         if outside <= 0:
             raise ValueError(f'the camera at {origin[:2]} stands outside the {self.distance:g} m backdrop')
         with np.errstate(divide='ignore', invalid='ignore'):
-            t = (-along + np.sqrt(along ** 2 + horizontal * outside)) / horizontal
+            t = (-along + np.sqrt(along**2 + horizontal * outside)) / horizontal
         vertical = horizontal < 1e-12
         t = np.where(vertical, np.inf, t)
         hits = origin + np.where(vertical, 0.0, t)[:, None] * directions
         azimuth = np.arctan2(hits[:, 0], hits[:, 1])
-        altitude = np.where(vertical, np.sign(directions[:, 2]) * np.pi / 2,
-                            np.arctan2(hits[:, 2] - self.eye_height, self.distance))
+        altitude = np.where(
+            vertical, np.sign(directions[:, 2]) * np.pi / 2, np.arctan2(hits[:, 2] - self.eye_height, self.distance)
+        )
         return t, azimuth, altitude
 
-    def shade(self, origin: np.ndarray, directions: np.ndarray, sky) -> tuple[dict[str, np.ndarray], np.ndarray,
-                                                                             np.ndarray]:
+    def shade(
+        self, origin: np.ndarray, directions: np.ndarray, sky
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Return radiance per band, whether each ray sees sky, and the distance to what it sees (inf for sky)."""
         distance, azimuth, altitude = self.intersect(origin, directions)
         ground, colour = self.landscape.sample(azimuth, altitude)

@@ -32,9 +32,18 @@ class SimCameraNode(Node):
     def __init__(self) -> None:
         super().__init__('sim_camera')
         declared = {
-            'scenario': 'teach', 'world': 'garden', 'seed': 0, 'time': 'forenoon', 'clouds': 0.0,
-            'size': '320x240', 'fov': 200.0, 'distortion': options.DEFAULT_DISTORTION, 'encoding': 'mono16',
-            'length': 20.0, 'speed': 0.5, 'rate': 10.0,
+            'scenario': 'teach',
+            'world': 'garden',
+            'seed': 0,
+            'time': 'forenoon',
+            'clouds': 0.0,
+            'size': '320x240',
+            'fov': 200.0,
+            'distortion': options.DEFAULT_DISTORTION,
+            'encoding': 'mono16',
+            'length': 20.0,
+            'speed': 0.5,
+            'rate': 10.0,
         }
         values = {name: self.declare_parameter(name, default).value for name, default in declared.items()}
         args = _namespace(values)
@@ -44,14 +53,20 @@ class SimCameraNode(Node):
         self.frames = frames
         self._source = _looping_captures(world, self.camera, frames, self.encoding, int(values['seed']))
         qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
-        classes = {'sensor_msgs/msg/Image': IMAGE, 'sensor_msgs/msg/CameraInfo': CAMERA_INFO,
-                   'geometry_msgs/msg/PoseStamped': POSE}
-        self.outputs = {topic: self.create_publisher(classes[msgtype], topic, qos)
-                        for topic, msgtype in recording.TOPICS.items()}
+        classes = {
+            'sensor_msgs/msg/Image': IMAGE,
+            'sensor_msgs/msg/CameraInfo': CAMERA_INFO,
+            'geometry_msgs/msg/PoseStamped': POSE,
+        }
+        self.outputs = {
+            topic: self.create_publisher(classes[msgtype], topic, qos) for topic, msgtype in recording.TOPICS.items()
+        }
         self.info = self._camera_info()
         self.timer = self.create_timer(1.0 / float(values['rate']), self.publish_next)
-        self.get_logger().info(f'publishing synthetic {values["scenario"]} frames of the {values["world"]} world '
-                               f'(seed {values["seed"]}, {self.camera.width}x{self.camera.height})')
+        self.get_logger().info(
+            f'publishing synthetic {values["scenario"]} frames of the {values["world"]} world '
+            f'(seed {values["seed"]}, {self.camera.width}x{self.camera.height})'
+        )
 
     def _camera_info(self) -> object:
         fields = self.camera.camera_info_fields()
@@ -80,10 +95,12 @@ class SimCameraNode(Node):
         pose = POSE()
         pose.header.stamp = stamp
         pose.header.frame_id = recording.MAP_FRAME
-        (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) = (float(v) for v in
-                                                                              capture.frame.pose.position)
-        (pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z,
-         pose.pose.orientation.w) = (float(v) for v in capture.frame.pose.quaternion)
+        (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) = (
+            float(v) for v in capture.frame.pose.position
+        )
+        (pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z, pose.pose.orientation.w) = (
+            float(v) for v in capture.frame.pose.quaternion
+        )
         self.outputs['/camera/uv/image_raw'].publish(self._image(capture.uv, self.encoding, stamp))
         self.outputs['/camera/green/image_raw'].publish(self._image(capture.green, self.encoding, stamp))
         self.outputs['/camera/uv/camera_info'].publish(self.info)
@@ -99,8 +116,18 @@ def _looping_captures(world, camera, frames, encoding, seed):
 
 def _namespace(values: dict) -> argparse.Namespace:
     """Return scenario options as `skynav sim bag` would parse them, from node parameters."""
-    defaults = {'route_seed': 0, 'offset': 0.0, 'shake': 0.0, 'wobble': 0.0, 'spacing': 0.5, 'grid_radius': 3.0, 'count': 40,
-                'max_tilt': 30.0, 'max_translation': 0.5, 'bump_tilt': 0.0}
+    defaults = {
+        'route_seed': 0,
+        'offset': 0.0,
+        'shake': 0.0,
+        'wobble': 0.0,
+        'spacing': 0.5,
+        'grid_radius': 3.0,
+        'count': 40,
+        'max_tilt': 30.0,
+        'max_translation': 0.5,
+        'bump_tilt': 0.0,
+    }
     return argparse.Namespace(**{**defaults, **values})
 
 

@@ -13,8 +13,15 @@ from skynav_core.rotations import as_matrix
 
 from .world import YARD_RADIUS, World
 
-KIND_COLOURS = {'tree': '#2e7d32', 'bush': '#66bb6a', 'building': '#8d6e63', 'wall': '#9e9e9e',
-                'fence': '#a1887f', 'hedge': '#1b5e20', 'rock': '#bdbdbd'}
+KIND_COLOURS = {
+    'tree': '#2e7d32',
+    'bush': '#66bb6a',
+    'building': '#8d6e63',
+    'wall': '#9e9e9e',
+    'fence': '#a1887f',
+    'hedge': '#1b5e20',
+    'rock': '#bdbdbd',
+}
 TOP_VIEW_MARGIN = 14.0  # m shown around the yard
 
 
@@ -44,8 +51,9 @@ def draw_world(figure, axis, world: World, extent: float) -> None:
 
     axis_values = np.linspace(-extent, extent, 300)
     x, y = np.meshgrid(axis_values, axis_values)
-    relief = axis.imshow(world.terrain.height(x, y), origin='lower', extent=(-extent, extent, -extent, extent),
-                         cmap='terrain', alpha=0.8)
+    relief = axis.imshow(
+        world.terrain.height(x, y), origin='lower', extent=(-extent, extent, -extent, extent), cmap='terrain', alpha=0.8
+    )
     figure.colorbar(relief, ax=axis, shrink=0.5, label='terrain height (m)')
     for f in world.footprints:
         colour = KIND_COLOURS.get(f.kind, 'k')
@@ -55,8 +63,9 @@ def draw_world(figure, axis, world: World, extent: float) -> None:
             axis.add_patch(Circle(f.center, f.half_sizes[0], color=colour))
         else:
             corner = f.center - Rotation.from_euler('z', f.yaw).apply([*f.half_sizes, 0])[:2]
-            axis.add_patch(Rectangle(corner, 2 * f.half_sizes[0], 2 * f.half_sizes[1], angle=np.degrees(f.yaw),
-                                     color=colour))
+            axis.add_patch(
+                Rectangle(corner, 2 * f.half_sizes[0], 2 * f.half_sizes[1], angle=np.degrees(f.yaw), color=colour)
+            )
     axis.add_patch(Circle((0, 0), YARD_RADIUS, fill=False, linestyle='--', color='k', linewidth=0.8))
     axis.set_xlim(-extent, extent)
     axis.set_ylim(-extent, extent)
@@ -65,8 +74,9 @@ def draw_world(figure, axis, world: World, extent: float) -> None:
     axis.set_ylabel('y north (m)')
 
 
-def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, world: World | None,
-         title: str) -> Path:
+def draw(
+    path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, world: World | None, title: str
+) -> Path:
     """Draw the contact sheet of `frames` (and a top view of `world` with every pose) into a PNG file."""
     import matplotlib
 
@@ -83,24 +93,34 @@ def draw(path: str | Path, frames: list[SheetFrame], all_positions: np.ndarray, 
     top.plot(all_positions[:, 0], all_positions[:, 1], '.', color='#1565c0', markersize=3, label='all poses')
     for frame in frames:
         forward = as_matrix(frame.quaternion)[:, 0]  # camera_link x (the robot's forward) in map
-        top.annotate('', frame.position[:2] + 0.8 * forward[:2], frame.position[:2],
-                     arrowprops={'arrowstyle': '->', 'color': '#d32f2f', 'linewidth': 1.5})
+        top.annotate(
+            '',
+            frame.position[:2] + 0.8 * forward[:2],
+            frame.position[:2],
+            arrowprops={'arrowstyle': '->', 'color': '#d32f2f', 'linewidth': 1.5},
+        )
         top.text(*(frame.position[:2] + [0.3, 0.3]), str(frame.index), color='#d32f2f', fontsize=9)
     top.set_xlim(-extent, extent)
     top.set_ylim(-extent, extent)
     top.set_aspect('equal')
-    ground = ('synthetic world' if world is None or world.backdrop is None
-              else f'synthetic lawn, real {world.style} skyline {world.backdrop.distance:g} m away')
+    ground = (
+        'synthetic world'
+        if world is None or world.backdrop is None
+        else f'synthetic lawn, real {world.style} skyline {world.backdrop.distance:g} m away'
+    )
     top.set_title(f'top view ({ground}); red: frames shown, arrow = robot forward')
     for row, frame in enumerate(frames):
-        for column, (image, name) in enumerate(((frame.uv, 'UV'), (frame.green, 'green'),
-                                                (frame.mask, 'ground-truth mask'))):
+        for column, (image, name) in enumerate(
+            ((frame.uv, 'UV'), (frame.green, 'green'), (frame.mask, 'ground-truth mask'))
+        ):
             ax = figure.add_subplot(grid[row, column + 1])
             ax.imshow(_display(image), cmap='gray', vmin=0, vmax=1)
             ax.set_xticks([])
             ax.set_yticks([])
-            ax.set_title(f'frame {frame.index}: {name}' if column else f'frame {frame.index}: {name}\n{frame.caption}',
-                         fontsize=9)
+            ax.set_title(
+                f'frame {frame.index}: {name}' if column else f'frame {frame.index}: {name}\n{frame.caption}',
+                fontsize=9,
+            )
     figure.suptitle(title)
     path = Path(path)
     figure.savefig(path, dpi=70)

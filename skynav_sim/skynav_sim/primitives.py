@@ -80,8 +80,9 @@ class Cylinder:
             candidates = []
             for t in ((-b - root) / a, (-b + root) / a):
                 z = o[:, 2] + t * directions[:, 2]
-                candidates.append(np.where((disc >= 0) & (t > SELF_HIT_EPSILON) & (z >= 0) & (z <= self.height),
-                                           t, np.inf))
+                candidates.append(
+                    np.where((disc >= 0) & (t > SELF_HIT_EPSILON) & (z >= 0) & (z <= self.height), t, np.inf)
+                )
             t_top = (self.height - o[:, 2]) / directions[:, 2]
             p = o[:, :2] + t_top[:, None] * dxy
             on_top = (t_top > SELF_HIT_EPSILON) & (np.einsum('ij,ij->i', p, p) <= self.radius**2)
@@ -142,21 +143,29 @@ class ConvexPolytope:
         return cls(normals, offsets, corners, material)
 
     @classmethod
-    def gable_roof(cls, center: np.ndarray, half_length: float, half_width: float, height: float, yaw: float,
-                   material: int) -> ConvexPolytope:
+    def gable_roof(
+        cls, center: np.ndarray, half_length: float, half_width: float, height: float, yaw: float, material: int
+    ) -> ConvexPolytope:
         """Return a triangular prism roof: ridge along the yawed x axis, eaves at centre z, ridge `height` above."""
         c, s = np.cos(yaw), np.sin(yaw)
         ex, ey, ez = np.array([c, s, 0.0]), np.array([-s, c, 0.0]), np.array([0.0, 0.0, 1.0])
         slope = np.array([height, half_width])
         side = slope / np.linalg.norm(slope)
         normals = np.array([ex, -ex, -ez, side[0] * ey + side[1] * ez, -side[0] * ey + side[1] * ez])
-        corners = np.array([center + sx * half_length * ex + sy * half_width * ey for sx in (-1, 1) for sy in (-1, 1)]
-                           + [center + sx * half_length * ex + height * ez for sx in (-1, 1)])
+        corners = np.array(
+            [center + sx * half_length * ex + sy * half_width * ey for sx in (-1, 1) for sy in (-1, 1)]
+            + [center + sx * half_length * ex + height * ez for sx in (-1, 1)]
+        )
         eave = center + half_width * ey
-        offsets = np.array([
-            ex @ center + half_length, -ex @ center + half_length, -ez @ center,
-            normals[3] @ eave, normals[4] @ (center - half_width * ey),
-        ])
+        offsets = np.array(
+            [
+                ex @ center + half_length,
+                -ex @ center + half_length,
+                -ez @ center,
+                normals[3] @ eave,
+                normals[4] @ (center - half_width * ey),
+            ]
+        )
         return cls(normals, offsets, corners, material)
 
 

@@ -61,8 +61,9 @@ def stamps(frames: list[Frame]) -> list[int]:
     return [first + k * period for k in range(len(frames))]
 
 
-def captures(world: World, camera: EquidistantCamera, frames: list[Frame], encoding: str, seed: int,
-             sensor: Sensor | None = None) -> Iterator[Capture]:
+def captures(
+    world: World, camera: EquidistantCamera, frames: list[Frame], encoding: str, seed: int, sensor: Sensor | None = None
+) -> Iterator[Capture]:
     """Render and capture each frame in turn; noise is seeded per frame, so output depends only on inputs."""
     renderer = Renderer(world, camera)
     sensor = sensor or Sensor()
@@ -78,8 +79,16 @@ def captures(world: World, camera: EquidistantCamera, frames: list[Frame], encod
         yield Capture(stamp, frame, view, uv, green)
 
 
-def write(path: str | Path, world: World, camera: EquidistantCamera, frames: list[Frame], encoding: str,
-          seed: int, description: dict, progress: Callable[[int], None] | None = None) -> Path:
+def write(
+    path: str | Path,
+    world: World,
+    camera: EquidistantCamera,
+    frames: list[Frame],
+    encoding: str,
+    seed: int,
+    description: dict,
+    progress: Callable[[int], None] | None = None,
+) -> Path:
     """Render `frames` into a recording at `path` (written atomically); return the path."""
     from skynav_core.bag import BagWriter
     from skynav_core.typestore import typestore
@@ -116,22 +125,34 @@ def write(path: str | Path, world: World, camera: EquidistantCamera, frames: lis
 def image_message(T: dict, header: object, pixels: np.ndarray, encoding: str) -> object:
     """Return a sensor_msgs/Image (rosbags) of a single-channel image."""
     height, width = pixels.shape
-    return T['sensor_msgs/msg/Image'](header, height, width, encoding, 0, width * pixels.itemsize,
-                                      np.ascontiguousarray(pixels).view(np.uint8).ravel())
+    return T['sensor_msgs/msg/Image'](
+        header, height, width, encoding, 0, width * pixels.itemsize, np.ascontiguousarray(pixels).view(np.uint8).ravel()
+    )
 
 
 def camera_info_message(T: dict, header: object, fields: dict) -> object:
     """Return a sensor_msgs/CameraInfo (rosbags) of the simulated camera."""
     roi = T['sensor_msgs/msg/RegionOfInterest'](0, 0, 0, 0, False)
     return T['sensor_msgs/msg/CameraInfo'](
-        header, fields['height'], fields['width'], fields['distortion_model'], np.array(fields['d'], float),
-        np.array(fields['k'], float), np.array(fields['r'], float), np.array(fields['p'], float), 0, 0, roi)
+        header,
+        fields['height'],
+        fields['width'],
+        fields['distortion_model'],
+        np.array(fields['d'], float),
+        np.array(fields['k'], float),
+        np.array(fields['r'], float),
+        np.array(fields['p'], float),
+        0,
+        0,
+        roi,
+    )
 
 
 def pose_message(T: dict, header: object, frame: Frame) -> object:
     """Return the geometry_msgs/PoseStamped (rosbags) of camera_link in map."""
     x, y, z = frame.pose.position
     qx, qy, qz, qw = frame.pose.quaternion
-    pose = T['geometry_msgs/msg/Pose'](T['geometry_msgs/msg/Point'](x, y, z),
-                                       T['geometry_msgs/msg/Quaternion'](qx, qy, qz, qw))
+    pose = T['geometry_msgs/msg/Pose'](
+        T['geometry_msgs/msg/Point'](x, y, z), T['geometry_msgs/msg/Quaternion'](qx, qy, qz, qw)
+    )
     return T['geometry_msgs/msg/PoseStamped'](header, pose)

@@ -90,8 +90,9 @@ class Renderer:
             sub_radiance, sub_sky, _ = self._shade(origin, sub_directions, sky, shadows)
             count = len(self.subpixel_offsets)
             for band in BANDS:
-                radiance[band][edge_index] = (radiance[band][edge_index]
-                                              + sub_radiance[band].reshape(-1, count).sum(axis=1)) / (count + 1)
+                radiance[band][edge_index] = (
+                    radiance[band][edge_index] + sub_radiance[band].reshape(-1, count).sum(axis=1)
+                ) / (count + 1)
             sky_hit[edge_index] = (sky_hit[edge_index] + sub_sky.reshape(-1, count).sum(axis=1)) > (count + 1) / 2
 
         def image(values: np.ndarray, fill: float) -> np.ndarray:
@@ -101,8 +102,7 @@ class Renderer:
 
         mask = np.zeros(shape, bool)
         mask[self.inside] = sky_hit
-        return View(image(radiance['uv'], 0.0), image(radiance['green'], 0.0), mask, image(depth, np.inf),
-                    self.inside)
+        return View(image(radiance['uv'], 0.0), image(radiance['green'], 0.0), mask, image(depth, np.inf), self.inside)
 
     def shadow_map(self, sky: Sky) -> ShadowMap | None:
         """Return the cached map of cast shadows on the ground for the sun of `sky` (None without sun)."""
@@ -113,8 +113,9 @@ class Renderer:
             self._shadow_maps[key] = ShadowMap(self.world, sky.sun)
         return self._shadow_maps[key]
 
-    def _shade(self, origin: np.ndarray, directions: np.ndarray, sky: Sky,
-               shadows: ShadowMap | None) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    def _shade(
+        self, origin: np.ndarray, directions: np.ndarray, sky: Sky, shadows: ShadowMap | None
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Return radiance per band, whether each ray sees sky, and the distance to what it sees."""
         if self.world.backdrop is not None:
             return self.world.backdrop.shade(origin, directions, sky)
@@ -137,8 +138,14 @@ class Renderer:
                 lit[on_terrain] = shadows.lit(points[on_terrain])
             lit *= sky.sun_visibility(origin)
             texture = 0.5 + 0.5 * np.clip(
-                _TEXTURE(points[:, 0] / TEXTURE_SCALE[materials] + 0.37 * points[:, 2],
-                         points[:, 1] / TEXTURE_SCALE[materials] - 0.61 * points[:, 2]) / 0.6, -1, 1)
+                _TEXTURE(
+                    points[:, 0] / TEXTURE_SCALE[materials] + 0.37 * points[:, 2],
+                    points[:, 1] / TEXTURE_SCALE[materials] - 0.61 * points[:, 2],
+                )
+                / 0.6,
+                -1,
+                1,
+            )
             facing_sun = np.clip(normals @ sky.sun, 0.0, None) * lit
             sky_view = 0.5 * (1.0 + normals[:, 2])
             for band, ranges in (('uv', UV_RANGE), ('green', GREEN_RANGE)):
@@ -148,8 +155,9 @@ class Renderer:
                 radiance[band][ground] = albedo * irradiance / np.pi
         return radiance, sky_hit, distance
 
-    def _surface(self, points: np.ndarray, primitive: np.ndarray,
-                 far_ground: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _surface(
+        self, points: np.ndarray, primitive: np.ndarray, far_ground: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Return unit normals and Surface indices at hit points (primitive index, -1 = terrain)."""
         normals = np.empty_like(points)
         materials = np.empty(len(points), np.int64)
@@ -168,8 +176,7 @@ class Renderer:
         return normals, materials
 
 
-def _cone_candidates(origin: np.ndarray, centers: np.ndarray, radii: np.ndarray,
-                     directions: np.ndarray) -> np.ndarray:
+def _cone_candidates(origin: np.ndarray, centers: np.ndarray, radii: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Return (spheres, rays) bool: which rays from `origin` may meet each bounding sphere (all, if inside it)."""
     to_centers = centers - origin
     distance = np.linalg.norm(to_centers, axis=1)
@@ -201,8 +208,9 @@ def trace(world: World, origin: np.ndarray, directions: np.ndarray) -> tuple[np.
             if not group_rays.size:
                 continue
             members = world.groups[group]
-            member_candidates = _cone_candidates(origin, world.centers[members], world.radii[members],
-                                                 directions32[group_rays])
+            member_candidates = _cone_candidates(
+                origin, world.centers[members], world.radii[members], directions32[group_rays]
+            )
             for member_row, index in enumerate(members):
                 rays = group_rays[member_candidates[member_row]]
                 if not rays.size:
@@ -225,8 +233,11 @@ def trace(world: World, origin: np.ndarray, directions: np.ndarray) -> tuple[np.
 def _boundary(label: np.ndarray) -> np.ndarray:
     """Return the pixels whose 8-neighbourhood holds both labels."""
     padded = np.pad(label, 1, mode='edge')
-    neighbours = [padded[1 + dv : padded.shape[0] - 1 + dv, 1 + du : padded.shape[1] - 1 + du]
-                  for dv in (-1, 0, 1) for du in (-1, 0, 1)]
+    neighbours = [
+        padded[1 + dv : padded.shape[0] - 1 + dv, 1 + du : padded.shape[1] - 1 + du]
+        for dv in (-1, 0, 1)
+        for du in (-1, 0, 1)
+    ]
     stack = np.stack(neighbours)
     return stack.any(axis=0) & ~stack.all(axis=0)
 
@@ -251,8 +262,9 @@ class ShadowMap:
             i0, j0, i1, j1 = max(i0, 0), max(j0, 0), min(i1, n - 1), min(j1, n - 1)
             if i0 > i1 or j0 > j1:
                 continue
-            points = np.stack([x[j0 : j1 + 1, i0 : i1 + 1], y[j0 : j1 + 1, i0 : i1 + 1],
-                               z[j0 : j1 + 1, i0 : i1 + 1] + 1e-3], axis=-1).reshape(-1, 3)
+            points = np.stack(
+                [x[j0 : j1 + 1, i0 : i1 + 1], y[j0 : j1 + 1, i0 : i1 + 1], z[j0 : j1 + 1, i0 : i1 + 1] + 1e-3], axis=-1
+            ).reshape(-1, 3)
             # Bounding-sphere test first: distance from the centre to each shadow ray.
             w = center - points
             along = w @ sun
@@ -272,4 +284,3 @@ class ShadowMap:
         lit = np.ones(len(points))
         lit[inside] = self.lit_grid[j[inside], i[inside]]
         return lit
-

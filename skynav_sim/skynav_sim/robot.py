@@ -24,9 +24,9 @@ def base_pose(terrain: Terrain, x: float, y: float, heading: float) -> tuple[np.
     """Return position and orientation of base_link for a robot at (x, y) facing `heading` (rad from +x)."""
     forward = np.array([np.cos(heading), np.sin(heading)])
     left = np.array([-forward[1], forward[0]])
-    wheels = np.array([[x, y]]) + np.array([
-        sx * WHEELBASE / 2 * forward + sy * TRACK / 2 * left for sx in (-1, 1) for sy in (-1, 1)
-    ])
+    wheels = np.array([[x, y]]) + np.array(
+        [sx * WHEELBASE / 2 * forward + sy * TRACK / 2 * left for sx in (-1, 1) for sy in (-1, 1)]
+    )
     heights = terrain.height(wheels[:, 0], wheels[:, 1])
     # Least-squares plane z = a + b x + c y through the wheel contacts.
     design = np.column_stack([np.ones(4), wheels])
@@ -39,8 +39,7 @@ def base_pose(terrain: Terrain, x: float, y: float, heading: float) -> tuple[np.
     return np.array([x, y, a + b * x + c * y]), rotation
 
 
-def camera_pose(terrain: Terrain, x: float, y: float, heading: float,
-                jitter: Rotation | None = None) -> CameraPose:
+def camera_pose(terrain: Terrain, x: float, y: float, heading: float, jitter: Rotation | None = None) -> CameraPose:
     """Return the camera_link pose of a robot at (x, y) facing `heading`, optionally shaken by `jitter`."""
     position, rotation = base_pose(terrain, x, y, heading)
     if jitter is not None:

@@ -68,8 +68,9 @@ def build(name: str, world: World, params: ScenarioParameters, seed: int) -> lis
     if name not in SCENARIOS:
         raise ValueError(f'unknown scenario {name!r} (known: {", ".join(SCENARIOS)})')
     rng = np.random.default_rng([seed, SCENARIOS.index(name), 7])
-    return {'teach': _teach, 'repeat': _repeat, 'homing': _homing, 'compass': _compass,
-            'skyline': _skyline}[name](world, params, rng)
+    return {'teach': _teach, 'repeat': _repeat, 'homing': _homing, 'compass': _compass, 'skyline': _skyline}[name](
+        world, params, rng
+    )
 
 
 def route(world: World, route_seed: int, length: float) -> tuple[CubicSpline, float]:
@@ -114,8 +115,9 @@ def _segment_free(world: World, a: np.ndarray, b: np.ndarray) -> bool:
     return bool(world.is_free(points[:, 0], points[:, 1]).all())
 
 
-def _arc_length_spline(points: np.ndarray,
-                       ends: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[CubicSpline, float]:
+def _arc_length_spline(
+    points: np.ndarray, ends: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[CubicSpline, float]:
     """Return a spline through `points` parametrised by (approximate) arc length, and that length; `ends`: the
     directions it starts and ends in (natural ends when None)."""
     chord = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
@@ -130,14 +132,23 @@ def _arc_length_spline(points: np.ndarray,
     return CubicSpline(arc, xy, bc_type='natural'), float(arc[-1])
 
 
-def _drive(world: World, params: ScenarioParameters, rng: np.random.Generator, offset: float,
-           shake: float, label: str, wobble: float = 0.0, detour: float = 0.0) -> list[Frame]:
+def _drive(
+    world: World,
+    params: ScenarioParameters,
+    rng: np.random.Generator,
+    offset: float,
+    shake: float,
+    label: str,
+    wobble: float = 0.0,
+    detour: float = 0.0,
+) -> list[Frame]:
     spline, total = route(world, params.route_seed, params.route_length)
     length = min(params.route_length, total)
     start = (total - length) / 2
     if detour > 0:
-        xy, heading, labels = _detour_drive(world, spline, start, length, detour, params.speed / FRAME_RATE, offset,
-                                            label)
+        xy, heading, labels = _detour_drive(
+            world, spline, start, length, detour, params.speed / FRAME_RATE, offset, label
+        )
     else:
         arc = start + np.arange(0.0, length, params.speed / FRAME_RATE)
         xy, heading = _beside(spline, arc, offset)
@@ -171,8 +182,9 @@ DETOUR_ANGLES = (0.0, 20.0, -20.0, 40.0, -40.0)
 DETOUR_CHECK_STEP = 0.05
 
 
-def _detour_loop(world: World, spline: CubicSpline, middle: float, reach: float,
-                 offset: float) -> tuple[CubicSpline, float, float, float]:
+def _detour_loop(
+    world: World, spline: CubicSpline, middle: float, reach: float, offset: float
+) -> tuple[CubicSpline, float, float, float]:
     """Return a loop through free space off the route (driven `offset` m to its left) around arc length `middle` (m),
     running out to `reach` m from the route's point there: (spline of its arc length -> (x, y), its length, and the
     route's arc lengths where it leaves and where it comes back); ValueError when the yard has no room for one."""
@@ -188,20 +200,29 @@ def _detour_loop(world: World, spline: CubicSpline, middle: float, reach: float,
                 across = np.array([out[1], -out[0]])
                 across *= np.sign(np.dot(across, b - a)) or 1.0
                 neck, head = 0.35 * reach, reach - width / 2
-                points = np.array([a, centre + neck * out - width / 2 * across,
-                                   centre + head * out - width / 2 * across, centre + reach * out,
-                                   centre + head * out + width / 2 * across, centre + neck * out + width / 2 * across,
-                                   b])
+                points = np.array(
+                    [
+                        a,
+                        centre + neck * out - width / 2 * across,
+                        centre + head * out - width / 2 * across,
+                        centre + reach * out,
+                        centre + head * out + width / 2 * across,
+                        centre + neck * out + width / 2 * across,
+                        b,
+                    ]
+                )
                 loop, length = _arc_length_spline(points, (spline(leave, 1), spline(rejoin, 1)))
                 samples = loop(np.linspace(0, length, int(length / DETOUR_CHECK_STEP) + 2))
                 if world.is_free(samples[:, 0], samples[:, 1]).all():
                     return loop, length, leave, rejoin
-    raise ValueError(f'no free room in this world for a detour of {reach:g} m from the middle of the route; '
-                     'try a shorter one')
+    raise ValueError(
+        f'no free room in this world for a detour of {reach:g} m from the middle of the route; try a shorter one'
+    )
 
 
-def _detour_drive(world: World, spline: CubicSpline, start: float, length: float, reach: float, step: float,
-                  offset: float, label: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def _detour_drive(
+    world: World, spline: CubicSpline, start: float, length: float, reach: float, step: float, offset: float, label: str
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Return positions (F, 2), headings (F,, rad) and labels of a drive `offset` m beside the route's arc lengths
     start..start + length (m) with a loop off it in the middle, a frame every `step` m of travel; frames on the loop
     are labelled 'detour', the others `label`."""
@@ -209,8 +230,9 @@ def _detour_drive(world: World, spline: CubicSpline, start: float, length: float
     before = leave - start
     travel = np.arange(0.0, before + loop_length + (start + length - rejoin), step)
     on_loop = (travel >= before) & (travel < before + loop_length)
-    beside, heading = _beside(spline, np.where(travel < before, start + travel, rejoin + travel - before - loop_length),
-                              offset)
+    beside, heading = _beside(
+        spline, np.where(travel < before, start + travel, rejoin + travel - before - loop_length), offset
+    )
     along_loop = np.clip(travel - before, 0.0, loop_length)
     loop_tangent = loop(along_loop, 1)
     xy = np.where(on_loop[:, None], loop(along_loop), beside)
@@ -242,8 +264,14 @@ def snapshot_place(world: World, params: ScenarioParameters) -> np.ndarray:
 
 def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
     home = snapshot_place(world, params)
-    frames = [Frame(camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt)),
-                    params.hours, params.cloud_cover, 'snapshot')]
+    frames = [
+        Frame(
+            camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt)),
+            params.hours,
+            params.cloud_cover,
+            'snapshot',
+        )
+    ]
     steps = np.arange(-params.grid_radius, params.grid_radius + 1e-9, params.spacing)
     for dy in steps:
         for dx in steps:
@@ -266,8 +294,9 @@ def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator)
         axis_angle = rng.uniform(0, 2 * np.pi)
         tilt = np.radians(params.max_tilt) * np.sqrt(rng.uniform())
         tilt_rotation = Rotation.from_rotvec(tilt * np.array([np.cos(axis_angle), np.sin(axis_angle), 0.0]))
-        frames.append(Frame(CameraPose(reference.position, tilt_rotation * heading), params.hours,
-                            params.cloud_cover, 'rotation'))
+        frames.append(
+            Frame(CameraPose(reference.position, tilt_rotation * heading), params.hours, params.cloud_cover, 'rotation')
+        )
     for _ in range(params.count):
         for _ in range(100):
             direction = rng.uniform(0, 2 * np.pi)
@@ -303,8 +332,11 @@ def describe(name: str, world: World, params: ScenarioParameters, seed: int, fra
         'seed': seed,
         'world_seed': world.seed,
         # Parameters added later are recorded only where used, so that older recordings regenerate byte for byte.
-        'parameters': {k: v for k, v in asdict(params).items()
-                       if k != 'extra' and not (k in _LATER_PARAMETERS and v == _LATER_PARAMETERS[k])},
+        'parameters': {
+            k: v
+            for k, v in asdict(params).items()
+            if k != 'extra' and not (k in _LATER_PARAMETERS and v == _LATER_PARAMETERS[k])
+        },
         'frames': [{'label': f.label, 'hours': round(f.hours, 4), 'cloud_cover': f.cloud_cover} for f in frames],
         'synthetic': True,
         **({'real_skyline': world.backdrop.source} if world.backdrop is not None else {}),

@@ -34,13 +34,21 @@ class Sensor:
         reference = np.percentile(radiance[inside], self.exposure_percentile)
         return self.exposure_level * self.full_well / max(float(reference), 1e-12)
 
-    def capture(self, radiance: np.ndarray, inside: np.ndarray, encoding: str, rng: np.random.Generator,
-                exposure: float | None = None) -> np.ndarray:
+    def capture(
+        self,
+        radiance: np.ndarray,
+        inside: np.ndarray,
+        encoding: str,
+        rng: np.random.Generator,
+        exposure: float | None = None,
+    ) -> np.ndarray:
         """Return the image of a radiance field (H, W) in `encoding`: uint8, uint16 or float32 radiance."""
         if encoding not in ENCODINGS:
             raise ValueError(f'unknown encoding {encoding!r} (one of {", ".join(ENCODINGS)})')
         gain = self.exposure(radiance, inside) if exposure is None else exposure
-        blurred = cv2.GaussianBlur(radiance.astype(np.float32), (0, 0), self.blur_sigma) if self.blur_sigma else radiance
+        blurred = (
+            cv2.GaussianBlur(radiance.astype(np.float32), (0, 0), self.blur_sigma) if self.blur_sigma else radiance
+        )
         mean_electrons = np.clip(blurred.astype(np.float64) * gain, 0, 4 * self.full_well)
         electrons = rng.poisson(mean_electrons) + rng.normal(0.0, self.read_noise, radiance.shape)
         if encoding == '32FC1':

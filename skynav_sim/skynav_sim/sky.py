@@ -43,7 +43,7 @@ CLOUD_ALTITUDE = 1500.0  # m
 # it; in green a cloud scatters the direct sunlight too and shines far brighter than blue sky.
 CLOUD_UV_CONTRAST = 1.08  # cloud / clear-sky radiance in the same direction, ultraviolet
 CLOUD_GREEN_BRIGHTNESS = 0.85  # green cloud radiance as a share of (direct normal + diffuse) / pi: a cloud
-                               # high in the air faces even a low sun
+# high in the air faces even a low sun
 
 
 def air_mass(elevation: float) -> float:
@@ -58,9 +58,10 @@ def sun_position(hours: float, day_of_year: int = 172, latitude: float = np.radi
     hour_angle = np.radians(15.0 * (hours - 12.0))
     sin_el = np.sin(latitude) * np.sin(declination) + np.cos(latitude) * np.cos(declination) * np.cos(hour_angle)
     elevation = np.arcsin(sin_el)
-    azimuth = np.arctan2(-np.cos(declination) * np.sin(hour_angle),
-                         np.cos(latitude) * np.sin(declination) - np.sin(latitude) * np.cos(declination)
-                         * np.cos(hour_angle))
+    azimuth = np.arctan2(
+        -np.cos(declination) * np.sin(hour_angle),
+        np.cos(latitude) * np.sin(declination) - np.sin(latitude) * np.cos(declination) * np.cos(hour_angle),
+    )
     return float(elevation), float(azimuth % (2 * np.pi))
 
 
@@ -75,8 +76,9 @@ def parse_time(value: str | float) -> float:
     try:
         hours = float(value)
     except ValueError:
-        raise ValueError(f'unknown time of day {value!r} (a number of hours or one of '
-                         f'{", ".join(TIMES_OF_DAY)})') from None
+        raise ValueError(
+            f'unknown time of day {value!r} (a number of hours or one of {", ".join(TIMES_OF_DAY)})'
+        ) from None
     if not 0 <= hours <= 24:
         raise ValueError(f'time of day {hours} h is not within 0-24 h')
     return hours
@@ -93,11 +95,19 @@ class Sky:
     def __post_init__(self) -> None:
         self.elevation, self.azimuth = sun_position(self.hours)
         # map frame: x east, y north; azimuth from north towards east.
-        self.sun = np.array([np.cos(self.elevation) * np.sin(self.azimuth),
-                             np.cos(self.elevation) * np.cos(self.azimuth), np.sin(self.elevation)])
+        self.sun = np.array(
+            [
+                np.cos(self.elevation) * np.sin(self.azimuth),
+                np.cos(self.elevation) * np.cos(self.azimuth),
+                np.sin(self.elevation),
+            ]
+        )
         m = air_mass(self.elevation)
-        fade = 1.0 if self.elevation >= TWILIGHT_ELEVATION else np.exp(
-            (self.elevation - TWILIGHT_ELEVATION) / TWILIGHT_FADE)
+        fade = (
+            1.0
+            if self.elevation >= TWILIGHT_ELEVATION
+            else np.exp((self.elevation - TWILIGHT_ELEVATION) / TWILIGHT_FADE)
+        )
         effective_sine = max(np.sin(max(self.elevation, TWILIGHT_ELEVATION)), 1e-6) * fade
         self.direct = {}  # irradiance on a plane facing the sun
         self.diffuse = {}  # skylight on a horizontal plane
@@ -147,8 +157,9 @@ class Sky:
         density = np.clip((field - threshold) / 0.15, 0.0, 1.0)
         return density * np.clip(directions[..., 2] / 0.05, 0.0, 1.0)
 
-    def radiance(self, band: str, directions: np.ndarray, origin: np.ndarray,
-                 clouds: np.ndarray | None = None) -> np.ndarray:
+    def radiance(
+        self, band: str, directions: np.ndarray, origin: np.ndarray, clouds: np.ndarray | None = None
+    ) -> np.ndarray:
         """Return the radiance of the sky (sun and clouds included) seen along directions (N, 3) in `band`.
 
         `clouds` may pass the cloud_density of these directions when it is already known.

@@ -97,7 +97,8 @@ class Terrain:
             return self._horizon_cache[1]
         azimuth = np.linspace(0, 2 * np.pi, HORIZON_BINS, endpoint=False)
         steps = HORIZON_FIRST_STEP * HORIZON_GROWTH ** np.arange(
-            int(np.log(1 + max_distance * (HORIZON_GROWTH - 1) / HORIZON_FIRST_STEP) / np.log(HORIZON_GROWTH)) + 1)
+            int(np.log(1 + max_distance * (HORIZON_GROWTH - 1) / HORIZON_FIRST_STEP) / np.log(HORIZON_GROWTH)) + 1
+        )
         reach = np.cumsum(steps)
         x = origin[0] + np.outer(np.cos(azimuth), reach)
         y = origin[1] + np.outer(np.sin(azimuth), reach)
@@ -131,8 +132,13 @@ class Terrain:
         horizontal = start * np.sqrt(np.clip(1 - directions[:, 2] ** 2, 0, 1))
         return np.where((clearance > 0) & (horizontal < NEAR_RADIUS), start, 0.0)
 
-    def intersect(self, origins: np.ndarray, directions: np.ndarray, max_distance: float | np.ndarray,
-                  start: np.ndarray | None = None) -> np.ndarray:
+    def intersect(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        max_distance: float | np.ndarray,
+        start: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Return the distance (m) along each ray to the terrain, inf where it misses within max_distance.
 
         Marches over a pyramid of maximum heights: where a ray is above every terrain point within
@@ -155,15 +161,16 @@ class Terrain:
         found: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (rays, above, below) per step
         n, flat = self.n, self._flat['height']
         while rays.size:
-            ox, oy, oz = (o if shared_origin else o.T)
+            ox, oy, oz = o if shared_origin else o.T
             px, py, pz = ox + s * d[:, 0], oy + s * d[:, 1], oz + s * d[:, 2]
             gx = np.clip((px + self.extent) * (1 / self.cell), 0, n - 1.000001)
             gy = np.clip((py + self.extent) * (1 / self.cell), 0, n - 1.000001)
             i, j = gx.astype(np.int64), gy.astype(np.int64)
             fx, fy = gx - i, gy - j
             index = j * n + i
-            height = ((flat.take(index) * (1 - fx) + flat.take(index + 1) * fx) * (1 - fy)
-                      + (flat.take(index + n) * (1 - fx) + flat.take(index + n + 1) * fx) * fy)
+            height = (flat.take(index) * (1 - fx) + flat.take(index + 1) * fx) * (1 - fy) + (
+                flat.take(index + n) * (1 - fx) + flat.take(index + n + 1) * fx
+            ) * fy
             below = pz < height
             if below.any():
                 found.append((rays[below], previous[below], s[below]))

@@ -61,38 +61,99 @@ class StyleParameters:
 
 STYLE_PARAMETERS = {
     'garden': StyleParameters(
-        hill_amplitude=0.8, hill_scale=40.0, bumps=60, bump_amplitude=(0.08, 0.30), bump_radius=(0.6, 1.4),
-        ground=Surface.GRASS, patches=((Surface.GRAVEL, 0.08), (Surface.LIMESTONE, 0.05), (Surface.SOIL, 0.05)),
-        trees=8, far_trees=25, bushes=10, buildings=4, walls=2, fences=6, hedges=3, rocks=2,
-        rock_materials=(Surface.GRANITE,), wall_materials=(Surface.BRICK, Surface.LIME_PLASTER, Surface.CONCRETE),
-        trunk_height=(2.0, 5.0), crown_radius=(1.5, 3.5), building_distance=(YARD_RADIUS + 4, 24.0),
+        hill_amplitude=0.8,
+        hill_scale=40.0,
+        bumps=60,
+        bump_amplitude=(0.08, 0.30),
+        bump_radius=(0.6, 1.4),
+        ground=Surface.GRASS,
+        patches=((Surface.GRAVEL, 0.08), (Surface.LIMESTONE, 0.05), (Surface.SOIL, 0.05)),
+        trees=8,
+        far_trees=25,
+        bushes=10,
+        buildings=4,
+        walls=2,
+        fences=6,
+        hedges=3,
+        rocks=2,
+        rock_materials=(Surface.GRANITE,),
+        wall_materials=(Surface.BRICK, Surface.LIME_PLASTER, Surface.CONCRETE),
+        trunk_height=(2.0, 5.0),
+        crown_radius=(1.5, 3.5),
+        building_distance=(YARD_RADIUS + 4, 24.0),
         building_height=(4.5, 8.0),
     ),
     'park': StyleParameters(
-        hill_amplitude=2.5, hill_scale=35.0, bumps=70, bump_amplitude=(0.10, 0.35), bump_radius=(0.6, 1.5),
-        ground=Surface.GRASS, patches=((Surface.DRY_GRASS, 0.25), (Surface.GRAVEL, 0.06), (Surface.SOIL, 0.04)),
-        trees=16, far_trees=70, bushes=12, buildings=2, walls=0, fences=0, hedges=2, rocks=3,
-        rock_materials=(Surface.GRANITE, Surface.LIMESTONE), wall_materials=(Surface.BRICK,),
-        trunk_height=(3.0, 8.0), crown_radius=(2.5, 5.0), building_distance=(30.0, 45.0),
+        hill_amplitude=2.5,
+        hill_scale=35.0,
+        bumps=70,
+        bump_amplitude=(0.10, 0.35),
+        bump_radius=(0.6, 1.5),
+        ground=Surface.GRASS,
+        patches=((Surface.DRY_GRASS, 0.25), (Surface.GRAVEL, 0.06), (Surface.SOIL, 0.04)),
+        trees=16,
+        far_trees=70,
+        bushes=12,
+        buildings=2,
+        walls=0,
+        fences=0,
+        hedges=2,
+        rocks=3,
+        rock_materials=(Surface.GRANITE, Surface.LIMESTONE),
+        wall_materials=(Surface.BRICK,),
+        trunk_height=(3.0, 8.0),
+        crown_radius=(2.5, 5.0),
+        building_distance=(30.0, 45.0),
         building_height=(5.0, 10.0),
     ),
     'mineral': StyleParameters(
-        hill_amplitude=1.5, hill_scale=25.0, bumps=110, bump_amplitude=(0.12, 0.45), bump_radius=(0.5, 1.2),
-        ground=Surface.SAND, patches=((Surface.GRAVEL, 0.25), (Surface.LIMESTONE, 0.20), (Surface.DRY_GRASS, 0.06)),
-        trees=3, far_trees=12, bushes=5, buildings=2, walls=4, fences=1, hedges=0, rocks=35,
+        hill_amplitude=1.5,
+        hill_scale=25.0,
+        bumps=110,
+        bump_amplitude=(0.12, 0.45),
+        bump_radius=(0.5, 1.2),
+        ground=Surface.SAND,
+        patches=((Surface.GRAVEL, 0.25), (Surface.LIMESTONE, 0.20), (Surface.DRY_GRASS, 0.06)),
+        trees=3,
+        far_trees=12,
+        bushes=5,
+        buildings=2,
+        walls=4,
+        fences=1,
+        hedges=0,
+        rocks=35,
         rock_materials=(Surface.LIMESTONE, Surface.GRANITE, Surface.LIMESTONE),
         wall_materials=(Surface.LIMESTONE, Surface.CONCRETE, Surface.LIME_PLASTER),
-        trunk_height=(1.5, 3.5), crown_radius=(1.0, 2.5), building_distance=(YARD_RADIUS + 5, 22.0),
+        trunk_height=(1.5, 3.5),
+        crown_radius=(1.0, 2.5),
+        building_distance=(YARD_RADIUS + 5, 22.0),
         building_height=(3.0, 6.0),
     ),
 }
 
 #: The ground of a landscape world: a lawn with the garden's bumps and no relief (the landscape shows the rest).
 LAWN = StyleParameters(
-    hill_amplitude=0.0, hill_scale=40.0, bumps=60, bump_amplitude=(0.08, 0.30), bump_radius=(0.6, 1.4),
-    ground=Surface.GRASS, patches=(), trees=0, far_trees=0, bushes=0, buildings=0, walls=0, fences=0, hedges=0,
-    rocks=0, rock_materials=(), wall_materials=(), trunk_height=(0.0, 0.0), crown_radius=(0.0, 0.0),
-    building_distance=(0.0, 0.0), building_height=(0.0, 0.0),
+    hill_amplitude=0.0,
+    hill_scale=40.0,
+    bumps=60,
+    bump_amplitude=(0.08, 0.30),
+    bump_radius=(0.6, 1.4),
+    ground=Surface.GRASS,
+    patches=(),
+    trees=0,
+    far_trees=0,
+    bushes=0,
+    buildings=0,
+    walls=0,
+    fences=0,
+    hedges=0,
+    rocks=0,
+    rock_materials=(),
+    wall_materials=(),
+    trunk_height=(0.0, 0.0),
+    crown_radius=(0.0, 0.0),
+    building_distance=(0.0, 0.0),
+    building_height=(0.0, 0.0),
 )
 
 
@@ -127,10 +188,13 @@ class World:
         self.radii = np.array([p.bounding_radius for p in self.primitives], float)
         # A bounding sphere per object, enclosing its primitives' spheres.
         self.group_centers = np.array([self.centers[g].mean(axis=0) for g in self.groups]).reshape(-1, 3)
-        self.group_radii = np.array([
-            np.max(np.linalg.norm(self.centers[g] - c, axis=1) + self.radii[g])
-            for g, c in zip(self.groups, self.group_centers)
-        ], float)
+        self.group_radii = np.array(
+            [
+                np.max(np.linalg.norm(self.centers[g] - c, axis=1) + self.radii[g])
+                for g, c in zip(self.groups, self.group_centers)
+            ],
+            float,
+        )
 
     def is_free(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Return whether the robot may stand at world points (x, y)."""
@@ -227,8 +291,9 @@ class _Builder:
         for i in range(params.trees):
             # A third of the near trees stand inside the yard, the rest around it.
             inside = i % 3 == 0
-            self.tree(0.4 * YARD_RADIUS if inside else YARD_RADIUS + 1, YARD_RADIUS if inside else YARD_RADIUS + 12,
-                      params)
+            self.tree(
+                0.4 * YARD_RADIUS if inside else YARD_RADIUS + 1, YARD_RADIUS if inside else YARD_RADIUS + 12, params
+            )
         for _ in range(params.far_trees):
             self.tree(YARD_RADIUS + 12, 75, params)
         for i in range(params.bushes):
@@ -236,8 +301,12 @@ class _Builder:
             self.bush(0.3 * YARD_RADIUS if inside else YARD_RADIUS, YARD_RADIUS if inside else YARD_RADIUS + 8)
         for i in range(params.rocks):
             inside = i % 2 == 0
-            self.rock(0.2 * YARD_RADIUS if inside else YARD_RADIUS, YARD_RADIUS if inside else YARD_RADIUS + 15,
-                      rng.choice(params.rock_materials), big=not inside)
+            self.rock(
+                0.2 * YARD_RADIUS if inside else YARD_RADIUS,
+                YARD_RADIUS if inside else YARD_RADIUS + 15,
+                rng.choice(params.rock_materials),
+                big=not inside,
+            )
 
     def tree(self, r_min: float, r_max: float, params: StyleParameters) -> None:
         rng = self.rng
@@ -248,8 +317,9 @@ class _Builder:
         z = self.ground(*p)
         trunk_height = rng.uniform(*params.trunk_height)
         trunk_radius = rng.uniform(0.08, 0.3)
-        self.primitives.append(Cylinder(np.array([p[0], p[1], z - 0.3]), trunk_radius, trunk_height + 0.3 + crown * 0.5,
-                                        Surface.BARK))
+        self.primitives.append(
+            Cylinder(np.array([p[0], p[1], z - 0.3]), trunk_radius, trunk_height + 0.3 + crown * 0.5, Surface.BARK)
+        )
         top = np.array([p[0], p[1], z + trunk_height + crown * 0.8])
         # A crown of several lumps gives a ragged outline against the sky, as real foliage does.
         for _ in range(int(rng.integers(5, 9))):
@@ -268,8 +338,11 @@ class _Builder:
         for _ in range(int(rng.integers(1, 4))):
             offset = np.append(rng.normal(0, 0.3 * size, 2), 0.0)
             radii = size * rng.uniform(0.6, 1.0, 3) * np.array([1.0, 1.0, 0.8])
-            self.primitives.append(Ellipsoid(np.array([p[0], p[1], z + 0.6 * radii[2]]) + offset, radii,
-                                             rng.uniform(0, np.pi), Surface.HEDGE))
+            self.primitives.append(
+                Ellipsoid(
+                    np.array([p[0], p[1], z + 0.6 * radii[2]]) + offset, radii, rng.uniform(0, np.pi), Surface.HEDGE
+                )
+            )
         self.add_footprint(Footprint(p, np.array([size, size]) * 1.2, 0.0, True, 'bush'))
 
     def rock(self, r_min: float, r_max: float, material: Surface, big: bool) -> None:
@@ -308,12 +381,14 @@ class _Builder:
         """Add a box standing on the terrain (its base below the lowest ground point); return its top z."""
         c, s = np.cos(yaw), np.sin(yaw)
         corners = center + np.array([[sx * half[0], sy * half[1]] for sx in (-1, 1) for sy in (-1, 1)]) @ np.array(
-            [[c, s], [-s, c]])
+            [[c, s], [-s, c]]
+        )
         base = min(self.ground(*q) for q in corners) - 0.2
         top = max(self.ground(*q) for q in corners) + height
         middle = np.array([center[0], center[1], (base + top) / 2])
-        self.primitives.append(ConvexPolytope.box(middle, np.array([half[0], half[1], (top - base) / 2]), yaw,
-                                                  material))
+        self.primitives.append(
+            ConvexPolytope.box(middle, np.array([half[0], half[1], (top - base) / 2]), yaw, material)
+        )
         return top
 
     def building(self, distance: float, params: StyleParameters) -> None:
@@ -326,8 +401,14 @@ class _Builder:
         half = np.array([length / 2, width / 2])
         material = rng.choice([Surface.BRICK, Surface.LIME_PLASTER, Surface.CONCRETE])
         top = self._box_on_ground(center, half, rng.uniform(*params.building_height), yaw, material)
-        roof = ConvexPolytope.gable_roof(np.array([center[0], center[1], top]), half[0] + 0.3, half[1] + 0.4,
-                                         rng.uniform(1.5, 3.5), yaw, Surface.ROOF_TILE)
+        roof = ConvexPolytope.gable_roof(
+            np.array([center[0], center[1], top]),
+            half[0] + 0.3,
+            half[1] + 0.4,
+            rng.uniform(1.5, 3.5),
+            yaw,
+            Surface.ROOF_TILE,
+        )
         self.primitives.append(roof)
         self.add_footprint(Footprint(center, half, yaw, False, 'building'))
 

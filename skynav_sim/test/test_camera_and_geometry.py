@@ -29,8 +29,9 @@ def test_contract_projection_formula():
     theta, phi = np.radians(100.0), np.radians(30.0)
     d = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
     theta_d = theta * (1 + 0.02 * theta**2 - 0.003 * theta**4 + 0.0004 * theta**6 - 0.00002 * theta**8)
-    assert camera.project(d) == pytest.approx([321.3 + 120.0 * theta_d * np.cos(phi),
-                                               238.7 + 118.0 * theta_d * np.sin(phi)])
+    assert camera.project(d) == pytest.approx(
+        [321.3 + 120.0 * theta_d * np.cos(phi), 238.7 + 118.0 * theta_d * np.sin(phi)]
+    )
 
 
 def test_image_circle_follows_the_contract():
@@ -52,8 +53,9 @@ def _object_pixels(make_flat_world, primitive, rotation=None):
 
 def test_zenith_renders_at_the_principal_point(make_flat_world):
     # A small ball 10 m straight above the camera.
-    camera, (rows, cols) = _object_pixels(make_flat_world, Ellipsoid(np.array([0.0, 0.0, 10.3]), np.full(3, 1.0),
-                                                                     0.0, Surface.FOLIAGE))
+    camera, (rows, cols) = _object_pixels(
+        make_flat_world, Ellipsoid(np.array([0.0, 0.0, 10.3]), np.full(3, 1.0), 0.0, Surface.FOLIAGE)
+    )
     assert len(rows) > 10
     assert cols.mean() == pytest.approx(camera.cx, abs=0.5) and rows.mean() == pytest.approx(camera.cy, abs=0.5)
 

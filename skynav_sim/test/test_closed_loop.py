@@ -71,8 +71,9 @@ def test_route_following_stays_on_the_taught_route(camera, garden_map):
     heading = np.arctan2(*(route[3] - route[0])[::-1])
     left = np.array([-np.sin(heading), np.cos(heading)])
     start = route[0] + 0.3 * left
-    run, followed = follow_route(world, teach_camera, garden_map, start, heading + np.radians(20),
-                                 parse_time('morning'), seed, max_steps=80)
+    run, followed = follow_route(
+        world, teach_camera, garden_map, start, heading + np.radians(20), parse_time('morning'), seed, max_steps=80
+    )
     assert np.array_equal(followed, route)
     deviation = route_deviation(run, route)
     assert deviation[0] == pytest.approx(0.3, abs=0.02)

@@ -62,7 +62,22 @@ def test_a_detour_is_reproducible_and_recorded_only_when_used(garden):
 @pytest.mark.parametrize(('detour', 'text'), [('-1', 'must be 0 (none) or positive'), ('40', 'no free room')])
 def test_impossible_detours_are_refused_in_one_line(tmp_path, detour, text):
     out = tmp_path / 'never.mcap'
-    result = run_skynav('sim', 'bag', 'repeat', '--world', 'garden', '--seed', '1', '--size', '96x72', '--length',
-                        '8', '--detour', detour, '--out', str(out))
+    result = run_skynav(
+        'sim',
+        'bag',
+        'repeat',
+        '--world',
+        'garden',
+        '--seed',
+        '1',
+        '--size',
+        '96x72',
+        '--length',
+        '8',
+        '--detour',
+        detour,
+        '--out',
+        str(out),
+    )
     assert result.returncode == 2 and text in result.stderr and one_line_error(result.stderr), result.stderr
     assert list(tmp_path.iterdir()) == []

@@ -65,8 +65,9 @@ def test_backdrop_from_the_centre_is_the_panorama_and_elsewhere_shows_parallax(l
 def test_rendered_view_at_the_centre_shows_the_landscape_skyline(name):
     world = generate(name, 1)
     camera = EquidistantCamera.for_field_of_view(160, 120, np.radians(200), (0.0, 0.0, 0.0, 0.0))
-    view = Renderer(world, camera).render(CameraPose(np.array([0.0, 0.0, CAMERA_HEIGHT]), Rotation.identity()),
-                                         Sky(10.0))
+    view = Renderer(world, camera).render(
+        CameraPose(np.array([0.0, 0.0, CAMERA_HEIGHT]), Rotation.identity()), Sky(10.0)
+    )
     directions = camera.pixel_directions()[view.inside]  # camera_link = map here: x east, y north, z up
     azimuth = np.arctan2(directions[:, 0], directions[:, 1])
     altitude = np.arcsin(np.clip(directions[:, 2], -1, 1))

@@ -34,16 +34,23 @@ def test_same_seed_same_bytes(tmp_path):
     assert hashlib.sha256(a.read_bytes()).digest() == hashlib.sha256(b.read_bytes()).digest()
     (tmp_path / 'three').mkdir()
     other = tmp_path / 'three' / 'run.mcap'
-    assert run_skynav('sim', 'bag', 'teach', '--world', 'mineral', '--seed', '3', *SMALL, '--out',
-                      str(other)).returncode == 0
+    assert (
+        run_skynav('sim', 'bag', 'teach', '--world', 'mineral', '--seed', '3', *SMALL, '--out', str(other)).returncode
+        == 0
+    )
     assert a.read_bytes() != other.read_bytes()
 
 
 def test_recording_has_the_contract_topics(tmp_path):
     path = _bag(tmp_path, 'contract.mcap', '--encoding', 'mono8')
     with open_bag(path) as bag:
-        assert set(bag.topics) == {'/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info',
-                                   '/ground_truth/pose', '/ground_truth/mask'}
+        assert set(bag.topics) == {
+            '/camera/uv/image_raw',
+            '/camera/green/image_raw',
+            '/camera/uv/camera_info',
+            '/ground_truth/pose',
+            '/ground_truth/mask',
+        }
         per_topic: dict[str, list] = {}
         for message in bag.messages():
             data = bag.deserialize(message)
@@ -53,8 +60,11 @@ def test_recording_has_the_contract_topics(tmp_path):
     reference = stamps['/camera/uv/image_raw']
     assert len(reference) == 10 and np.all(np.diff(reference) == 100_000_000)  # 10 Hz, strictly increasing
     assert all(s == reference for s in stamps.values())
-    uv, mask, info = per_topic['/camera/uv/image_raw'][0], per_topic['/ground_truth/mask'][0], \
-        per_topic['/camera/uv/camera_info'][0]
+    uv, mask, info = (
+        per_topic['/camera/uv/image_raw'][0],
+        per_topic['/ground_truth/mask'][0],
+        per_topic['/camera/uv/camera_info'][0],
+    )
     assert (uv.encoding, uv.width, uv.height, uv.step) == ('mono8', 96, 72, 96)
     assert mask.encoding == 'mono8' and set(np.unique(mask.data)) <= {0, 255}
     assert uv.header.frame_id == 'camera_link' and per_topic['/ground_truth/pose'][0].header.frame_id == 'map'
@@ -86,16 +96,19 @@ def test_masks_agree_with_the_rendered_light():
         assert not view.sky[~view.inside].any() and not view.sky[theta > camera.theta_max].any()
 
 
-@pytest.mark.parametrize(('args', 'code', 'text'), [
-    (['--world', 'desert'], 2, 'invalid choice'),
-    (['--fov', '250'], 2, 'impossible'),
-    (['--fov', '0'], 2, 'impossible'),
-    (['--size', 'big'], 2, 'WIDTHxHEIGHT'),
-    (['--distortion', '1,2'], 2, 'four numbers'),
-    (['--distortion', '0,-0.5,0,0'], 2, 'folds the image'),
-    (['--time', 'teatime'], 2, 'unknown time of day'),
-    (['--clouds', '3'], 2, 'cover between 0 and 1'),
-])
+@pytest.mark.parametrize(
+    ('args', 'code', 'text'),
+    [
+        (['--world', 'desert'], 2, 'invalid choice'),
+        (['--fov', '250'], 2, 'impossible'),
+        (['--fov', '0'], 2, 'impossible'),
+        (['--size', 'big'], 2, 'WIDTHxHEIGHT'),
+        (['--distortion', '1,2'], 2, 'four numbers'),
+        (['--distortion', '0,-0.5,0,0'], 2, 'folds the image'),
+        (['--time', 'teatime'], 2, 'unknown time of day'),
+        (['--clouds', '3'], 2, 'cover between 0 and 1'),
+    ],
+)
 def test_bad_input_is_refused_before_anything_is_written(tmp_path, args, code, text):
     out = tmp_path / 'never.mcap'
     result = run_skynav('sim', 'bag', 'teach', *SMALL, *args, '--out', str(out))

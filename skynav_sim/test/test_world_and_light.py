@@ -76,7 +76,8 @@ def test_primitives_against_closed_forms():
     box = ConvexPolytope.box(np.array([0.0, 0.0, 5.0]), np.array([1.0, 2.0, 0.5]), 0.0, Surface.BRICK)
     up = np.tile([0.0, 0.0, 1.0], (3, 1))
     assert box.intersect(np.array([[0.0, 0.0, 0.0], [0.9, 1.9, 0.0], [1.1, 0.0, 0.0]]), up) == pytest.approx(
-        [4.5, 4.5, np.inf])
+        [4.5, 4.5, np.inf]
+    )
     assert np.allclose(box.normal(np.array([[0.0, 0.0, 4.5]])), [[0.0, 0.0, -1.0]])
     trunk = Cylinder(np.array([2.0, 0.0, 0.0]), 0.25, 3.0, Surface.BARK)
     ahead = np.tile([1.0, 0.0, 0.0], (2, 1))
@@ -148,8 +149,11 @@ def test_clouds_are_bright_in_green_and_faint_in_ultraviolet(time):
     cloudy, clear = clouds > 0.9, clouds == 0
     assert cloudy.sum() > 100 and clear.sum() > 100
     away_from_sun = d @ sky.sun < np.cos(np.radians(20))
-    contrast = {band: np.median(sky.radiance(band, d[cloudy & away_from_sun], origin))
-                / np.median(sky.radiance(band, d[clear & away_from_sun], origin)) for band in ('uv', 'green')}
+    contrast = {
+        band: np.median(sky.radiance(band, d[cloudy & away_from_sun], origin))
+        / np.median(sky.radiance(band, d[clear & away_from_sun], origin))
+        for band in ('uv', 'green')
+    }
     assert contrast['green'] > 1.8
     assert 0.9 < contrast['uv'] < 1.2
 

@@ -102,8 +102,13 @@ class GlobalModel:
     @classmethod
     def from_dict(cls, data: dict) -> GlobalModel:
         """Return the model stored by `to_dict`."""
-        return cls(str(data['channels']), float(data['angle']), float(data['threshold']), float(data['rate']),
-                   float(data.get('reference_percentile', REFERENCE_PERCENTILE)))
+        return cls(
+            str(data['channels']),
+            float(data['angle']),
+            float(data['threshold']),
+            float(data['rate']),
+            float(data.get('reference_percentile', REFERENCE_PERCENTILE)),
+        )
 
 
 def _labels(truth: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -114,8 +119,9 @@ def _labels(truth: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return truth > 127
 
 
-def _training_pixels(features: Sequence[Features], truths: Sequence[np.ndarray],
-                     circles: Sequence[np.ndarray], uses_green: bool):
+def _training_pixels(
+    features: Sequence[Features], truths: Sequence[np.ndarray], circles: Sequence[np.ndarray], uses_green: bool
+):
     """Return pooled x, y, sky labels of threshold-decided pixels, rule-decided correct count, circle total."""
     xs, ys, labels = [], [], []
     fixed_correct = total = 0
@@ -136,10 +142,16 @@ def _training_pixels(features: Sequence[Features], truths: Sequence[np.ndarray],
     return x, y, np.concatenate(labels), fixed_correct, total
 
 
-def learn_global(features: Sequence[Features], truths: Sequence[np.ndarray],
-                 circles: np.ndarray | Sequence[np.ndarray], channels: str = 'uv-green',
-                 angles: np.ndarray | None = None, refine: int = ANGLE_REFINE_SUBDIVISIONS,
-                 max_samples: int | None = None, seed: int = 0) -> GlobalModel:
+def learn_global(
+    features: Sequence[Features],
+    truths: Sequence[np.ndarray],
+    circles: np.ndarray | Sequence[np.ndarray],
+    channels: str = 'uv-green',
+    angles: np.ndarray | None = None,
+    refine: int = ANGLE_REFINE_SUBDIVISIONS,
+    max_samples: int | None = None,
+    seed: int = 0,
+) -> GlobalModel:
     """Return the global separator (angle rad, threshold, rate) maximising the classification rate on labelled images.
 
     `features` from extract_features (same reference percentile for all),
@@ -184,8 +196,11 @@ def learn_global(features: Sequence[Features], truths: Sequence[np.ndarray],
             """Return the most sample labels any threshold matches at `angle` (rad)."""
             return best_threshold(project(xs, ys, angle), skys)[1]
 
-        grid = (np.arange(ANGLE_SEARCH_RANGE[0], ANGLE_SEARCH_RANGE[1] + ANGLE_GRID_STEP / 2, ANGLE_GRID_STEP)
-                if angles is None else np.asarray(angles, float))
+        grid = (
+            np.arange(ANGLE_SEARCH_RANGE[0], ANGLE_SEARCH_RANGE[1] + ANGLE_GRID_STEP / 2, ANGLE_GRID_STEP)
+            if angles is None
+            else np.asarray(angles, float)
+        )
         if grid.size == 0:
             raise ValueError('no angle to search')
         best_angle = float(grid[int(np.argmax([score(a) for a in grid]))])
@@ -202,8 +217,9 @@ def classification_rate(mask: np.ndarray, truth: np.ndarray, circle: np.ndarray)
     """Return the share (0..1) of pixels inside the image circle whose class (255 sky, 0 ground) matches the truth."""
     mask, truth, circle = np.asarray(mask), np.asarray(truth), np.asarray(circle, bool)
     if not mask.shape == truth.shape == circle.shape:
-        raise ValueError(f'mask {mask.shape}, ground truth {truth.shape} and image circle {circle.shape} '
-                         'differ in shape')
+        raise ValueError(
+            f'mask {mask.shape}, ground truth {truth.shape} and image circle {circle.shape} differ in shape'
+        )
     inside = int(np.count_nonzero(circle))
     if inside == 0:
         raise ValueError('the image circle is empty')

@@ -16,8 +16,12 @@ import numpy as np
 
 from skynav_core.camera import EquidistantCamera
 
-UV, GREEN, INFO, TRUTH = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info',
-                          '/ground_truth/mask')
+UV, GREEN, INFO, TRUTH = (
+    '/camera/uv/image_raw',
+    '/camera/green/image_raw',
+    '/camera/uv/camera_info',
+    '/ground_truth/mask',
+)
 
 
 @dataclass
@@ -71,8 +75,16 @@ def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
                 del parts[stamp]
                 time = labels[index] if index < len(labels) and labels[index] in TIME_LABELS else 'all'
                 index += 1
-                yield LabelledFrame(stamp, frame[UV][0], frame[GREEN][0], (frame[UV][1], frame[GREEN][1]),
-                                    frame[TRUTH][0], camera, world, time)
+                yield LabelledFrame(
+                    stamp,
+                    frame[UV][0],
+                    frame[GREEN][0],
+                    (frame[UV][1], frame[GREEN][1]),
+                    frame[TRUTH][0],
+                    camera,
+                    world,
+                    time,
+                )
 
 
 TIME_LABELS = ('dawn', 'sunrise', 'morning', 'forenoon', 'noon')

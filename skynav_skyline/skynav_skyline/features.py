@@ -76,15 +76,15 @@ def _as_image(image: np.ndarray, encoding: str) -> np.ndarray:
         raise ValueError(f'{encoding} image must be a non-empty single-channel 2-D array, got shape {image.shape}')
     if encoding in _EXPECTED_DTYPES:
         if image.dtype != _EXPECTED_DTYPES[encoding]:
-            raise ValueError(f'{encoding} image must have dtype {np.dtype(_EXPECTED_DTYPES[encoding])}, '
-                             f'got {image.dtype}')
+            raise ValueError(
+                f'{encoding} image must have dtype {np.dtype(_EXPECTED_DTYPES[encoding])}, got {image.dtype}'
+            )
     elif not np.issubdtype(image.dtype, np.floating):
         raise ValueError(f'32FC1 image must have a floating dtype, got {image.dtype}')
     return image
 
 
-def decode(image: np.ndarray, encoding: str, black_level: float = 0.0,
-           dark_margin: float | None = None) -> Channel:
+def decode(image: np.ndarray, encoding: str, black_level: float = 0.0, dark_margin: float | None = None) -> Channel:
     """Return the linear values (counts or radiance, black level removed) and trust flags of one channel image.
 
     `black_level` is in counts for mono8/mono16 and in radiance units for 32FC1.
@@ -124,8 +124,9 @@ def decode(image: np.ndarray, encoding: str, black_level: float = 0.0,
     return Channel(linear.astype(np.float32, copy=False), saturated, dark, invalid, float(floor), counts, black_level)
 
 
-def reference_level(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE,
-                    stride: int = 1) -> float:
+def reference_level(
+    channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE, stride: int = 1
+) -> float:
     """Return a channel's reference level (its unit): the `percentile` of its finite linear values in the circle.
 
     With `stride` > 1 only every stride-th column counts: a sample for large images.
@@ -153,8 +154,9 @@ def _inverted_cdf_rank(percentile: float, size: int) -> int:
     return max(int(np.ceil(percentile / 100 * size)), 1) - 1
 
 
-def log_feature(channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE,
-                stride: int = 1) -> np.ndarray:
+def log_feature(
+    channel: Channel, circle: np.ndarray, percentile: float = REFERENCE_PERCENTILE, stride: int = 1
+) -> np.ndarray:
     """Return float32 log(linear / reference level) (dimensionless, natural log); dark clamped, invalid 0."""
     reference = reference_level(channel, circle, percentile, stride)
     if channel.counts is not None:  # integer images: the log of every possible value, looked up
@@ -213,10 +215,17 @@ class Features:
         return self.green
 
 
-def extract_features(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
-                     circle: np.ndarray, black_level: tuple[float, float] = (0.0, 0.0),
-                     reference_percentile: float = REFERENCE_PERCENTILE,
-                     dark_margin: float | None = None, stride: int = 1) -> Features:
+def extract_features(
+    uv: np.ndarray,
+    green: np.ndarray | None,
+    encoding_uv: str,
+    encoding_green: str | None,
+    circle: np.ndarray,
+    black_level: tuple[float, float] = (0.0, 0.0),
+    reference_percentile: float = REFERENCE_PERCENTILE,
+    dark_margin: float | None = None,
+    stride: int = 1,
+) -> Features:
     """Return the normalised log features (dimensionless) of a UV image and an optional green image.
 
     `black_level` is (UV, green) in each channel's raw unit. Raises ValueError
@@ -230,8 +239,9 @@ def extract_features(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
             raise ValueError('a green image needs its encoding')
         green_channel = decode(green, encoding_green, black_level[1], dark_margin)
         if green_channel.linear.shape != uv_channel.linear.shape:
-            raise ValueError(f'UV image {uv_channel.linear.shape} and green image '
-                             f'{green_channel.linear.shape} differ in shape')
+            raise ValueError(
+                f'UV image {uv_channel.linear.shape} and green image {green_channel.linear.shape} differ in shape'
+            )
     x = log_feature(uv_channel, circle, reference_percentile, stride)
     y = None if green_channel is None else log_feature(green_channel, circle, reference_percentile, stride)
     return Features(uv_channel, green_channel, x, y, float(reference_percentile))

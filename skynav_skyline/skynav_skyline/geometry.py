@@ -32,8 +32,9 @@ class SectorLayout:
         if stride == 1:
             return self
         every = (slice(None), slice(None, None, stride))
-        return SectorLayout(self.count, self.index[every], self.lower[every], self.upper[every],
-                            self.weight[every], self.centres)
+        return SectorLayout(
+            self.count, self.index[every], self.lower[every], self.upper[every], self.weight[every], self.centres
+        )
 
     def interpolate(self, per_sector: np.ndarray, pixels: np.ndarray | None = None) -> np.ndarray:
         """Return values linearly interpolated in azimuth from one value per sector: a map (H, W), or at flat `pixels`."""
@@ -115,14 +116,14 @@ class SkylineGeometry:
         """Return the azimuth phi = atan2(v - cy, u - cx) (rad, in (-pi, pi]) of every pixel centre."""
         if self.phi is not None:
             return self.phi
-        v, u = np.mgrid[0:self.shape[0], 0:self.shape[1]]
+        v, u = np.mgrid[0 : self.shape[0], 0 : self.shape[1]]
         return np.arctan2(v - self.centre[1], u - self.centre[0])
 
     def radius(self) -> np.ndarray:
         """Return the distance (pixels) of every pixel centre from the principal point."""
         if self.rho is not None:
             return self.rho
-        v, u = np.mgrid[0:self.shape[0], 0:self.shape[1]]
+        v, u = np.mgrid[0 : self.shape[0], 0 : self.shape[1]]
         return np.hypot(u - self.centre[0], v - self.centre[1])
 
     def packed(self) -> tuple[SkylineGeometry, np.ndarray]:
@@ -132,8 +133,13 @@ class SkylineGeometry:
         with the work of the pixels outside the circle saved.
         """
         pixels = np.flatnonzero(self.circle)
-        row = SkylineGeometry(np.ones((1, pixels.size), bool), self.centre, self.azimuth().ravel()[pixels][None],
-                              self.radius().ravel()[pixels][None], self.pixels_per_radian)
+        row = SkylineGeometry(
+            np.ones((1, pixels.size), bool),
+            self.centre,
+            self.azimuth().ravel()[pixels][None],
+            self.radius().ravel()[pixels][None],
+            self.pixels_per_radian,
+        )
         return row, pixels
 
     def rim(self) -> np.ndarray:

@@ -39,8 +39,13 @@ def _check_brackets(images: Sequence[np.ndarray], exposure_times: Sequence[float
     return times
 
 
-def merge_brackets(images: Sequence[np.ndarray], exposure_times: Sequence[float], encoding: str = 'mono8',
-                   black_level: float = 0.0, method: str = 'linear') -> np.ndarray:
+def merge_brackets(
+    images: Sequence[np.ndarray],
+    exposure_times: Sequence[float],
+    encoding: str = 'mono8',
+    black_level: float = 0.0,
+    method: str = 'linear',
+) -> np.ndarray:
     """Return the float32 linear radiance (counts per second of exposure) merged from brackets of one channel.
 
     `images` are raw arrays of one `encoding` ('mono8', 'mono16' or '32FC1'),

@@ -85,8 +85,10 @@ class SkylineNode(SkynavNode):
     def segment(self, stamp: int, uv: tuple[np.ndarray, str], green: tuple[np.ndarray, str] | None) -> None:
         """Publish the mask of one exposure (or hold it until the camera is known)."""
         if green is not None and uv[0].shape != green[0].shape:
-            self.reject('size_mismatch', f'UV {uv[0].shape[::-1]} and green {green[0].shape[::-1]} images '
-                                         f'stamped {stamp} differ in size')
+            self.reject(
+                'size_mismatch',
+                f'UV {uv[0].shape[::-1]} and green {green[0].shape[::-1]} images stamped {stamp} differ in size',
+            )
             return
         if self.camera_input.camera is None:
             self.camera_input.hold((stamp, uv, green))
@@ -97,8 +99,9 @@ class SkylineNode(SkynavNode):
             self.segmenter = SkylineSegmenter(SkylineGeometry.from_camera(self.camera_input.camera), self.params)
         with self.processing(stamp):
             try:
-                mask = self.segmenter.segment(uv[0], None if green is None else green[0], uv[1],
-                                              None if green is None else green[1])
+                mask = self.segmenter.segment(
+                    uv[0], None if green is None else green[0], uv[1], None if green is None else green[1]
+                )
             except ValueError as exc:
                 self.reject('invalid_image', f'exposure stamped {stamp}: {exc}')
                 return

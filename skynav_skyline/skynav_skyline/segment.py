@@ -139,9 +139,14 @@ class SkylineParams:
     @classmethod
     def from_model(cls, model: GlobalModel, method: str = 'global', **changes) -> SkylineParams:
         """Return settings that use a learned model's channels, angle, threshold and normalisation."""
-        return cls(method=method, channels=model.channels,
-                   angle=None if model.channels == 'uv' else model.angle, threshold=model.threshold,
-                   reference_percentile=model.reference_percentile, **changes)
+        return cls(
+            method=method,
+            channels=model.channels,
+            angle=None if model.channels == 'uv' else model.angle,
+            threshold=model.threshold,
+            reference_percentile=model.reference_percentile,
+            **changes,
+        )
 
 
 @dataclass(frozen=True)
@@ -165,8 +170,12 @@ class Segmentation:
     sectors: SectorThresholds | None  # per-sector thresholds (sector methods)
 
 
-def is_bimodal(split: HistogramSplit, min_separability: float = MIN_SEPARABILITY,
-               reference: float | None = None, min_pixels: int = MIN_SECTOR_PIXELS) -> np.ndarray:
+def is_bimodal(
+    split: HistogramSplit,
+    min_separability: float = MIN_SEPARABILITY,
+    reference: float | None = None,
+    min_pixels: int = MIN_SECTOR_PIXELS,
+) -> np.ndarray:
     """Return whether each split is bimodal: enough pixels, separability, class means either side of `reference`."""
     ok = (split.count >= min_pixels) & (split.separability >= min_separability)
     if reference is not None:
@@ -175,15 +184,21 @@ def is_bimodal(split: HistogramSplit, min_separability: float = MIN_SEPARABILITY
     return np.asarray(ok, bool)
 
 
-def sector_histograms(values: np.ndarray, sector: np.ndarray, count: int, bins: int,
-                      value_range: tuple[float, float]) -> np.ndarray:
+def sector_histograms(
+    values: np.ndarray, sector: np.ndarray, count: int, bins: int, value_range: tuple[float, float]
+) -> np.ndarray:
     """Return float64 histograms (count, bins) of `values`, one per sector index in `sector` (same shape)."""
     cells = sector * bins + bin_index(values, bins, value_range)
     return np.bincount(cells, minlength=count * bins).reshape(count, bins).astype(np.float64)
 
 
-def fall_back(own: HistogramSplit, reference: float, min_separability: float = MIN_SEPARABILITY,
-              min_pixels: int = MIN_SECTOR_PIXELS, test_reference: bool = True) -> SectorThresholds:
+def fall_back(
+    own: HistogramSplit,
+    reference: float,
+    min_separability: float = MIN_SEPARABILITY,
+    min_pixels: int = MIN_SECTOR_PIXELS,
+    test_reference: bool = True,
+) -> SectorThresholds:
     """Return the sector thresholds (contrast unit) of the sectors' own splits after the bimodality test and fallback.
 
     A sector that fails the test takes the threshold interpolated (circularly in azimuth)
@@ -199,11 +214,18 @@ def fall_back(own: HistogramSplit, reference: float, min_separability: float = M
     return SectorThresholds(thresholds, own, bimodal, float(reference))
 
 
-def sector_thresholds(contrast: np.ndarray, trusted: np.ndarray, layout: SectorLayout, reference: float,
-                      method: str = 'otsu', bins: int = DEFAULT_BINS,
-                      value_range: tuple[float, float] | None = None,
-                      min_separability: float = MIN_SEPARABILITY, min_pixels: int = MIN_SECTOR_PIXELS,
-                      test_reference: bool = True) -> SectorThresholds:
+def sector_thresholds(
+    contrast: np.ndarray,
+    trusted: np.ndarray,
+    layout: SectorLayout,
+    reference: float,
+    method: str = 'otsu',
+    bins: int = DEFAULT_BINS,
+    value_range: tuple[float, float] | None = None,
+    min_separability: float = MIN_SEPARABILITY,
+    min_pixels: int = MIN_SECTOR_PIXELS,
+    test_reference: bool = True,
+) -> SectorThresholds:
     """Return one threshold (contrast unit) per azimuth sector from the histograms of the trusted pixels, with fallback.
 
     `reference` is the last fallback and, if `test_reference`, the value each
@@ -278,19 +300,28 @@ class SkylineSegmenter:
             self._ray_sample = np.maximum(sample, 0)
             self._ray_index = self._row.sectors(RAY_COUNT).index
             self._ray_radius = self._row.radius().astype(np.float32)
-            self._ring_samples = max(1, math.ceil(math.radians(self.params.ring_width_deg)
-                                                  * self._rays.samples_per_radian))
+            self._ring_samples = max(
+                1, math.ceil(math.radians(self.params.ring_width_deg) * self._rays.samples_per_radian)
+            )
 
-    def features(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
-                 encoding_green: str | None = None) -> Features:
+    def features(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+    ) -> Features:
         """Return the normalised log features of an image pair (green ignored in 'uv' mode, its shape still checked)."""
         p = self.params
         if p.uses_green and green is None:
             raise ValueError("channel mode 'uv-green' needs the green image")
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
             raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
-        return extract_features(uv, green if p.uses_green else None, encoding_uv, encoding_green,
-                                self.geometry.circle, p.black_level, p.reference_percentile)
+        return extract_features(
+            uv,
+            green if p.uses_green else None,
+            encoding_uv,
+            encoding_green,
+            self.geometry.circle,
+            p.black_level,
+            p.reference_percentile,
+        )
 
     def _bounded(self, thresholds: np.ndarray) -> np.ndarray:
         """Return local thresholds kept within max_deviation of the global threshold (when there is one)."""
@@ -316,23 +347,31 @@ class SkylineSegmenter:
         image[self.geometry.circle] = row.ravel()
         return image
 
-    def run(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
-            encoding_green: str | None = None) -> Segmentation:
+    def run(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+    ) -> Segmentation:
         """Return the skyline segmentation of one UV/green image pair (raw arrays and their encodings)."""
         row = self._run_row(uv, green, encoding_uv, encoding_green)
         threshold = row.threshold
         if row.sectors is not None:
             threshold = self._scatter(self._row.sectors(self.params.sectors).interpolate(row.threshold), np.nan)
-        return Segmentation(self._scatter(row.mask, GROUND), self._scatter(row.contrast, np.nan), threshold,
-                            row.image_split, row.sectors)
+        return Segmentation(
+            self._scatter(row.mask, GROUND),
+            self._scatter(row.contrast, np.nan),
+            threshold,
+            row.image_split,
+            row.sectors,
+        )
 
-    def segment(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
-                encoding_green: str | None = None) -> np.ndarray:
+    def segment(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+    ) -> np.ndarray:
         """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
         return self._scatter(self._run_row(uv, green, encoding_uv, encoding_green).mask, GROUND)
 
-    def _run_row(self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str,
-                 encoding_green: str | None = None) -> Segmentation:
+    def _run_row(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+    ) -> Segmentation:
         """Return the segmentation of the image-circle pixels of an image pair, as one row.
 
         The row's `threshold` is a scalar, or for the sector methods the (bounded) threshold of each sector.
@@ -344,15 +383,23 @@ class SkylineSegmenter:
             raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
         circle = self._row.circle
         stride = self._stride
-        features = extract_features(self._pack(uv, encoding_uv),
-                                    self._pack(green, encoding_green) if p.uses_green else None,
-                                    encoding_uv, encoding_green, circle, p.black_level, p.reference_percentile,
-                                    stride=stride)
+        features = extract_features(
+            self._pack(uv, encoding_uv),
+            self._pack(green, encoding_green) if p.uses_green else None,
+            encoding_uv,
+            encoding_green,
+            circle,
+            p.black_level,
+            p.reference_percentile,
+            stride=stride,
+        )
         contrast = project(features.x, features.y, p.projection_angle)
         trusted = features.trusted(circle, p.uses_green)
         if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
-            raise ValueError(f'fewer than {MIN_TRUSTED_PIXELS} trusted pixels inside the image circle '
-                             '(image dark, saturated or invalid)')
+            raise ValueError(
+                f'fewer than {MIN_TRUSTED_PIXELS} trusted pixels inside the image circle '
+                '(image dark, saturated or invalid)'
+            )
         image_split = sectors = None
         if p.method == 'global':
             threshold: np.ndarray | float = float(p.threshold)
@@ -377,8 +424,7 @@ class SkylineSegmenter:
             reference = whole if image_bimodal or p.threshold is None else float(p.threshold)
             trusted_reference = image_bimodal or p.threshold is not None
             if p.method.startswith('sector-'):
-                sectors = fall_back(own, reference, p.min_separability, MIN_SECTOR_PIXELS // stride,
-                                    trusted_reference)
+                sectors = fall_back(own, reference, p.min_separability, MIN_SECTOR_PIXELS // stride, trusted_reference)
                 threshold = self._bounded(sectors.thresholds)
             else:
                 threshold = float(self._bounded(np.array([reference]))[0])
@@ -394,8 +440,14 @@ class SkylineSegmenter:
         mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
 
-    def _clearly_ground(self, features: Features, contrast: np.ndarray, threshold: np.ndarray | float,
-                        sectors: SectorThresholds | None, decided: np.ndarray) -> np.ndarray:
+    def _clearly_ground(
+        self,
+        features: Features,
+        contrast: np.ndarray,
+        threshold: np.ndarray | float,
+        sectors: SectorThresholds | None,
+        decided: np.ndarray,
+    ) -> np.ndarray:
         """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or UV dark."""
         margin = self.params.hole_margin
         dark = features.uv.dark
@@ -404,8 +456,9 @@ class SkylineSegmenter:
         if sectors is None:
             below = contrast <= threshold - margin
         else:
-            below = ~above_sector_thresholds(contrast, self._row.sectors(self.params.sectors),
-                                             np.asarray(threshold) - margin)
+            below = ~above_sector_thresholds(
+                contrast, self._row.sectors(self.params.sectors), np.asarray(threshold) - margin
+            )
         return (decided & below) | dark
 
     def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:
@@ -438,9 +491,15 @@ class SkylineSegmenter:
         return sky & (self._ray_radius > limit.take(self._ray_index))
 
 
-def segment(uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None,
-            circle: SkylineGeometry | np.ndarray | object, params: SkylineParams | None = None,
-            **changes) -> np.ndarray:
+def segment(
+    uv: np.ndarray,
+    green: np.ndarray | None,
+    encoding_uv: str,
+    encoding_green: str | None,
+    circle: SkylineGeometry | np.ndarray | object,
+    params: SkylineParams | None = None,
+    **changes,
+) -> np.ndarray:
     """Return the skyline mask (uint8: 255 sky, 0 ground) of one image pair; `changes` override fields of `params`.
 
     For a stream of frames build a SkylineSegmenter once per camera instead:

@@ -84,8 +84,13 @@ def outermost_band_end(ground: np.ndarray, inside: np.ndarray, width: int) -> tu
     if width > steps:
         return np.full(rays, steps), np.zeros(rays, bool)
     # whole[:, k]: samples k .. k + width - 1 are all ground (windows past the last sample are not)
-    whole = cv2.erode(ground.view(np.uint8), np.ones((1, width), np.uint8), anchor=(0, 0),
-                      borderType=cv2.BORDER_CONSTANT, borderValue=0).view(bool)
+    whole = cv2.erode(
+        ground.view(np.uint8),
+        np.ones((1, width), np.uint8),
+        anchor=(0, 0),
+        borderType=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    ).view(bool)
     has_sky = sky.any(axis=1)
     first_sky = np.where(has_sky, np.argmax(sky, axis=1), steps)
     band = whole & (np.arange(steps) > first_sky[:, None])  # windows with sky before them

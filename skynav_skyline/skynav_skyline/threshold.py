@@ -79,8 +79,9 @@ def bin_edges(bins: int, value_range: tuple[float, float]) -> np.ndarray:
     return np.linspace(value_range[0], value_range[1], bins + 1)
 
 
-def histogram(values: np.ndarray, bins: int = DEFAULT_BINS,
-              value_range: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def histogram(
+    values: np.ndarray, bins: int = DEFAULT_BINS, value_range: tuple[float, float] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Return (counts, edges) of `values` on equal bins; values outside the range go to the end bins."""
     value_range = histogram_range(values) if value_range is None else value_range
     counts = np.bincount(bin_index(values, bins, value_range), minlength=bins).astype(np.float64)
@@ -180,8 +181,9 @@ def _split_at(m: _Moments, cut: np.ndarray, threshold: np.ndarray) -> HistogramS
         variance = q_total / total - (s_total / total) ** 2
         between = w0 * (1 - w0) * (mu1 - mu0) ** 2
         separability = np.where((a0 > 0) & (a1 > 0) & (variance > 0), between / variance, 0.0)
-    return HistogramSplit(np.asarray(threshold, float), np.clip(separability, 0.0, 1.0), mu0, mu1,
-                          np.nan_to_num(w0), total)
+    return HistogramSplit(
+        np.asarray(threshold, float), np.clip(separability, 0.0, 1.0), mu0, mu1, np.nan_to_num(w0), total
+    )
 
 
 def _split_by_score(m: _Moments, edges: np.ndarray, score: np.ndarray) -> HistogramSplit:
@@ -193,8 +195,14 @@ def _split_by_score(m: _Moments, edges: np.ndarray, score: np.ndarray) -> Histog
     threshold = np.where(valid, threshold, centre)
     split = _split_at(m, first, threshold)
     if not np.all(valid):
-        split = HistogramSplit(split.threshold, np.where(valid, split.separability, 0.0), split.mean_low,
-                               split.mean_high, split.weight_low, split.count)
+        split = HistogramSplit(
+            split.threshold,
+            np.where(valid, split.separability, 0.0),
+            split.mean_low,
+            split.mean_high,
+            split.weight_low,
+            split.count,
+        )
     return split
 
 
@@ -214,15 +222,17 @@ def minimum_error_split(counts: np.ndarray, edges: np.ndarray) -> HistogramSplit
 HISTOGRAM_METHODS = {'otsu': otsu_split, 'min-error': minimum_error_split}
 
 
-def otsu_threshold(values: np.ndarray, bins: int = DEFAULT_BINS,
-                   value_range: tuple[float, float] | None = None) -> float:
+def otsu_threshold(
+    values: np.ndarray, bins: int = DEFAULT_BINS, value_range: tuple[float, float] | None = None
+) -> float:
     """Return Otsu's threshold (value unit) of `values`: sky above it."""
     counts, edges = histogram(values, bins, value_range)
     return float(otsu_split(counts, edges).threshold)
 
 
-def minimum_error_threshold(values: np.ndarray, bins: int = DEFAULT_BINS,
-                            value_range: tuple[float, float] | None = None) -> float:
+def minimum_error_threshold(
+    values: np.ndarray, bins: int = DEFAULT_BINS, value_range: tuple[float, float] | None = None
+) -> float:
     """Return Kittler-Illingworth's minimum error threshold (value unit) of `values`: sky above it."""
     counts, edges = histogram(values, bins, value_range)
     return float(minimum_error_split(counts, edges).threshold)

@@ -43,9 +43,16 @@ class Scene:
     elevation: np.ndarray  # rad, per pixel
 
 
-def render_scene(seed: int = 0, width: int = 160, height: int = 120, mineral: bool = True, sun: bool = False,
-                 light: float = 0.0, open_sector: tuple[float, float] | None = None,
-                 fov_deg: float = FOV_DEG) -> Scene:
+def render_scene(
+    seed: int = 0,
+    width: int = 160,
+    height: int = 120,
+    mineral: bool = True,
+    sun: bool = False,
+    light: float = 0.0,
+    open_sector: tuple[float, float] | None = None,
+    fov_deg: float = FOV_DEG,
+) -> Scene:
     """Return a synthetic scene; `light` is the log amplitude of the azimuthal illumination change."""
     rng = np.random.default_rng(seed)
     camera = EquidistantCamera.for_field_of_view(width, height, np.deg2rad(fov_deg))

@@ -44,8 +44,9 @@ def test_unknown_encoding_raises(encoding):
         decode(np.zeros((4, 4), np.uint8), encoding)
 
 
-@pytest.mark.parametrize('encoding, dtype', [('mono8', np.uint16), ('mono16', np.uint8), ('mono8', np.float32),
-                                             ('32FC1', np.uint8)])
+@pytest.mark.parametrize(
+    'encoding, dtype', [('mono8', np.uint16), ('mono16', np.uint8), ('mono8', np.float32), ('32FC1', np.uint8)]
+)
 def test_dtype_not_matching_the_encoding_raises(encoding, dtype):
     with pytest.raises(ValueError, match='dtype'):
         decode(np.zeros((4, 4), dtype), encoding)
@@ -82,8 +83,9 @@ def test_reference_level_is_the_percentile_inside_the_circle():
 def test_normalised_features_do_not_depend_on_channel_gain(scene_factory):
     scene = scene_factory(3)
     base = extract_features(scene.uv, scene.green, '32FC1', '32FC1', scene.circle)
-    scaled = extract_features(scene.uv * np.float32(37.0), scene.green * np.float32(0.013), '32FC1', '32FC1',
-                              scene.circle)
+    scaled = extract_features(
+        scene.uv * np.float32(37.0), scene.green * np.float32(0.013), '32FC1', '32FC1', scene.circle
+    )
     inside = scene.circle
     np.testing.assert_allclose(scaled.x[inside], base.x[inside], atol=1e-5)
     np.testing.assert_allclose(scaled.y[inside], base.y[inside], atol=1e-5)

@@ -46,8 +46,7 @@ def _training_set(scene_factory, encoder, seeds, encoding='mono8', rng_seed=7):
     for seed in seeds:
         scene = scene_factory(seed, sun=seed % 2 == 0, light=0.3)
         uv = encode(scene.uv, encoding, exposure_gain(scene.uv, scene.circle, encoding, rng.uniform(0.5, 1.0)))
-        green = encode(scene.green, encoding,
-                       exposure_gain(scene.green, scene.circle, encoding, rng.uniform(0.5, 1.0)))
+        green = encode(scene.green, encoding, exposure_gain(scene.green, scene.circle, encoding, rng.uniform(0.5, 1.0)))
         items.append((scene, uv, green, extract_features(uv, green, encoding, encoding, scene.circle)))
     return items
 
@@ -65,8 +64,13 @@ def test_learned_uv_green_separator_beats_uv_only_on_minerals(scene_factory, enc
     assert uv_green.rate > uv_only.rate + 0.03  # the mineral patch is bright in UV but has ground's colour
     assert np.deg2rad(-80) < uv_green.angle < np.deg2rad(-20)  # a UV/green contrast, not UV alone
     for model, most in ((uv_only, 0.9), (uv_green, 1.0)):
-        mineral_sky = [SkylineSegmenter(scene.circle, SkylineParams.from_model(model)).segment(
-            uv, green, 'mono8', 'mono8')[scene.mineral] == 255 for scene, uv, green, _ in items]
+        mineral_sky = [
+            SkylineSegmenter(scene.circle, SkylineParams.from_model(model)).segment(uv, green, 'mono8', 'mono8')[
+                scene.mineral
+            ]
+            == 255
+            for scene, uv, green, _ in items
+        ]
         share = np.concatenate(mineral_sky).mean()
         if model is uv_only:
             assert share > 0.1  # UV alone calls much of the mineral sky
@@ -90,7 +94,8 @@ def test_learned_uv_green_separator_beats_uv_only_on_minerals(scene_factory, enc
         uv = encode(held_out.uv, encoding, exposure_gain(held_out.uv, held_out.circle, encoding, 0.33))
         green = encode(held_out.green, encoding, exposure_gain(held_out.green, held_out.circle, encoding, 0.9))
         mask = SkylineSegmenter(held_out.circle, SkylineParams.from_model(uv_green)).segment(
-            uv, green, encoding, encoding)
+            uv, green, encoding, encoding
+        )
         assert classification_rate(mask, held_out.truth, held_out.circle) >= 0.98
 
 
@@ -110,8 +115,10 @@ def test_threshold_for_a_fixed_angle_equals_brute_force(scene_factory, encoder):
     # Brute force: every threshold between distinct pooled contrasts, counting every pixel of the circles.
     contrast = np.concatenate([project(f.x, f.y, angle)[c & f.uv.trusted] for f, c in zip(features, circles)])
     sky = np.concatenate([t[c & f.uv.trusted] > 127 for f, t, c in zip(features, truths, circles)])
-    fixed = sum(int(np.count_nonzero((f.uv.saturated[c & ~f.uv.trusted]) == (t[c & ~f.uv.trusted] > 127)))
-                for f, t, c in zip(features, truths, circles))
+    fixed = sum(
+        int(np.count_nonzero((f.uv.saturated[c & ~f.uv.trusted]) == (t[c & ~f.uv.trusted] > 127)))
+        for f, t, c in zip(features, truths, circles)
+    )
     total = sum(int(c.sum()) for c in circles)
     assert model.rate == pytest.approx((fixed + brute_force_best_count(contrast, sky)) / total, abs=1e-12)
     assert ((contrast > model.threshold) == sky).sum() == brute_force_best_count(contrast, sky)
@@ -123,8 +130,9 @@ def test_sampled_search_still_reports_the_exact_rate(scene_factory, encoder):
     truths = [scene.truth for scene, *_ in items]
     circles = items[0][0].circle
     exact = learn_global(features, truths, circles, 'uv-green', angles=np.deg2rad(np.arange(-90, 91, 5.0)))
-    sampled = learn_global(features, truths, circles, 'uv-green', angles=np.deg2rad(np.arange(-90, 91, 5.0)),
-                           max_samples=2000)
+    sampled = learn_global(
+        features, truths, circles, 'uv-green', angles=np.deg2rad(np.arange(-90, 91, 5.0)), max_samples=2000
+    )
     assert sampled.rate <= exact.rate + 1e-12
     assert sampled.rate >= exact.rate - 0.01
 

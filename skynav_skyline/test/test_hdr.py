@@ -36,8 +36,7 @@ def test_linear_merge_recovers_radiance(radiance, encoding, scale):
 
 def test_linear_merge_honours_the_black_level(radiance):
     plain = merge_brackets(_brackets(radiance, 'mono16', 500.0), TIMES, 'mono16')
-    offset = merge_brackets(_brackets(radiance, 'mono16', 500.0, black_level=1000), TIMES, 'mono16',
-                            black_level=1000)
+    offset = merge_brackets(_brackets(radiance, 'mono16', 500.0, black_level=1000), TIMES, 'mono16', black_level=1000)
     np.testing.assert_allclose(offset, plain, rtol=0.02)
 
 

@@ -119,6 +119,8 @@ def test_bounded_sector_thresholds_reach_the_global_method(scene):
     bounded = SkylineSegmenter(geometry, skyline_params({**defaults(), 'max_deviation': 0.0}))
     global_ = SkylineSegmenter(geometry, skyline_params({**defaults(), 'method': 'global'}))
     free = SkylineSegmenter(geometry, skyline_params({**defaults(), 'max_deviation': float('inf')}))
-    assert np.array_equal(bounded.segment(uv, green, 'mono16', 'mono16'), global_.segment(uv, green, 'mono16', 'mono16'))
+    assert np.array_equal(
+        bounded.segment(uv, green, 'mono16', 'mono16'), global_.segment(uv, green, 'mono16', 'mono16')
+    )
     thresholds = free.run(uv, green, 'mono16', 'mono16').threshold
     assert np.nanmax(np.abs(thresholds - defaults()['threshold'])) > 0.05  # the free sectors do move

@@ -29,9 +29,14 @@ def landscape_rates(stellarium):
     for name in LANDSCAPES:
         world = generate(name, SEED)
         frames = build('skyline', world, ScenarioParameters(count=1), seed=SEED)
-        rates[name] = [classification_rate(segmenter.segment(capture.uv, capture.green, 'mono8', 'mono8'),
-                                           capture.view.sky.astype(np.uint8) * 255, circle)
-                       for capture in captures(world, camera, frames, 'mono8', SEED)]
+        rates[name] = [
+            classification_rate(
+                segmenter.segment(capture.uv, capture.green, 'mono8', 'mono8'),
+                capture.view.sky.astype(np.uint8) * 255,
+                circle,
+            )
+            for capture in captures(world, camera, frames, 'mono8', SEED)
+        ]
     return rates
 
 

@@ -60,11 +60,13 @@ def test_saturated_uv_is_sky_and_dark_uv_is_ground_whatever_the_threshold(scene_
     dark = scene.circle & (uv <= 2)
     saturated = scene.circle & (uv == 255)
     assert dark.sum() > 20
-    nothing_passes = segment(uv, green, 'mono8', 'mono8', scene.circle, method='global', channels=channels,
-                             threshold=50.0)
+    nothing_passes = segment(
+        uv, green, 'mono8', 'mono8', scene.circle, method='global', channels=channels, threshold=50.0
+    )
     np.testing.assert_array_equal(nothing_passes == 255, saturated)
-    everything_passes = segment(uv, green, 'mono8', 'mono8', scene.circle, method='global', channels=channels,
-                                threshold=-50.0)
+    everything_passes = segment(
+        uv, green, 'mono8', 'mono8', scene.circle, method='global', channels=channels, threshold=-50.0
+    )
     np.testing.assert_array_equal(everything_passes == 255, scene.circle & ~dark)
 
 
@@ -130,8 +132,10 @@ def test_masks_do_not_depend_on_per_channel_gain(scene_factory, encoder, method,
 def test_encodings_give_consistent_masks(scene_factory, encoder, method):
     scene = scene_factory(8, light=0.3)
     segmenter = SkylineSegmenter(scene.circle, SkylineParams(method=method, channels='uv-green'))
-    masks = {encoding: segmenter.segment(*_images(scene, encoder, encoding), encoding, encoding)
-             for encoding in ('mono8', 'mono16', '32FC1')}
+    masks = {
+        encoding: segmenter.segment(*_images(scene, encoder, encoding), encoding, encoding)
+        for encoding in ('mono8', 'mono16', '32FC1')
+    }
     for encoding, mask in masks.items():
         assert classification_rate(mask, scene.truth, scene.circle) >= 0.98, encoding
     assert _agreement(masks['mono8'], masks['32FC1'], scene.circle) >= 0.99
@@ -177,7 +181,8 @@ def test_without_any_bimodal_sector_the_global_threshold_is_used(scene_factory, 
     own_only = segment(uv, green, 'mono8', 'mono8', scene.circle, method='sector-otsu')
     assert classification_rate(own_only, scene.truth, scene.circle) < 0.9  # a histogram cannot tell
     with_global = SkylineSegmenter(scene.circle, SkylineParams(method='sector-otsu', threshold=-1.2)).run(
-        uv, green, 'mono8', 'mono8')
+        uv, green, 'mono8', 'mono8'
+    )
     assert not with_global.sectors.bimodal.any()
     np.testing.assert_array_equal(with_global.sectors.thresholds, -1.2)
     assert classification_rate(with_global.mask, scene.truth, scene.circle) == 1.0
@@ -193,7 +198,7 @@ def test_sector_thresholds_have_no_seams(uneven_scene, encoder):
     layout = geometry.sectors(16)
     smooth = result.threshold
     stepped = result.sectors.thresholds[layout.index]
-    v, u = np.mgrid[0:scene.circle.shape[0], 0:scene.circle.shape[1]]
+    v, u = np.mgrid[0 : scene.circle.shape[0], 0 : scene.circle.shape[1]]
     away = scene.circle & (np.hypot(u - scene.camera.cx, v - scene.camera.cy) > 20)
     pair = away[:, 1:] & away[:, :-1]
     largest_step = np.max(np.abs(np.diff(np.r_[result.sectors.thresholds, result.sectors.thresholds[0]])))
@@ -282,7 +287,8 @@ def test_black_level_is_removed_per_channel(scene_factory, encoder):
     params = SkylineParams(method='otsu', channels='uv-green')
     plain = SkylineSegmenter(scene.circle, params).run(uv, green, 'mono16', 'mono16')
     removed = SkylineSegmenter(scene.circle, replace(params, black_level=(2000, 700))).run(
-        lifted_uv, lifted_green, 'mono16', 'mono16')
+        lifted_uv, lifted_green, 'mono16', 'mono16'
+    )
     kept = SkylineSegmenter(scene.circle, params).run(lifted_uv, lifted_green, 'mono16', 'mono16')
     trusted = scene.circle & (uv > 600) & (green > 600)
     np.testing.assert_allclose(removed.contrast[trusted], plain.contrast[trusted], atol=1e-4)
@@ -315,7 +321,9 @@ def test_sector_mask_is_the_contrast_above_the_returned_threshold_map(uneven_sce
     result = segmenter.run(uv, green, 'mono16', 'mono16')
     features = segmenter.features(uv, green, 'mono16', 'mono16')
     circle = uneven_scene.circle
-    expected = features.sky_by_rule(circle) | (features.by_threshold(circle, True) & (result.contrast > result.threshold))
+    expected = features.sky_by_rule(circle) | (
+        features.by_threshold(circle, True) & (result.contrast > result.threshold)
+    )
     np.testing.assert_array_equal(result.mask == 255, expected)
     np.testing.assert_array_equal(segmenter.segment(uv, green, 'mono16', 'mono16'), result.mask)
 
@@ -327,7 +335,13 @@ def test_sector_thresholds_alone_equal_the_segmenters(uneven_scene, encoder):
     result = segmenter.run(uv, None, 'mono16')
     trusted = segmenter.features(uv, None, 'mono16').trusted(uneven_scene.circle, False)
     whole_bimodal = bool(is_bimodal(result.image_split, min_pixels=100))  # else the reference is not trusted
-    alone = sector_thresholds(result.contrast, trusted, geometry.sectors(12), result.sectors.reference, 'min-error',
-                              test_reference=whole_bimodal)
+    alone = sector_thresholds(
+        result.contrast,
+        trusted,
+        geometry.sectors(12),
+        result.sectors.reference,
+        'min-error',
+        test_reference=whole_bimodal,
+    )
     np.testing.assert_array_equal(alone.bimodal, result.sectors.bimodal)
     np.testing.assert_allclose(alone.thresholds, result.sectors.thresholds, rtol=1e-12)

@@ -35,8 +35,7 @@ def view():
 def _segment(camera: EquidistantCamera, uv: np.ndarray, **changes) -> np.ndarray:
     """Return the sky (bool) of a UV radiance image by the global UV threshold and the given structure settings."""
     params = SkylineParams(method='global', channels='uv', threshold=THRESHOLD, **changes)
-    mask = SkylineSegmenter(SkylineGeometry.from_camera(camera), params).segment(uv.astype(np.float32), None,
-                                                                               '32FC1')
+    mask = SkylineSegmenter(SkylineGeometry.from_camera(camera), params).segment(uv.astype(np.float32), None, '32FC1')
     return mask == 255
 
 
@@ -110,8 +109,13 @@ def test_a_crown_over_the_camera_does_not_cut_the_sky_around_it(view):
 
 
 def test_structure_steps_need_valid_settings_and_the_ring_a_camera_model():
-    for bad in ({'hole_margin': -0.1}, {'hole_margin': math.nan}, {'ring_share': 0.0},
-                {'ring_width_deg': 0.0}, {'ring_width_deg': math.inf}):
+    for bad in (
+        {'hole_margin': -0.1},
+        {'hole_margin': math.nan},
+        {'ring_share': 0.0},
+        {'ring_width_deg': 0.0},
+        {'ring_width_deg': math.inf},
+    ):
         with pytest.raises(ValueError):
             SkylineParams(**bad)
     defaults = SkylineParams()
@@ -132,7 +136,7 @@ def test_rim_and_rays_of_a_camera_geometry(view):
     interior = circle & ~rim
     padded = np.pad(circle, 1)
     for dv, du in ((-1, 0), (1, 0), (0, -1), (0, 1)):  # interior pixels have all four neighbours in the circle
-        assert padded[1 + dv:1 + dv + circle.shape[0], 1 + du:1 + du + circle.shape[1]][interior].all()
+        assert padded[1 + dv : 1 + dv + circle.shape[0], 1 + du : 1 + du + circle.shape[1]][interior].all()
     assert geometry.pixels_per_radian == pytest.approx(camera.fx, rel=1e-6)  # no distortion: r = f theta
     rays = geometry.rays(8, math.radians(1.0))
     assert rays.spacing == pytest.approx(max(1.0, camera.fx * math.radians(1.0)))
@@ -154,8 +158,10 @@ def _unanchored_reference(weak: np.ndarray, strong: np.ndarray, rim: np.ndarray)
 
 
 @settings(max_examples=200, deadline=None)
-@given(arrays(np.uint8, st.tuples(st.integers(1, 14), st.integers(1, 14)), elements=st.integers(0, 2)),
-       st.integers(0, 2**32 - 1))
+@given(
+    arrays(np.uint8, st.tuples(st.integers(1, 14), st.integers(1, 14)), elements=st.integers(0, 2)),
+    st.integers(0, 2**32 - 1),
+)
 def test_unanchored_ground_equals_labelling_the_whole_ground(classes, seed):
     weak, strong = classes == 1, classes == 2
     rim = np.random.default_rng(seed).random(classes.shape) < 0.1

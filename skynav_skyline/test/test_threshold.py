@@ -138,8 +138,12 @@ def test_histogram_of_constant_values_is_usable():
 @given(st.lists(st.floats(-1e3, 1e3, width=32), min_size=1, max_size=300))
 def test_histogram_range_percentiles_equal_numpys(values):
     values = np.array(values, np.float32)
-    np.testing.assert_allclose(_percentiles(values, HISTOGRAM_RANGE_PERCENTILES),
-                               np.percentile(values, HISTOGRAM_RANGE_PERCENTILES), rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(
+        _percentiles(values, HISTOGRAM_RANGE_PERCENTILES),
+        np.percentile(values, HISTOGRAM_RANGE_PERCENTILES),
+        rtol=1e-6,
+        atol=1e-9,
+    )
 
 
 def test_split_of_a_stack_takes_rows_like_splitting_each():

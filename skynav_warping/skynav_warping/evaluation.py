@@ -27,8 +27,9 @@ def _orientations(quaternions: np.ndarray) -> np.ndarray:
     return as_matrix(np.asarray(quaternions, dtype=float).reshape(-1, 4))
 
 
-def true_home_directions(current_positions: np.ndarray, current_quaternions: np.ndarray,
-                         snapshot_position: np.ndarray) -> np.ndarray:
+def true_home_directions(
+    current_positions: np.ndarray, current_quaternions: np.ndarray, snapshot_position: np.ndarray
+) -> np.ndarray:
     """Return unit home vectors (N, 3) in each current camera_link: Q_c^-1 (p_s - p_c) normalised."""
     positions = np.asarray(current_positions, dtype=float).reshape(-1, 3)
     return home_direction(snapshot_position, positions, _orientations(current_quaternions))
@@ -69,22 +70,35 @@ class BinStatistics:
     p90: float  # 90th percentile, degrees
 
 
-def binned_statistics(errors: np.ndarray, values: np.ndarray,
-                      bins: Sequence[tuple[float, float]] = DISTANCE_BINS) -> list[BinStatistics]:
+def binned_statistics(
+    errors: np.ndarray, values: np.ndarray, bins: Sequence[tuple[float, float]] = DISTANCE_BINS
+) -> list[BinStatistics]:
     """Return median and 90th percentile of errors (degrees) per bin [low, high) of values; nan errors left out."""
     errors = np.asarray(errors, dtype=float)
     values = np.asarray(values, dtype=float)
     out = []
     for low, high in bins:
         chosen = errors[(values >= low) & (values < high) & np.isfinite(errors)]
-        out.append(BinStatistics(float(low), float(high), int(chosen.size),
-                                 float(np.median(chosen)) if chosen.size else float('nan'),
-                                 float(np.percentile(chosen, 90)) if chosen.size else float('nan')))
+        out.append(
+            BinStatistics(
+                float(low),
+                float(high),
+                int(chosen.size),
+                float(np.median(chosen)) if chosen.size else float('nan'),
+                float(np.percentile(chosen, 90)) if chosen.size else float('nan'),
+            )
+        )
     return out
 
 
-def summary_table(errors: dict[str, np.ndarray], distances: np.ndarray, tilts: np.ndarray,
-                  seconds: dict[str, float] | None = None, distance_bins=DISTANCE_BINS, tilt_bins=TILT_BINS) -> str:
+def summary_table(
+    errors: dict[str, np.ndarray],
+    distances: np.ndarray,
+    tilts: np.ndarray,
+    seconds: dict[str, float] | None = None,
+    distance_bins=DISTANCE_BINS,
+    tilt_bins=TILT_BINS,
+) -> str:
     """Return a text table: per method, median / p90 error (degrees) per distance and tilt bin, time per estimate."""
     titles = [f'{lo:g}-{hi:g} m' for lo, hi in distance_bins] + [f'tilt {lo:g}-{hi:g} deg' for lo, hi in tilt_bins]
     columns = [Column('method', 14, align='<'), *(Column(title, 17) for title in [*titles, 'all'])]
@@ -93,8 +107,13 @@ def summary_table(errors: dict[str, np.ndarray], distances: np.ndarray, tilts: n
     for method, error in errors.items():
         cells = binned_statistics(error, distances, distance_bins) + binned_statistics(error, tilts, tilt_bins)
         cells.append(binned_statistics(error, np.zeros(len(error)), [(-1.0, 1.0)])[0])
-        rows.append([method, *(f'{c.count:>5d}{c.median:>6.1f}{c.p90:>6.1f}' for c in cells),
-                     *([1e3 * seconds.get(method, float('nan'))] if seconds else [])])
+        rows.append(
+            [
+                method,
+                *(f'{c.count:>5d}{c.median:>6.1f}{c.p90:>6.1f}' for c in cells),
+                *([1e3 * seconds.get(method, float('nan'))] if seconds else []),
+            ]
+        )
     return text_table(columns, rows, gap='', rule=False)
 
 
@@ -115,8 +134,15 @@ def home_vectors_in_map(directions: np.ndarray, current_quaternions: np.ndarray)
     return np.einsum('nij,nj->ni', _orientations(current_quaternions), vectors)
 
 
-def quiver_plot(path: str, current_positions: np.ndarray, snapshot_position: np.ndarray, true_map: np.ndarray,
-                estimates_map: dict[str, np.ndarray], title: str, synthetic: bool = True) -> str:
+def quiver_plot(
+    path: str,
+    current_positions: np.ndarray,
+    snapshot_position: np.ndarray,
+    true_map: np.ndarray,
+    estimates_map: dict[str, np.ndarray],
+    title: str,
+    synthetic: bool = True,
+) -> str:
     """Save a quiver plot (PNG) of true and estimated home vectors (map x-y, unit length); return its title."""
     import matplotlib
 
@@ -134,13 +160,33 @@ def quiver_plot(path: str, current_positions: np.ndarray, snapshot_position: np.
 
     figure, axes = plt.subplots(figsize=(9.0, 7.0))
     truth = planar(true_map)
-    axes.quiver(xy[:, 0], xy[:, 1], truth[:, 0], truth[:, 1], color='0.6', angles='xy', scale_units='xy',
-                scale=3.0, width=0.006, label='true home direction')
+    axes.quiver(
+        xy[:, 0],
+        xy[:, 1],
+        truth[:, 0],
+        truth[:, 1],
+        color='0.6',
+        angles='xy',
+        scale_units='xy',
+        scale=3.0,
+        width=0.006,
+        label='true home direction',
+    )
     colours = ['tab:red', 'tab:blue', 'tab:green', 'tab:orange', 'tab:purple']
     for (method, vectors), colour in zip(estimates_map.items(), colours):
         v = planar(vectors)
-        axes.quiver(xy[:, 0], xy[:, 1], v[:, 0], v[:, 1], color=colour, angles='xy', scale_units='xy', scale=3.0,
-                    width=0.0035, label=f'{method} (estimate)')
+        axes.quiver(
+            xy[:, 0],
+            xy[:, 1],
+            v[:, 0],
+            v[:, 1],
+            color=colour,
+            angles='xy',
+            scale_units='xy',
+            scale=3.0,
+            width=0.0035,
+            label=f'{method} (estimate)',
+        )
     axes.plot([0.0], [0.0], marker='*', markersize=16, color='k', linestyle='none', label='snapshot place')
     axes.set_aspect('equal')
     axes.set_xlabel('x - x_snapshot in map (m)')

@@ -48,8 +48,12 @@ def sky_share(view: WarpView) -> float:
     return float(seen_mean(view.terms[1], view.terms[0]))
 
 
-def estimate_home_vector(current: WarpView, snapshot: WarpView, compass: RotationLike | None = None,
-                         settings: WarpingSettings = WarpingSettings()) -> HomeEstimate:
+def estimate_home_vector(
+    current: WarpView,
+    snapshot: WarpView,
+    compass: RotationLike | None = None,
+    settings: WarpingSettings = WarpingSettings(),
+) -> HomeEstimate:
     """Return the home vector (current camera_link) from the current view to the snapshot's place.
 
     compass: the compass rotation R (d_snapshot = R d_current) as a 3x3 matrix, quaternion (x, y, z, w) or scipy
@@ -60,7 +64,14 @@ def estimate_home_vector(current: WarpView, snapshot: WarpView, compass: Rotatio
     result = warp_home_vector(current, snapshot, start, settings)
     if not (shows_skyline(sky_share(current)) and shows_skyline(sky_share(snapshot))):
         result = replace(result, direction=np.zeros(3), confidence=0.0, confident=False)
-    return HomeEstimate(direction=result.direction, rotation=result.rotation, residual=result.residual,
-                        confidence=result.confidence, confident=result.confident,
-                        distance_ratio=result.distance_ratio, best_direction=result.best_direction,
-                        compass_used=start is not None and within_tilt(start, settings.max_relative_tilt), warp=result)
+    return HomeEstimate(
+        direction=result.direction,
+        rotation=result.rotation,
+        residual=result.residual,
+        confidence=result.confidence,
+        confident=result.confident,
+        distance_ratio=result.distance_ratio,
+        best_direction=result.best_direction,
+        compass_used=start is not None and within_tilt(start, settings.max_relative_tilt),
+        warp=result,
+    )

@@ -115,23 +115,38 @@ class HomingEvaluation:
         first = self.statistics(next(iter(self.results)))
         labels = list(first)
         width = 15
-        columns = (Column('method', max(22, max(len(m) for m in self.results) + 2), align='<'),
-                   *(Column(label, width) for label in labels), Column('ms/estimate', width - 1, '.1f'),
-                   Column('confident', 11))
+        columns = (
+            Column('method', max(22, max(len(m) for m in self.results) + 2), align='<'),
+            *(Column(label, width) for label in labels),
+            Column('ms/estimate', width - 1, '.1f'),
+            Column('confident', 11),
+        )
         rows: list[list] = [['', *(f'(n={first[label][0]})' for label in labels)]]
         for method, result in self.results.items():
             cells = [self.statistics(method)[label] for label in labels]
             confident = '-' if result.confident is None else f'{100.0 * np.mean(result.confident):.0f} %'
-            rows.append([method, *(f'{median:.1f} / {p90:.1f}' if np.isfinite(median) else '-'
-                                   for _, median, p90 in cells), 1e3 * result.seconds, confident])
+            rows.append(
+                [
+                    method,
+                    *(f'{median:.1f} / {p90:.1f}' if np.isfinite(median) else '-' for _, median, p90 in cells),
+                    1e3 * result.seconds,
+                    confident,
+                ]
+            )
         return text_table(columns, rows, gap='', rule=False)
 
     def quiver(self, path, title: str) -> str:
         """Save the quiver plot (true and estimated home vectors, map x-y) as PNG at path; return its title."""
         estimates = {m: home_vectors_in_map(r.directions, self.quaternions) for m, r in self.results.items()}
-        return quiver_plot(str(path), self.positions, self.snapshot.pose[:3],
-                           home_vectors_in_map(self.true_directions, self.quaternions), estimates, title,
-                           synthetic=self.synthetic)
+        return quiver_plot(
+            str(path),
+            self.positions,
+            self.snapshot.pose[:3],
+            home_vectors_in_map(self.true_directions, self.quaternions),
+            estimates,
+            title,
+            synthetic=self.synthetic,
+        )
 
 
 def recording_snapshot(recording) -> HomingSnapshot:
@@ -142,8 +157,9 @@ def recording_snapshot(recording) -> HomingSnapshot:
     labelled = [(k, v) for k, v in posed if v.label == 'snapshot']
     k, view = (labelled or posed)[0]
     name = f"frame {k} ('snapshot')" if labelled else f'frame {k} (the first; no frame is labelled snapshot)'
-    return HomingSnapshot(np.asarray(view.coefficients, float), np.asarray(view.pose, float), view.mask, name,
-                          view.stamp)
+    return HomingSnapshot(
+        np.asarray(view.coefficients, float), np.asarray(view.pose, float), view.mask, name, view.stamp
+    )
 
 
 def map_snapshot(store, index: int, recording=None) -> HomingSnapshot:
@@ -152,14 +168,20 @@ def map_snapshot(store, index: int, recording=None) -> HomingSnapshot:
         raise HomingEvalError(f'{store.path}: no snapshot {index} (the map has {len(store)})')
     snapshot = store.snapshot(index)
     if snapshot.pose is None:
-        raise HomingEvalError(f'{store.path}: snapshot {index} has no ground-truth pose, so the true home '
-                              'direction is unknown')
+        raise HomingEvalError(
+            f'{store.path}: snapshot {index} has no ground-truth pose, so the true home direction is unknown'
+        )
     mask = None
     if recording is not None:
         same = [v for v in recording.views if v.stamp == snapshot.stamp_ns]
         mask = same[0].mask if same else None
-    return HomingSnapshot(np.asarray(snapshot.coefficients, float), np.asarray(snapshot.pose, float), mask,
-                          f'map {store.name!r} snapshot {index}', snapshot.stamp_ns)
+    return HomingSnapshot(
+        np.asarray(snapshot.coefficients, float),
+        np.asarray(snapshot.pose, float),
+        mask,
+        f'map {store.name!r} snapshot {index}',
+        snapshot.stamp_ns,
+    )
 
 
 def _timed(function, *args):
@@ -176,8 +198,13 @@ def _prepared(function, snapshot_item, items):
     return prepared_snapshot, current, seconds + spent
 
 
-def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None = None,
-                    settings: WarpingSettings = WarpingSettings(), progress=None) -> HomingEvaluation:
+def evaluate_homing(
+    recording,
+    methods=METHODS,
+    snapshot: HomingSnapshot | None = None,
+    settings: WarpingSettings = WarpingSettings(),
+    progress=None,
+) -> HomingEvaluation:
     """Return every method's home vectors for the recording's views (skynav_core.views.RecordingViews) to a snapshot.
 
     snapshot: None for the recording's own (recording_snapshot). The current views are all views with a ground-truth
@@ -209,67 +236,92 @@ def evaluate_homing(recording, methods=METHODS, snapshot: HomingSnapshot | None 
     degree = settings.degree
     low = [v for v in views if np.size(v.coefficients) < (degree + 1) ** 2]
     if low or np.size(snapshot.coefficients) < (degree + 1) ** 2:
-        raise HomingEvalError(f'coefficients of degree below {degree}; the compass and warping nodes need {degree} '
-                              '(the sh node\'s max_degree)')
+        raise HomingEvalError(
+            f'coefficients of degree below {degree}; the compass and warping nodes need {degree} '
+            "(the sh node's max_degree)"
+        )
     field_of_view = float(recording.camera.field_of_view)
     skipped = {}
     if snapshot.mask is None or any(v.mask is None for v in views):
-        why = ('the snapshot is not a frame of this recording' if snapshot.mask is None
-               else 'the skyline node gave no mask for some views')
-        skipped = {m: f'needs the snapshot\'s and the views\' skyline masks; {why}' for m in methods
-                   if m in PANORAMA_METHODS}
+        why = (
+            'the snapshot is not a frame of this recording'
+            if snapshot.mask is None
+            else 'the skyline node gave no mask for some views'
+        )
+        skipped = {
+            m: f"needs the snapshot's and the views' skyline masks; {why}" for m in methods if m in PANORAMA_METHODS
+        }
         methods = [m for m in methods if m not in skipped]
 
     results: dict[str, HomingResult] = {}
     n = len(views)
     if any(m.startswith('3d-warping') for m in methods):
+
         def warp_view(coefficients):
             return view_from_coefficients(coefficients, field_of_view, degree)
 
-        warp_snapshot, warp_views, warp_seconds = _prepared(warp_view, snapshot.coefficients,
-                                                            [v.coefficients for v in views])
+        warp_snapshot, warp_views, warp_seconds = _prepared(
+            warp_view, snapshot.coefficients, [v.coefficients for v in views]
+        )
     if '3d-warping' in methods:
         compass = Compass(degree)  # tables built here, as the node does at start
 
         def compass_view(coefficients):
             return CompassView.from_sh_message(coefficients, field_of_view, 'zero', degree)
 
-        compass_snapshot, compass_views, compass_seconds = _prepared(compass_view, snapshot.coefficients,
-                                                                     [v.coefficients for v in views])
+        compass_snapshot, compass_views, compass_seconds = _prepared(
+            compass_view, snapshot.coefficients, [v.coefficients for v in views]
+        )
 
         def with_compass(k):
             rotation = compass.estimate(compass_snapshot, compass_views[k]).quaternion
             return estimate_home_vector(warp_views[k], warp_snapshot, rotation, settings)
 
-        results['3d-warping'] = _run_warping('3d-warping', with_compass, n, warp_seconds + compass_seconds,
-                                             progress)
+        results['3d-warping'] = _run_warping('3d-warping', with_compass, n, warp_seconds + compass_seconds, progress)
     if '3d-warping-no-compass' in methods:
+
         def without_compass(k):
             return estimate_home_vector(warp_views[k], warp_snapshot, None, settings)
 
-        results['3d-warping-no-compass'] = _run_warping('3d-warping-no-compass', without_compass, n, warp_seconds,
-                                                        progress)
+        results['3d-warping-no-compass'] = _run_warping(
+            '3d-warping-no-compass', without_compass, n, warp_seconds, progress
+        )
     if any(m in PANORAMA_METHODS for m in methods):
         unwrapper = PanoramaUnwrapper(recording.camera)  # remap tables built once per camera
         band_snapshot, bands, band_seconds = _prepared(unwrapper, snapshot.mask, [v.mask for v in views])
-        planar = {'2d-warping': lambda band: warping_2d(band_snapshot, band),
-                  'min-warping': lambda band: min_warping(band_snapshot, band, unwrapper.elevations)}
+        planar = {
+            '2d-warping': lambda band: warping_2d(band_snapshot, band),
+            'min-warping': lambda band: min_warping(band_snapshot, band, unwrapper.elevations),
+        }
         for method in (m for m in methods if m in PANORAMA_METHODS):
             estimates, seconds = _timed_runs(planar[method], bands, progress)
-            results[method] = HomingResult(method, np.array([e.direction for e in estimates]),
-                                           (band_seconds + seconds) / n)
-    return HomingEvaluation(snapshot=snapshot, positions=poses[:, :3], quaternions=poses[:, 3:],
-                            true_directions=true_home_directions(poses[:, :3], poses[:, 3:], snapshot.pose[:3]),
-                            distances=distances, tilts=tilt_angles(poses[:, 3:]), results=results, skipped=skipped,
-                            left_out=int(np.count_nonzero(~keep)), synthetic=bool(recording.synthetic))
+            results[method] = HomingResult(
+                method, np.array([e.direction for e in estimates]), (band_seconds + seconds) / n
+            )
+    return HomingEvaluation(
+        snapshot=snapshot,
+        positions=poses[:, :3],
+        quaternions=poses[:, 3:],
+        true_directions=true_home_directions(poses[:, :3], poses[:, 3:], snapshot.pose[:3]),
+        distances=distances,
+        tilts=tilt_angles(poses[:, 3:]),
+        results=results,
+        skipped=skipped,
+        left_out=int(np.count_nonzero(~keep)),
+        synthetic=bool(recording.synthetic),
+    )
 
 
 def _run_warping(name: str, estimate, n: int, preparation: float, progress) -> HomingResult:
     """Return a 3D-warping method's result over n views: estimate(k) -> HomeEstimate, after one untimed warm-up."""
     estimate(0)  # builds the warping tables (cached per settings), as the node's first view would
     estimates, seconds = _timed_runs(estimate, range(n), progress)
-    return HomingResult(name, np.array([e.best_direction for e in estimates]), (preparation + seconds) / n,
-                        np.array([e.confident for e in estimates]))
+    return HomingResult(
+        name,
+        np.array([e.best_direction for e in estimates]),
+        (preparation + seconds) / n,
+        np.array([e.confident for e in estimates]),
+    )
 
 
 def _timed_runs(function, items, progress=None) -> tuple[list, float]:

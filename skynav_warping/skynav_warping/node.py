@@ -76,8 +76,9 @@ class WarpingNode(SkynavNode):
             raise ValueError('max_tilt_deg must be more than 0 and at most 180 degrees')
         self.snapshots.configure(values['map'], values['target'], values['index'], values['lookahead'])
         self.values = values
-        self.settings = WarpingSettings(degree=values['max_degree'],
-                                        max_relative_tilt=float(np.radians(values['max_tilt_deg'])))
+        self.settings = WarpingSettings(
+            degree=values['max_degree'], max_relative_tilt=float(np.radians(values['max_tilt_deg']))
+        )
 
     def snapshot_view(self, coefficients: np.ndarray, field_of_view: float):
         """Return the view of a map snapshot as this node compares it."""
@@ -109,8 +110,7 @@ class WarpingNode(SkynavNode):
         if not shows_skyline(message_sky_share(np.asarray(message.coefficients, np.float64), fov, message.fill)):
             return False
         index = self.snapshots.choose(count=False)
-        return index is None or bool(shows_skyline(message_sky_share(self.snapshots.store.coefficients()[index],
-                                                                     fov)))
+        return index is None or bool(shows_skyline(message_sky_share(self.snapshots.store.coefficients()[index], fov)))
 
     def home(self, message: ShCoefficients, compass: CompassEstimate | None) -> None:
         """Publish the home vector of one view."""
@@ -122,8 +122,9 @@ class WarpingNode(SkynavNode):
             return
         self.last_stamp = stamp
         with self.processing(stamp):
-            current = view_from_coefficients(np.asarray(message.coefficients, np.float64),
-                                             float(message.field_of_view), self.settings.degree)
+            current = view_from_coefficients(
+                np.asarray(message.coefficients, np.float64), float(message.field_of_view), self.settings.degree
+            )
             snapshot = self.snapshots.view(index, float(message.field_of_view))
             rotation = None
             if compass is not None:  # against this snapshot or a neighbour: a good start either way
@@ -133,8 +134,9 @@ class WarpingNode(SkynavNode):
             result = HomeVector(snapshot_index=index)
             result.header = message.header
             result.direction.x, result.direction.y, result.direction.z = (float(v) for v in estimate.best_direction)
-            (result.rotation.x, result.rotation.y, result.rotation.z,
-             result.rotation.w) = (float(v) for v in estimate.quaternion)
+            (result.rotation.x, result.rotation.y, result.rotation.z, result.rotation.w) = (
+                float(v) for v in estimate.quaternion
+            )
             result.residual = float(1.0 - estimate.confidence)
         self.emit(HOME_TOPIC, result)
 

@@ -20,8 +20,14 @@ DEFAULT_ELEVATIONS = (np.radians(-10.0), np.radians(40.0))  # rad, lowest and hi
 class PanoramaUnwrapper:
     """Fish-eye image (H, W) -> panoramic band (n_elevation, n_azimuth); remap tables built once per camera."""
 
-    def __init__(self, camera, n_azimuth: int = 72, n_elevation: int = 25,
-                 elevations: tuple[float, float] = DEFAULT_ELEVATIONS, supersampling: int = 3) -> None:
+    def __init__(
+        self,
+        camera,
+        n_azimuth: int = 72,
+        n_elevation: int = 25,
+        elevations: tuple[float, float] = DEFAULT_ELEVATIONS,
+        supersampling: int = 3,
+    ) -> None:
         """Precompute the remap tables of a band from elevations[0] to elevations[1] (rad) for a skynav_sh camera."""
         import cv2
 
@@ -29,8 +35,10 @@ class PanoramaUnwrapper:
         if not low < high:
             raise ValueError('the elevation band needs low < high')
         if np.pi / 2 - low > camera.theta_max + 1e-9:
-            raise ValueError(f'elevation {np.degrees(low):.1f} deg lies outside the image circle '
-                             f'(lowest seen: {np.degrees(np.pi / 2 - camera.theta_max):.1f} deg)')
+            raise ValueError(
+                f'elevation {np.degrees(low):.1f} deg lies outside the image circle '
+                f'(lowest seen: {np.degrees(np.pi / 2 - camera.theta_max):.1f} deg)'
+            )
         self.camera = camera
         self.n_azimuth, self.n_elevation, self.supersampling = int(n_azimuth), int(n_elevation), int(supersampling)
         self.azimuths = 2 * np.pi * np.arange(self.n_azimuth) / self.n_azimuth  # rad, column centres
@@ -55,8 +63,7 @@ class PanoramaUnwrapper:
         from skynav_sh.fisheye import camera_image_values
 
         values = camera_image_values(image, self.camera)
-        sub = cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE)
+        sub = cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         if self.supersampling == 1:
             return sub
         return cv2.resize(sub, (self.n_azimuth, self.n_elevation), interpolation=cv2.INTER_AREA)

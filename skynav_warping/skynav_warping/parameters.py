@@ -19,7 +19,8 @@ PARAMETERS = {
     'lookahead': Parameter(6, "how many snapshots beyond the matched one target 'next' aims at"),
     'use_compass': Parameter(True, 'start from the compass estimate of the same view (wait for it)'),
     'max_degree': Parameter(16, 'SH degree of the search'),
-    'max_tilt_deg': Parameter(float(math.degrees(MAX_TILT)),
-                              'largest tilt between the current view and the snapshot the rotation search considers '
-                              '(deg)'),
+    'max_tilt_deg': Parameter(
+        float(math.degrees(MAX_TILT)),
+        'largest tilt between the current view and the snapshot the rotation search considers (deg)',
+    ),
 }

@@ -50,12 +50,16 @@ def _result(alpha: float, psi: float, ratio: float, cost: float, still: float) -
     home = alpha + np.pi - psi
     c, s = np.cos(psi), np.sin(psi)
     confidence = float(np.clip(1.0 - cost / still, 0.0, 1.0)) if still > 0 else 0.0
-    return PlanarResult(direction=np.array([np.cos(home), np.sin(home), 0.0]),
-                        rotation=np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
-                        movement_azimuth=float(np.remainder(alpha, 2 * np.pi)),
-                        turn=float(np.remainder(psi, 2 * np.pi)),
-                        distance_ratio=float(ratio), residual=float(cost), residual_no_movement=float(still),
-                        confidence=confidence)
+    return PlanarResult(
+        direction=np.array([np.cos(home), np.sin(home), 0.0]),
+        rotation=np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+        movement_azimuth=float(np.remainder(alpha, 2 * np.pi)),
+        turn=float(np.remainder(psi, 2 * np.pi)),
+        distance_ratio=float(ratio),
+        residual=float(cost),
+        residual_no_movement=float(still),
+        confidence=confidence,
+    )
 
 
 def horizon_profile(panorama: np.ndarray) -> np.ndarray:
@@ -75,8 +79,9 @@ def _periodic_interpolation(values: np.ndarray, position: np.ndarray) -> np.ndar
 DEFAULT_RATIOS_2D = tuple(np.linspace(0.1, 0.9, 9))  # d / r searched by 2D-warping
 
 
-def warping_2d(snapshot: np.ndarray, current: np.ndarray, ratios: tuple[float, ...] = DEFAULT_RATIOS_2D,
-               n_alpha: int | None = None) -> PlanarResult:
+def warping_2d(
+    snapshot: np.ndarray, current: np.ndarray, ratios: tuple[float, ...] = DEFAULT_RATIOS_2D, n_alpha: int | None = None
+) -> PlanarResult:
     """Return the 2D-warping home vector from one-dimensional images or panoramic bands (rows averaged).
 
     snapshot, current: (n,) or (rows, n), column j at azimuth 2 pi j / n; alpha searched in n_alpha steps (default
@@ -109,8 +114,9 @@ def warping_2d(snapshot: np.ndarray, current: np.ndarray, ratios: tuple[float, .
 DEFAULT_SCALES = tuple(2.0 ** (np.arange(-4, 5) / 4))  # r / r' of min-warping's scale planes (0.5 .. 2)
 
 
-def scale_planes(snapshot: np.ndarray, current: np.ndarray, elevations: np.ndarray,
-                 scales: tuple[float, ...] = DEFAULT_SCALES) -> np.ndarray:
+def scale_planes(
+    snapshot: np.ndarray, current: np.ndarray, elevations: np.ndarray, scales: tuple[float, ...] = DEFAULT_SCALES
+) -> np.ndarray:
     """Return D[k, i, j]: mean squared difference of snapshot column i magnified by scales[k] and current column j.
 
     A landmark r / r' times nearer from the current place appears at elevation e' with tan e' = (r / r') tan e;
@@ -128,13 +134,20 @@ def scale_planes(snapshot: np.ndarray, current: np.ndarray, elevations: np.ndarr
         magnified = np.stack([np.interp(source, e[order], column[order]) for column in s.T], axis=1)  # (rows, n)
         weight = valid[:, None]
         count = max(valid.sum(), 1.0)
-        planes.append((np.sum(weight * magnified ** 2, 0)[:, None] + np.sum(weight * c ** 2, 0)[None, :]
-                       - 2 * (weight * magnified).T @ c) / count)
+        planes.append(
+            (
+                np.sum(weight * magnified**2, 0)[:, None]
+                + np.sum(weight * c**2, 0)[None, :]
+                - 2 * (weight * magnified).T @ c
+            )
+            / count
+        )
     return np.maximum(np.stack(planes), 0.0)
 
 
-def min_warping_costs(planes: np.ndarray, scales: tuple[float, ...] = DEFAULT_SCALES,
-                      n_alpha: int | None = None) -> np.ndarray:
+def min_warping_costs(
+    planes: np.ndarray, scales: tuple[float, ...] = DEFAULT_SCALES, n_alpha: int | None = None
+) -> np.ndarray:
     """Return min-warping costs [alpha a, psi q] (alpha = 2 pi a / n_alpha, psi = q column steps) from scale planes."""
     from numpy.lib.stride_tricks import sliding_window_view
 
@@ -166,8 +179,13 @@ def min_warping_costs(planes: np.ndarray, scales: tuple[float, ...] = DEFAULT_SC
     return costs
 
 
-def min_warping(snapshot: np.ndarray, current: np.ndarray, elevations: np.ndarray,
-                scales: tuple[float, ...] = DEFAULT_SCALES, n_alpha: int | None = None) -> PlanarResult:
+def min_warping(
+    snapshot: np.ndarray,
+    current: np.ndarray,
+    elevations: np.ndarray,
+    scales: tuple[float, ...] = DEFAULT_SCALES,
+    n_alpha: int | None = None,
+) -> PlanarResult:
     """Return the min-warping home vector from two panoramic bands (rows, n) with row elevations (rad).
 
     Every snapshot column is matched with the best current column on its arc (within the scale planes); alpha in

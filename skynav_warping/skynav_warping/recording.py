@@ -50,6 +50,13 @@ def load_homing_grid(path: str) -> HomingGrid:
         images = recorded.images[topic]
         return np.stack([images[s] for s in stamps]) if all(s in images for s in stamps) else None
 
-    return HomingGrid(camera=recorded.camera, positions=poses[:, :3], quaternions=poses[:, 3:], masks=stack(MASK),
-                      uv=stack(UV), green=stack(GREEN), labels=tuple(recorded.labels()[: len(stamps)]),
-                      synthetic=recorded.synthetic)
+    return HomingGrid(
+        camera=recorded.camera,
+        positions=poses[:, :3],
+        quaternions=poses[:, 3:],
+        masks=stack(MASK),
+        uv=stack(UV),
+        green=stack(GREEN),
+        labels=tuple(recorded.labels()[: len(stamps)]),
+        synthetic=recorded.synthetic,
+    )

@@ -45,14 +45,21 @@ def blob_scene(seed: int = 0, count: int = 9) -> BlobScene:
     rng = np.random.default_rng(seed)
     elevation = np.radians(rng.uniform(10, 70, count))
     azimuth = rng.uniform(0, 2 * np.pi, count)
-    centres = np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth),
-                        np.sin(elevation)], -1)
+    centres = np.stack(
+        [np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], -1
+    )
     return BlobScene(centres, np.radians(rng.uniform(6, 16, count)), np.radians(4.0))
 
 
-def render_equal_distance_view(scene: BlobScene, position: np.ndarray, rotation: np.ndarray,
-                               field_of_view: float = np.radians(200), degree: int = 16, radius: float = 1.0,
-                               rim_taper: float = np.radians(10.0)) -> WarpView:
+def render_equal_distance_view(
+    scene: BlobScene,
+    position: np.ndarray,
+    rotation: np.ndarray,
+    field_of_view: float = np.radians(200),
+    degree: int = 16,
+    radius: float = 1.0,
+    rim_taper: float = np.radians(10.0),
+) -> WarpView:
     """Return the WarpView of a camera at `position` (map, |position| < radius) turned by `rotation` (d_map = Q d)."""
     from skynav_sh.transform import grid
 
@@ -85,12 +92,23 @@ def pole_world(seed: int = 0, count: int = 40, near: float = 3.0, far: float = 1
     rng = np.random.default_rng(seed)
     angle = rng.uniform(0, 2 * np.pi, count)
     distance = rng.uniform(near, far, count)
-    return PoleWorld(np.stack([distance * np.cos(angle), distance * np.sin(angle)], -1),
-                     rng.uniform(0.2, 1.0, count), rng.uniform(1.0, 6.0, count), rng.uniform(0.2, 0.8, count))
+    return PoleWorld(
+        np.stack([distance * np.cos(angle), distance * np.sin(angle)], -1),
+        rng.uniform(0.2, 1.0, count),
+        rng.uniform(1.0, 6.0, count),
+        rng.uniform(0.2, 0.8, count),
+    )
 
 
-def render_pole_panorama(world: PoleWorld, position: np.ndarray, heading: float, elevations: np.ndarray,
-                         n_azimuth: int = 72, camera_height: float = 0.3, textured: bool = True) -> np.ndarray:
+def render_pole_panorama(
+    world: PoleWorld,
+    position: np.ndarray,
+    heading: float,
+    elevations: np.ndarray,
+    n_azimuth: int = 72,
+    camera_height: float = 0.3,
+    textured: bool = True,
+) -> np.ndarray:
     """Return the panoramic band (rows of `elevations` in rad, n_azimuth columns) of an upright camera.
 
     heading: azimuth (rad) of the camera's +x in map; column j looks along heading + 2 pi j / n_azimuth.

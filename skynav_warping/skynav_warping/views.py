@@ -53,8 +53,9 @@ def rim_weights(theta: np.ndarray, theta_max: float, rim_taper: float = DEFAULT_
     return 0.5 - 0.5 * np.cos(np.pi * x)
 
 
-def view_from_samples(quadrature, values: np.ndarray, visibility: np.ndarray, degree: int,
-                      standardise: bool = False) -> WarpView:
+def view_from_samples(
+    quadrature, values: np.ndarray, visibility: np.ndarray, degree: int, standardise: bool = False
+) -> WarpView:
     """Return the terms of a view from grid samples f and visibility v (n_theta, n_phi) on a skynav_sh grid."""
     values = np.asarray(values, dtype=float)
     visibility = np.asarray(visibility, dtype=float)
@@ -68,8 +69,13 @@ def view_from_samples(quadrature, values: np.ndarray, visibility: np.ndarray, de
     return WarpView(np.ascontiguousarray(terms))
 
 
-def view_from_fisheye(transform, image: np.ndarray, degree: int | None = None,
-                      rim_taper: float = DEFAULT_RIM_TAPER, standardise: bool = False) -> WarpView:
+def view_from_fisheye(
+    transform,
+    image: np.ndarray,
+    degree: int | None = None,
+    rim_taper: float = DEFAULT_RIM_TAPER,
+    standardise: bool = False,
+) -> WarpView:
     """Return the terms of a fish-eye image or mask through a skynav_sh FisheyeTransform with fill 'zero'."""
     if transform.fill != 'zero':
         raise ValueError(f"warping needs a FisheyeTransform with fill 'zero', not {transform.fill!r}")
@@ -78,8 +84,9 @@ def view_from_fisheye(transform, image: np.ndarray, degree: int | None = None,
     fraction = transform.visibility
     values = np.divide(samples, fraction, out=np.zeros_like(samples), where=fraction > 0)
     taper = rim_weights(transform.grid.theta, transform.theta_max, rim_taper)[:, None]
-    return view_from_samples(transform.grid, values, fraction * taper,
-                             transform.max_degree if degree is None else int(degree), standardise)
+    return view_from_samples(
+        transform.grid, values, fraction * taper, transform.max_degree if degree is None else int(degree), standardise
+    )
 
 
 def cap_fraction(quadrature, theta_max: float) -> np.ndarray:
@@ -90,8 +97,13 @@ def cap_fraction(quadrature, theta_max: float) -> np.ndarray:
     return np.repeat(fraction[:, None], quadrature.n_phi, axis=1)
 
 
-def view_from_coefficients(coefficients: np.ndarray, field_of_view: float, degree: int | None = None,
-                           rim_taper: float = DEFAULT_RIM_TAPER, standardise: bool = False) -> WarpView:
+def view_from_coefficients(
+    coefficients: np.ndarray,
+    field_of_view: float,
+    degree: int | None = None,
+    rim_taper: float = DEFAULT_RIM_TAPER,
+    standardise: bool = False,
+) -> WarpView:
     """Return the terms of a view given as SH coefficients (e.g. /skyline/sh) seen up to field_of_view / 2 (rad)."""
     from skynav_sh.transform import grid
 

@@ -103,9 +103,12 @@ class DegreeTables:
         _, m = degree_order(L)
         # per |m|: flat indices of orders +m and -m (degrees |m|..L), shape (2, L + 1 - |m|); one row for m = 0
         self.order_index = [np.flatnonzero(m == 0)[None]] + [
-            np.stack([np.flatnonzero(m == k), np.flatnonzero(m == -k)]) for k in range(1, L + 1)]
-        self.blocks = [z_translation_blocks(L, float(r)) if r > 0 and (used is None or i in used) else None
-                       for i, r in enumerate(ratios)]
+            np.stack([np.flatnonzero(m == k), np.flatnonzero(m == -k)]) for k in range(1, L + 1)
+        ]
+        self.blocks = [
+            z_translation_blocks(L, float(r)) if r > 0 and (used is None or i in used) else None
+            for i, r in enumerate(ratios)
+        ]
         # T_z of every ratio also as one (n, n) matrix (block-diagonal per order m up to a permutation): a few
         # columns per ratio, as the local search has them, go faster through one product than through L + 1 blocks
         self.dense: list[np.ndarray | None] = [None if b is None else self._dense(b) for b in self.blocks]
@@ -160,13 +163,20 @@ class WarpingTables:
         L = settings.coarse_degree
         self.azimuth_cos, self.azimuth_sin, self.partner = z_factors(L, -self.azimuths)  # (n, n_az)
         self.ring_cos, self.ring_sin, _ = z_factors(L, -self.polar)  # (n, n_rings)
-        self.yaw = self.step * np.where(np.arange(settings.azimuth_steps) > settings.azimuth_steps // 2,
-                                        np.arange(settings.azimuth_steps) - settings.azimuth_steps,
-                                        np.arange(settings.azimuth_steps))  # rad, in (-pi, pi]
+        self.yaw = self.step * np.where(
+            np.arange(settings.azimuth_steps) > settings.azimuth_steps // 2,
+            np.arange(settings.azimuth_steps) - settings.azimuth_steps,
+            np.arange(settings.azimuth_steps),
+        )  # rad, in (-pi, pi]
         sin_polar = np.sin(self.polar)[:, None]
-        self.ring_directions = np.stack(np.broadcast_arrays(
-            sin_polar * np.cos(self.azimuths), sin_polar * np.sin(self.azimuths),
-            np.cos(self.polar)[:, None] + 0 * self.azimuths), -1)  # (n_rings, n_az, 3), current camera_link
+        self.ring_directions = np.stack(
+            np.broadcast_arrays(
+                sin_polar * np.cos(self.azimuths),
+                sin_polar * np.sin(self.azimuths),
+                np.cos(self.polar)[:, None] + 0 * self.azimuths,
+            ),
+            -1,
+        )  # (n_rings, n_az, 3), current camera_link
         cap = min(settings.max_tilt, settings.max_relative_tilt)
         self.tilts = tilt_hypotheses(cap, settings.tilt_step)  # (K, 3, 3)
 
@@ -174,10 +184,10 @@ class WarpingTables:
 def tilt_hypotheses(max_tilt: float, step: float) -> np.ndarray:
     """Return turns T (K, 3, 3) about horizontal axes taking +z to a near-uniform cap of points within max_tilt."""
     cap_area = 2 * np.pi * (1 - np.cos(max_tilt))
-    count = max(1, int(round(cap_area / step ** 2)))
+    count = max(1, int(round(cap_area / step**2)))
     k = np.arange(count) + 0.5
     z = 1 - k / count * (1 - np.cos(max_tilt))  # Fibonacci points, equal area in cos(theta)
-    azimuth = np.pi * (1 + 5 ** 0.5) * k
+    azimuth = np.pi * (1 + 5**0.5) * k
     tilt = np.arccos(z)
     axis_azimuth = azimuth + np.pi / 2  # the horizontal axis z x p
     c, s_ = np.cos(tilt), np.sin(tilt)
@@ -228,16 +238,21 @@ def _pair(c: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _ring_frames(tables: WarpingTables, stack: np.ndarray) -> np.ndarray:
     """Return Ry(-theta_i) Rz(-phi_j) stack for every ring i and azimuth j: stack (n, k) -> (n, k, rings, n_az)."""
-    z = (tables.azimuth_cos[:, None] * stack[:, :, None]
-         + tables.azimuth_sin[:, None] * stack[tables.partner][:, :, None])  # Z(-phi_j)
+    z = (
+        tables.azimuth_cos[:, None] * stack[:, :, None]
+        + tables.azimuth_sin[:, None] * stack[tables.partner][:, :, None]
+    )  # Z(-phi_j)
     u = apply_sparse(tables.coarse.backward, z)  # J^T, (n, k, n_az)
-    y = (tables.ring_cos[:, None, :, None] * u[:, :, None]
-         + tables.ring_sin[:, None, :, None] * u[tables.partner][:, :, None])  # Z(-theta_i)
+    y = (
+        tables.ring_cos[:, None, :, None] * u[:, :, None]
+        + tables.ring_sin[:, None, :, None] * u[tables.partner][:, :, None]
+    )  # Z(-theta_i)
     return apply_sparse(tables.coarse.forward, y)  # J
 
 
-def coarse_costs(tables: WarpingTables, current: np.ndarray, snapshot_turned: np.ndarray) \
-        -> tuple[np.ndarray, np.ndarray]:
+def coarse_costs(
+    tables: WarpingTables, current: np.ndarray, snapshot_turned: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Return costs [ratio slot, ring, azimuth j, yaw q] and no-translation costs [q] on the coarse grid.
 
     current: terms (3, n) of the current view; snapshot_turned: the snapshot's terms turned by R0^T into the
@@ -256,11 +271,11 @@ def coarse_costs(tables: WarpingTables, current: np.ndarray, snapshot_turned: np
         left, _ = _pair(c, b)
         left = np.ascontiguousarray(left.transpose(2, 3, 1, 0)).reshape(n_rings, n_az, 3 * n)
         num = left @ right
-        den = left[..., 2 * n:] @ b0
+        den = left[..., 2 * n :] @ b0
         costs.append(np.take_along_axis(_costs(num, den, floor), shift[None], axis=-1))
     # no translation: the same for every direction; one azimuth of the first ring suffices
     left0 = _pair(a[..., 0, :1], b)[0].transpose(2, 1, 0).reshape(1, 3 * n)
-    still = _costs(left0 @ right[0], left0[:, 2 * n:] @ b0[0], floor)[0]
+    still = _costs(left0 @ right[0], left0[:, 2 * n :] @ b0[0], floor)[0]
     return np.stack(costs), still
 
 
@@ -276,21 +291,46 @@ def _direction_frames(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return theta, phi, r
 
 
-def hypothesis_costs(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, directions: np.ndarray,
-                     ratio_indices: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+def hypothesis_costs(
+    tables: DegreeTables,
+    current: np.ndarray,
+    snapshot: np.ndarray,
+    directions: np.ndarray,
+    ratio_indices: np.ndarray,
+    rotations: np.ndarray,
+) -> np.ndarray:
     """Return the masked costs of hypotheses: unit directions (M, 3), ratio indices (M,), rotations (M, 3, 3).
 
     current, snapshot: terms (3, n) in their own camera_link; the prediction is rotate(translate(current, tau), R).
     """
     m = len(directions)
     rows = np.arange(m)
-    return paired_costs(tables, current, snapshot, np.asarray(directions, dtype=float), rows,
-                        np.asarray(ratio_indices, dtype=int), rows, np.asarray(rotations, dtype=float), rows, rows)
+    return paired_costs(
+        tables,
+        current,
+        snapshot,
+        np.asarray(directions, dtype=float),
+        rows,
+        np.asarray(ratio_indices, dtype=int),
+        rows,
+        np.asarray(rotations, dtype=float),
+        rows,
+        rows,
+    )
 
 
-def paired_costs(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, directions: np.ndarray,
-                 warp_direction: np.ndarray, warp_ratio: np.ndarray, turn_direction: np.ndarray,
-                 turn_rotation: np.ndarray, warp_of: np.ndarray, turn_of: np.ndarray) -> np.ndarray:
+def paired_costs(
+    tables: DegreeTables,
+    current: np.ndarray,
+    snapshot: np.ndarray,
+    directions: np.ndarray,
+    warp_direction: np.ndarray,
+    warp_ratio: np.ndarray,
+    turn_direction: np.ndarray,
+    turn_rotation: np.ndarray,
+    warp_of: np.ndarray,
+    turn_of: np.ndarray,
+) -> np.ndarray:
     """Return masked costs of hypotheses that share work: each pairs one warped current view with one turned snapshot.
 
     directions (P, 3): distinct unit directions (current camera_link); warps: (direction index, ratio index) per
@@ -302,14 +342,21 @@ def paired_costs(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray
     # one batch of rotations: the current view by R_u^T for every direction, the snapshot by R_u^T R^T per turn
     alpha, beta, gamma = zyz_angles(np.swapaxes(frame[turn_direction], 1, 2) @ np.swapaxes(turn_rotation, 1, 2))
     n_turns = len(turn_rotation)
-    stack = np.concatenate([np.broadcast_to(current.T[:, :, None], (tables.n, 3, p)),
-                            np.broadcast_to(snapshot.T[:, :, None], (tables.n, 3, n_turns))], axis=-1)
-    turned = rotate_zyz_columns(stack, np.concatenate([np.zeros(p), alpha]), np.concatenate([-theta, beta]),
-                                np.concatenate([-phi, gamma]))
+    stack = np.concatenate(
+        [
+            np.broadcast_to(current.T[:, :, None], (tables.n, 3, p)),
+            np.broadcast_to(snapshot.T[:, :, None], (tables.n, 3, n_turns)),
+        ],
+        axis=-1,
+    )
+    turned = rotate_zyz_columns(
+        stack, np.concatenate([np.zeros(p), alpha]), np.concatenate([-theta, beta]), np.concatenate([-phi, gamma])
+    )
     warped = tables.translate_z_columns(turned[..., warp_direction], warp_ratio)
     left, right = _pair(warped[..., warp_of], turned[..., p:][..., turn_of])
-    return _costs(np.einsum('ktm,ktm->m', left, right), np.einsum('km,km->m', left[:, 2], right[:, 0]),
-                  _overlap_floor(snapshot))
+    return _costs(
+        np.einsum('ktm,ktm->m', left, right), np.einsum('km,km->m', left[:, 2], right[:, 0]), _overlap_floor(snapshot)
+    )
 
 
 def _axis_turns(angle: float) -> np.ndarray:
@@ -317,8 +364,11 @@ def _axis_turns(angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     out = []
     for t in (s, -s):
-        out += [[[1, 0, 0], [0, c, -t], [0, t, c]], [[c, 0, t], [0, 1, 0], [-t, 0, c]],
-                [[c, -t, 0], [t, c, 0], [0, 0, 1]]]
+        out += [
+            [[1, 0, 0], [0, c, -t], [0, t, c]],
+            [[c, 0, t], [0, 1, 0], [-t, 0, c]],
+            [[c, -t, 0], [t, c, 0], [0, 0, 1]],
+        ]
     return np.array(out, dtype=float)
 
 
@@ -347,9 +397,17 @@ class Hypothesis:
     start: np.ndarray | None = None  # the start rotation R0 of the coarse search it came from
 
 
-def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypotheses: list[Hypothesis],
-           n_ratios: int, max_iterations: int, min_step: float, race_iterations: int | None = None,
-           max_tilt: float | None = None) -> int:
+def refine(
+    tables: DegreeTables,
+    current: np.ndarray,
+    snapshot: np.ndarray,
+    hypotheses: list[Hypothesis],
+    n_ratios: int,
+    max_iterations: int,
+    min_step: float,
+    race_iterations: int | None = None,
+    max_tilt: float | None = None,
+) -> int:
     """Refine hypotheses in place by a pattern search, all moves of a step in one batch; return the costs spent.
 
     Moves of a hypothesis: its direction turned by +-step about two tangent axes, its ratio index +-1, its rotation
@@ -394,8 +452,18 @@ def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypo
                         moves.append((h, h.direction, h.ratio + delta, h.rotation))
         warp_direction, warp_ratio = (np.array(v) for v in zip(*warps))
         pair_warp, pair_turn = (np.array(v) for v in zip(*pairs))
-        costs = paired_costs(tables, current, snapshot, np.array(directions), warp_direction, warp_ratio,
-                             np.array([t[0] for t in turns]), np.array([t[1] for t in turns]), pair_warp, pair_turn)
+        costs = paired_costs(
+            tables,
+            current,
+            snapshot,
+            np.array(directions),
+            warp_direction,
+            warp_ratio,
+            np.array([t[0] for t in turns]),
+            np.array([t[1] for t in turns]),
+            pair_warp,
+            pair_turn,
+        )
         spent += len(costs)
         if max_tilt is not None:  # a turn beyond the tilt bound is no move
             costs = np.where([within_tilt(move[3], max_tilt) for move in moves], costs, np.inf)
@@ -412,16 +480,18 @@ def refine(tables: DegreeTables, current: np.ndarray, snapshot: np.ndarray, hypo
     return spent
 
 
-def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, rotation: np.ndarray) \
-        -> tuple[np.ndarray, float]:
+def align_rotation(
+    tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, rotation: np.ndarray
+) -> tuple[np.ndarray, float]:
     """Return the best pure rotation R = rotation T Rz(psi) over the tilt cap T and a turn of yaw psi, and its cost.
 
     current, snapshot: terms (3, n) at the coarse degree in their own camera_link; no translation (a rotational
     pre-alignment, like a visual compass, for when no compass estimate is given).
     """
     turns = rotation[None] @ tables.tilts  # R0 T, (K, 3, 3)
-    c = rotate_columns(np.broadcast_to(snapshot.T[:, :, None], snapshot.T.shape + (len(turns),)),
-                       np.swapaxes(turns, 1, 2))  # the snapshot turned by (R0 T)^T: (n, 3, K)
+    c = rotate_columns(
+        np.broadcast_to(snapshot.T[:, :, None], snapshot.T.shape + (len(turns),)), np.swapaxes(turns, 1, 2)
+    )  # the snapshot turned by (R0 T)^T: (n, 3, K)
     # <a, Z(-psi) c> = sum over |m| of cos(|m| psi) P_|m| + sin(|m| psi) Q_|m| with
     # P = sum a_i c_i and Q = sum sign(m_i) a_i c_partner(i) over the indices of that |m|
     order, sign, partner = z_rotation_index(tables.coarse.degree)
@@ -440,8 +510,13 @@ def align_rotation(tables: WarpingTables, current: np.ndarray, snapshot: np.ndar
     return turns[k] @ yaw_matrix(tables.azimuths[q]), float(costs[k, q])
 
 
-def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray | None = None,
-                     settings: WarpingSettings = WarpingSettings(), full_turn: bool | None = None) -> WarpResult:
+def warp_home_vector(
+    current: WarpView,
+    snapshot: WarpView,
+    rotation: np.ndarray | None = None,
+    settings: WarpingSettings = WarpingSettings(),
+    full_turn: bool | None = None,
+) -> WarpResult:
     """Return the 3D-warping home vector (current camera_link) to the snapshot's place, the rotation R and costs.
 
     rotation: start R (d_snapshot = R d_current), e.g. a compass estimate, refined in the search; None: start from a
@@ -451,7 +526,7 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     tables = warping_tables(settings)
     L, Lc = settings.degree, settings.coarse_degree
     if min(current.degree, snapshot.degree) < L:
-        raise ValueError(f'views of degree {min(current.degree, snapshot.degree)} < the settings\' degree {L}')
+        raise ValueError(f"views of degree {min(current.degree, snapshot.degree)} < the settings' degree {L}")
     x, s = current.truncated(L).terms, snapshot.truncated(L).terms
     full = False if full_turn is None else bool(full_turn)
     nc = n_coefficients(Lc)
@@ -473,25 +548,55 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     # the best coarse hypotheses of every start go on (each start's at least two steps apart); the race of the
     # local search soon leaves the best one
     everyone = hypotheses + [reference]
-    start = hypothesis_costs(tables.fine, x, s, np.array([h.direction for h in everyone]),
-                             np.array([h.ratio for h in everyone]), np.array([h.rotation for h in everyone]))
+    start = hypothesis_costs(
+        tables.fine,
+        x,
+        s,
+        np.array([h.direction for h in everyone]),
+        np.array([h.ratio for h in everyone]),
+        np.array([h.rotation for h in everyone]),
+    )
     for h, cost in zip(everyone, start):
         h.cost = float(cost)
-    evaluations += len(start) + refine(tables.fine, x, s, everyone, len(tables.ratios), settings.max_iterations,
-                                       settings.min_step, settings.race_iterations, settings.max_relative_tilt)
+    evaluations += len(start) + refine(
+        tables.fine,
+        x,
+        s,
+        everyone,
+        len(tables.ratios),
+        settings.max_iterations,
+        settings.min_step,
+        settings.race_iterations,
+        settings.max_relative_tilt,
+    )
     # the no-translation reference once more, from the best translating hypothesis's rotation and finer: a pure
     # rotation must not look like a step only because the reference stopped a fraction of a degree short (only
     # needed near the confidence threshold; far from it the decision stands)
     best_moving = min(hypotheses, key=lambda h: h.cost) if hypotheses else None
     if best_moving is not None and best_moving.cost > (1 - 3 * settings.confidence_threshold) * reference.cost:
-        second = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, best_moving.rotation, np.inf, settings.min_step,
-                            translate=False, start=best_moving.start)
-        second.cost = float(hypothesis_costs(tables.fine, x, s, second.direction[None], np.array([0]),
-                                             second.rotation[None])[0])
+        second = Hypothesis(
+            np.array([0.0, 0.0, 1.0]),
+            0,
+            best_moving.rotation,
+            np.inf,
+            settings.min_step,
+            translate=False,
+            start=best_moving.start,
+        )
+        second.cost = float(
+            hypothesis_costs(tables.fine, x, s, second.direction[None], np.array([0]), second.rotation[None])[0]
+        )
         reference.done, reference.step = False, max(reference.step, settings.min_step)
-        evaluations += 1 + refine(tables.fine, x, s, [reference, second], len(tables.ratios),
-                                  settings.max_iterations, 0.25 * settings.min_step,
-                                  max_tilt=settings.max_relative_tilt)
+        evaluations += 1 + refine(
+            tables.fine,
+            x,
+            s,
+            [reference, second],
+            len(tables.ratios),
+            settings.max_iterations,
+            0.25 * settings.min_step,
+            max_tilt=settings.max_relative_tilt,
+        )
         reference = min([reference, second], key=lambda h: h.cost)
     best = min(hypotheses, key=lambda h: h.cost) if hypotheses else reference
     if reference.cost <= best.cost:  # no step explains the views better than a pure rotation
@@ -499,15 +604,23 @@ def warp_home_vector(current: WarpView, snapshot: WarpView, rotation: np.ndarray
     usable = np.isfinite(best.cost) and np.isfinite(reference.cost) and reference.cost > 0  # views overlap
     confidence = float(np.clip(1.0 - best.cost / reference.cost, 0.0, 1.0)) if usable else 0.0
     confident = bool(confidence >= settings.confidence_threshold and best.ratio > 0)
-    return WarpResult(direction=best.direction.copy() if confident else np.zeros(3),
-                      best_direction=best.direction.copy(), rotation=np.array(best.rotation),
-                      distance_ratio=float(tables.ratios[best.ratio]), residual=float(best.cost),
-                      residual_no_translation=float(reference.cost), confidence=confidence, confident=confident,
-                      evaluations=int(evaluations), start_rotation=best.start)
+    return WarpResult(
+        direction=best.direction.copy() if confident else np.zeros(3),
+        best_direction=best.direction.copy(),
+        rotation=np.array(best.rotation),
+        distance_ratio=float(tables.ratios[best.ratio]),
+        residual=float(best.cost),
+        residual_no_translation=float(reference.cost),
+        confidence=confidence,
+        confident=confident,
+        evaluations=int(evaluations),
+        start_rotation=best.start,
+    )
 
 
-def _coarse_hypotheses(tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, r0: np.ndarray,
-                       full: bool) -> tuple[list[Hypothesis], Hypothesis, int]:
+def _coarse_hypotheses(
+    tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, r0: np.ndarray, full: bool
+) -> tuple[list[Hypothesis], Hypothesis, int]:
     """Return the best coarse hypotheses from start rotation r0 and the best pure rotation, both with their coarse
     cost, and the number of costs spent; current, snapshot: terms (3, n) at the coarse degree."""
     from skynav_sh.rotation import rotate
@@ -531,9 +644,24 @@ def _coarse_hypotheses(tables: WarpingTables, current: np.ndarray, snapshot: np.
         if any(np.dot(u, h.direction) > np.cos(1.5 * tables.step) for h in hypotheses):
             continue
         slot, q = np.unravel_index(best_cell[ring, j], (n_slots, n_az))
-        hypotheses.append(Hypothesis(u.copy(), settings.coarse_ratios[slot], r0 @ yaw_matrix(tables.yaw[q]),
-                                     float(best_cost.flat[index]), 0.5 * tables.step, start=r0))
+        hypotheses.append(
+            Hypothesis(
+                u.copy(),
+                settings.coarse_ratios[slot],
+                r0 @ yaw_matrix(tables.yaw[q]),
+                float(best_cost.flat[index]),
+                0.5 * tables.step,
+                start=r0,
+            )
+        )
     q0 = int(np.argmin(still))
-    reference = Hypothesis(np.array([0.0, 0.0, 1.0]), 0, r0 @ yaw_matrix(tables.yaw[q0]), float(still[q0]),
-                           0.5 * tables.step, translate=False, start=r0)
+    reference = Hypothesis(
+        np.array([0.0, 0.0, 1.0]),
+        0,
+        r0 @ yaw_matrix(tables.yaw[q0]),
+        float(still[q0]),
+        0.5 * tables.step,
+        translate=False,
+        start=r0,
+    )
     return hypotheses, reference, costs.size + still.size

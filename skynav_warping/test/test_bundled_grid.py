@@ -66,9 +66,11 @@ def grid(request):
 @pytest.fixture(scope='module')
 def truth(grid):
     positions, quaternions = grid.positions, grid.quaternions
-    return {'home': true_home_directions(positions[1:], quaternions[1:], positions[0]),
-            'rotation': true_rotations(quaternions[0], quaternions[1:]),
-            'distance': np.linalg.norm(positions[1:] - positions[0], axis=1)}
+    return {
+        'home': true_home_directions(positions[1:], quaternions[1:], positions[0]),
+        'rotation': true_rotations(quaternions[0], quaternions[1:]),
+        'distance': np.linalg.norm(positions[1:] - positions[0], axis=1),
+    }
 
 
 @pytest.fixture(scope='module')
@@ -126,8 +128,10 @@ def test_a_compass_flipped_by_half_a_turn_is_overruled_by_the_pre_alignment(esti
 def test_baselines_run_and_3d_warping_beats_min_warping(grid, truth, estimates):
     unwrapper = PanoramaUnwrapper(grid.camera)
     bands = [unwrapper(mask) for mask in grid.masks]
-    results = {'2d': [warping_2d(bands[0], band) for band in bands[1:]],
-               'min': [min_warping(bands[0], band, unwrapper.elevations) for band in bands[1:]]}
+    results = {
+        '2d': [warping_2d(bands[0], band) for band in bands[1:]],
+        'min': [min_warping(bands[0], band, unwrapper.elevations) for band in bands[1:]],
+    }
     medians = {}
     for method, found in results.items():
         directions = np.array([r.direction for r in found])

@@ -43,9 +43,11 @@ def evaluation(recording):
 def one_snapshot_map(recording, tmp_path):
     """A map whose snapshot 0 is the recording's snapshot frame, 1 a copy at an unrecorded stamp, 2 without pose."""
     first = recording.views[0]
-    snapshots = [Snapshot(0, first.stamp, first.coefficients, first.pose),
-                 Snapshot(1, first.stamp + 1, first.coefficients, first.pose),
-                 Snapshot(2, first.stamp + 2, first.coefficients, None)]
+    snapshots = [
+        Snapshot(0, first.stamp, first.coefficients, first.pose),
+        Snapshot(1, first.stamp + 1, first.coefficients, first.pose),
+        Snapshot(2, first.stamp + 2, first.coefficients, None),
+    ]
     store = MapStore.build(tmp_path / 'park.db', 'park', first.max_degree, snapshots)
     yield store
     store.close()
@@ -61,8 +63,9 @@ def test_3d_warping_meets_the_target_and_beats_min_warping(evaluation):
 
 
 def test_on_bumpy_ground_3d_warping_keeps_the_target_and_the_planar_methods_break():
-    bumpy = evaluate_homing(recording_views(BAG.with_name('synthetic_park_bumpy_homing.mcap'), images=False,
-                                            masks=True))
+    bumpy = evaluate_homing(
+        recording_views(BAG.with_name('synthetic_park_bumpy_homing.mcap'), images=False, masks=True)
+    )
     cells = bumpy.statistics('3d-warping')
     assert 'tilt 10-20 deg' in cells and cells['tilt 10-20 deg'][0] >= 20
     assert cells['tilt 10-20 deg'][1] < 15.0
@@ -119,8 +122,17 @@ def test_map_snapshots(recording, evaluation, one_snapshot_map):
 
 def test_cli_prints_the_table_and_saves_the_plot(one_snapshot_map, tmp_path):
     plots = tmp_path / 'plots'
-    result = run_skynav('eval', 'homing', str(BAG), '--map', str(one_snapshot_map.path), '--methods', '2d-warping',
-                        '--plots', str(plots))
+    result = run_skynav(
+        'eval',
+        'homing',
+        str(BAG),
+        '--map',
+        str(one_snapshot_map.path),
+        '--methods',
+        '2d-warping',
+        '--plots',
+        str(plots),
+    )
     assert result.returncode == 0, result.stderr
     assert "40 synthetic views homing to map 'park' snapshot 0" in result.stdout
     rows = [line for line in result.stdout.splitlines() if line.startswith('2d-warping')]
@@ -148,8 +160,16 @@ def _write_pose_only_bag(path: Path) -> None:
                 writer.write(topic, t, typestore().serialize_cdr(message, msgtype))
 
 
-@pytest.mark.parametrize('case, code', [('missing bag', 1), ('no camera topics', 1), ('unknown method', 2),
-                                        ('corrupt map', 1), ('snapshot without pose', 1)])
+@pytest.mark.parametrize(
+    'case, code',
+    [
+        ('missing bag', 1),
+        ('no camera topics', 1),
+        ('unknown method', 2),
+        ('corrupt map', 1),
+        ('snapshot without pose', 1),
+    ],
+)
 def test_bad_input_gives_one_line(case, code, one_snapshot_map, tmp_path, capsys):
     arguments = [str(BAG), '--plots', str(tmp_path / 'plots')]
     if case == 'missing bag':

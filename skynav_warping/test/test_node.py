@@ -55,8 +55,14 @@ def snapshot(recording):
 def home_map(tmp_path_factory, snapshot):
     """A one-snapshot map of the snapshot frame."""
     path = tmp_path_factory.mktemp('maps') / 'home.db'
-    build_map(path, 'home', snapshot.max_degree, [Snapshot(0, snapshot.stamp, snapshot.coefficients, snapshot.pose)],
-              created_from='test', overwrite=True)
+    build_map(
+        path,
+        'home',
+        snapshot.max_degree,
+        [Snapshot(0, snapshot.stamp, snapshot.coefficients, snapshot.pose)],
+        created_from='test',
+        overwrite=True,
+    )
     return path
 
 
@@ -65,16 +71,26 @@ def route_map(tmp_path_factory, recording):
     """A map of five snapshots (the first grid views) to follow as a route."""
     path = tmp_path_factory.mktemp('maps') / 'route.db'
     views = [v for v in recording.views if v.label == 'grid'][:5]
-    build_map(path, 'route', views[0].max_degree, [Snapshot(k, v.stamp, v.coefficients, v.pose)
-                                                   for k, v in enumerate(views)], created_from='test', overwrite=True)
+    build_map(
+        path,
+        'route',
+        views[0].max_degree,
+        [Snapshot(k, v.stamp, v.coefficients, v.pose) for k, v in enumerate(views)],
+        created_from='test',
+        overwrite=True,
+    )
     return path
 
 
 def sh_message(view, field_of_view, stamp=None, coefficients=None, max_degree=None, fill='zero'):
     """Return a view as the SH node publishes it (its own stamp unless `stamp` is given)."""
     coefficients = view.coefficients if coefficients is None else np.asarray(coefficients)
-    message = ShCoefficients(max_degree=view.max_degree if max_degree is None else max_degree,
-                             coefficients=coefficients.tolist(), fill=fill, field_of_view=float(field_of_view))
+    message = ShCoefficients(
+        max_degree=view.max_degree if max_degree is None else max_degree,
+        coefficients=coefficients.tolist(),
+        fill=fill,
+        field_of_view=float(field_of_view),
+    )
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp if stamp is None else stamp, 10**9)
     message.header.frame_id = 'camera_link'
     return message
@@ -161,7 +177,8 @@ def with_compass(recording, home_map):
             maps=[node.get_parameter('map').value for node in graph.nodes],
             use_compass=warping.get_parameter('use_compass').value,
             estimates_received=warping.received[COMPASS_TOPIC],
-            problems=sum(compass.rejected.values()) + sum(warping.rejected.values()) + compass.errors + warping.errors)
+            problems=sum(compass.rejected.values()) + sum(warping.rejected.values()) + compass.errors + warping.errors,
+        )
 
 
 def test_home_vectors_with_the_compass_point_home(recording, snapshot, home_map, with_compass):
@@ -275,8 +292,15 @@ def test_unusable_parameters_fall_back_to_the_defaults(home_map):
         node = graph.nodes[0]
         assert node.rejected['parameters'] == 1
         # the defaults are the shipped ones (route following: the snapshot six beyond the match)
-        assert node.parameter_values() == {'map': '', 'target': 'next', 'index': 0, 'lookahead': 6,
-                                           'use_compass': True, 'max_degree': 16, 'max_tilt_deg': 45.0}
+        assert node.parameter_values() == {
+            'map': '',
+            'target': 'next',
+            'index': 0,
+            'lookahead': 6,
+            'use_compass': True,
+            'max_degree': 16,
+            'max_tilt_deg': 45.0,
+        }
         refused = node.set_parameters([Parameter('lookahead', value=-1)])[0]
         assert not refused.successful and 'lookahead' in refused.reason
         assert node.get_parameter('lookahead').value == 6
@@ -312,8 +336,9 @@ def test_a_match_beyond_the_map_is_rejected(recording, route_map):
         assert node.errors == 0 and node.rejected == {'match_beyond_map': 1}
 
 
-def test_views_and_snapshots_without_a_skyline_home_with_residual_1_without_waiting(recording, snapshot, home_map,
-                                                                                    tmp_path):
+def test_views_and_snapshots_without_a_skyline_home_with_residual_1_without_waiting(
+    recording, snapshot, home_map, tmp_path
+):
     from skynav_compass.views import cap_visibility
 
     fov = recording.camera.field_of_view

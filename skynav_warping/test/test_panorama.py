@@ -21,8 +21,11 @@ def painted(condition) -> np.ndarray:
 def test_columns_are_azimuths_and_rows_elevations():
     unwrapper = PanoramaUnwrapper(CAMERA, n_azimuth=72, n_elevation=25)
     # a patch from azimuth 90 to 135 degrees (robot-left: image down) and elevation 10 to 30 degrees
-    image = painted(lambda theta, phi: (phi > np.radians(90)) & (phi < np.radians(135))
-                    & (theta > np.radians(60)) & (theta < np.radians(80)))
+    image = painted(
+        lambda theta, phi: (
+            (phi > np.radians(90)) & (phi < np.radians(135)) & (theta > np.radians(60)) & (theta < np.radians(80))
+        )
+    )
     band = unwrapper(image)
     columns = np.flatnonzero(band.max(axis=0) > 0.9)
     # 5-degree columns centred on 95 .. 130 degrees are inside; those centred on the patch's edges (90 and 135

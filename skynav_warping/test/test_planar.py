@@ -42,8 +42,10 @@ def test_direction_and_rotation_conventions(world, snapshot, method):
     assert azimuth_error(result.direction, np.pi / 2) < 30.0  # a convention slip would cost 90 or 180 degrees
     assert result.direction[2] == 0.0 and np.linalg.norm(result.direction) == pytest.approx(1.0)
     assert abs(np.degrees(np.angle(np.exp(1j * (result.turn - np.pi / 2))))) <= 10.0
-    np.testing.assert_allclose(result.rotation[:2, :2], [[np.cos(result.turn), -np.sin(result.turn)],
-                                                         [np.sin(result.turn), np.cos(result.turn)]])
+    np.testing.assert_allclose(
+        result.rotation[:2, :2],
+        [[np.cos(result.turn), -np.sin(result.turn)], [np.sin(result.turn), np.cos(result.turn)]],
+    )
     assert result.confidence > 0.1
 
 

@@ -64,7 +64,7 @@ def test_fisheye_and_coefficient_paths_agree():
     camera = EquidistantCamera.for_field_of_view(320, 240, np.radians(200))
     transform = FisheyeTransform(camera, 16, fill='zero')
     v, u = np.mgrid[0:240, 0:320]
-    mask = ((u - 160.0) ** 2 + (v - 100.0) ** 2 < 60.0 ** 2).astype(np.uint8) * 255  # a round patch of sky
+    mask = ((u - 160.0) ** 2 + (v - 100.0) ** 2 < 60.0**2).astype(np.uint8) * 255  # a round patch of sky
     from_image = view_from_fisheye(transform, mask)
     from_coefficients = view_from_coefficients(transform.coefficients(mask), camera.field_of_view, 16)
     # v agrees (same cap, same taper); v f and v f^2 of the coefficient path carry the ringing of the band-limited

@@ -52,8 +52,14 @@ def test_a_view_moved_along_plus_x_homes_along_minus_x(scene, snapshot):
     # and on the costs themselves: predicting the snapshot by a step along -x beats the same step along +x
     tables = warping_tables(SETTINGS).fine
     ratio = int(np.argmin(np.abs(np.asarray(SETTINGS.ratios) - 0.3)))
-    costs = hypothesis_costs(tables, current.terms, snapshot.terms, np.array([[-1.0, 0, 0], [1.0, 0, 0]]),
-                             np.array([ratio, ratio]), np.stack([np.eye(3), np.eye(3)]))
+    costs = hypothesis_costs(
+        tables,
+        current.terms,
+        snapshot.terms,
+        np.array([[-1.0, 0, 0], [1.0, 0, 0]]),
+        np.array([ratio, ratio]),
+        np.stack([np.eye(3), np.eye(3)]),
+    )
     assert costs[0] < 0.5 * costs[1]
 
 
@@ -63,8 +69,9 @@ def random_steps(count: int, seed: int):
     for _ in range(count):
         angle, size = rng.uniform(0, 2 * np.pi), rng.uniform(0.15, 0.4)
         position = np.array([size * np.cos(angle), size * np.sin(angle), rng.uniform(-0.03, 0.03)])
-        turn = Rotation.from_euler('zyx', [rng.uniform(0, 360), rng.uniform(-15, 15), rng.uniform(-15, 15)],
-                                   degrees=True)
+        turn = Rotation.from_euler(
+            'zyx', [rng.uniform(0, 360), rng.uniform(-15, 15), rng.uniform(-15, 15)], degrees=True
+        )
         yield position, turn.as_matrix()
 
 
@@ -85,8 +92,9 @@ def test_known_steps_are_homed(scene, snapshot, compass):
 def test_pure_rotation_gives_no_confident_home_vector(scene, snapshot):
     rng = np.random.default_rng(11)
     for _ in range(3):
-        turn = Rotation.from_euler('zyx', [rng.uniform(0, 360), rng.uniform(-25, 25), rng.uniform(-25, 25)],
-                                   degrees=True).as_matrix()
+        turn = Rotation.from_euler(
+            'zyx', [rng.uniform(0, 360), rng.uniform(-25, 25), rng.uniform(-25, 25)], degrees=True
+        ).as_matrix()
         current = render_equal_distance_view(scene, np.zeros(3), turn, degree=SETTINGS.degree)
         for rotation in (turn, None):
             result = warp_home_vector(current, snapshot, rotation)
@@ -106,9 +114,12 @@ def test_coarse_grid_costs_equal_single_hypothesis_costs(scene, snapshot):
 
     tables = warping_tables(SETTINGS)
     nc = n_coefficients(SETTINGS.coarse_degree)
-    current = render_equal_distance_view(scene, np.array([0.1, 0.25, 0.0]),
-                                         Rotation.from_euler('z', 50, degrees=True).as_matrix(),
-                                         degree=SETTINGS.degree)
+    current = render_equal_distance_view(
+        scene,
+        np.array([0.1, 0.25, 0.0]),
+        Rotation.from_euler('z', 50, degrees=True).as_matrix(),
+        degree=SETTINGS.degree,
+    )
     start = Rotation.from_euler('zx', [40.0, 5.0], degrees=True).as_matrix()
     x, s = current.terms[:, :nc], snapshot.terms[:, :nc]
     costs, still = coarse_costs(tables, x, rotate(s, start.T))
@@ -117,8 +128,9 @@ def test_coarse_grid_costs_equal_single_hypothesis_costs(scene, snapshot):
         slot, ring, j, q = (rng.integers(n) for n in costs.shape)
         direction = tables.ring_directions[ring, j]
         rotation = start @ yaw_matrix(tables.yaw[q])
-        single = hypothesis_costs(tables.coarse, x, s, direction[None], np.array([SETTINGS.coarse_ratios[slot]]),
-                                  rotation[None])
+        single = hypothesis_costs(
+            tables.coarse, x, s, direction[None], np.array([SETTINGS.coarse_ratios[slot]]), rotation[None]
+        )
         assert single[0] == pytest.approx(costs[slot, ring, j, q], rel=1e-9)
         no_step = hypothesis_costs(tables.coarse, x, s, direction[None], np.array([0]), rotation[None])
         assert no_step[0] == pytest.approx(still[q], rel=1e-9)
@@ -130,8 +142,14 @@ def test_hypotheses_that_hardly_overlap_the_snapshot_are_refused(scene, snapshot
     tables = warping_tables(SETTINGS).fine
     current = render_equal_distance_view(scene, np.array([0.2, 0.0, 0.0]), np.eye(3), degree=SETTINGS.degree)
     upside_down = Rotation.from_euler('x', 180, degrees=True).as_matrix()
-    costs = hypothesis_costs(tables, current.terms, snapshot.terms, np.array([[1.0, 0, 0], [-1.0, 0, 0]]),
-                             np.array([6, 6]), np.stack([upside_down, np.eye(3)]))
+    costs = hypothesis_costs(
+        tables,
+        current.terms,
+        snapshot.terms,
+        np.array([[1.0, 0, 0], [-1.0, 0, 0]]),
+        np.array([6, 6]),
+        np.stack([upside_down, np.eye(3)]),
+    )
     assert costs[0] == np.inf and 0.0 <= costs[1] < np.inf
 
 

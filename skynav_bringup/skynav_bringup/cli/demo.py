@@ -33,10 +33,20 @@ HOMING_MISS = 30.0  # deg: a home vector off by more than this is a miss
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav demo`."""
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR', help='output folder')
-    parser.add_argument('--teach', type=Path, default=DEFAULT_TEACH, metavar='BAG',
-                        help=f'teach drive to build the map from (default {DEFAULT_TEACH})')
-    parser.add_argument('--repeat', type=Path, default=DEFAULT_REPEAT, metavar='BAG',
-                        help=f'repeat drive of the same route to run the graph over (default {DEFAULT_REPEAT})')
+    parser.add_argument(
+        '--teach',
+        type=Path,
+        default=DEFAULT_TEACH,
+        metavar='BAG',
+        help=f'teach drive to build the map from (default {DEFAULT_TEACH})',
+    )
+    parser.add_argument(
+        '--repeat',
+        type=Path,
+        default=DEFAULT_REPEAT,
+        metavar='BAG',
+        help=f'repeat drive of the same route to run the graph over (default {DEFAULT_REPEAT})',
+    )
 
 
 def step(title: str, command: list[str]) -> None:
@@ -59,17 +69,23 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     map_file, run_bag = args.out / f'{args.teach.stem}.db', args.out / 'repeat_run.mcap'
     run_bag.unlink(missing_ok=True)
-    step(f'1. a map of the synthetic teach drive {args.teach.name}',
-         ['skynav', 'map', 'build', str(args.teach), '--out', str(map_file), '--overwrite'])
-    step(f'2. the node graph over the synthetic repeat drive {args.repeat.name}, with that map',
-         ['skynav', 'run', str(args.repeat), '--map', str(map_file), '--out', str(run_bag)])
+    step(
+        f'1. a map of the synthetic teach drive {args.teach.name}',
+        ['skynav', 'map', 'build', str(args.teach), '--out', str(map_file), '--overwrite'],
+    )
+    step(
+        f'2. the node graph over the synthetic repeat drive {args.repeat.name}, with that map',
+        ['skynav', 'run', str(args.repeat), '--map', str(map_file), '--out', str(run_bag)],
+    )
     print('\n== 3. what the nodes did, against the ground truth of the recordings')
     rates = skyline_summary(args.repeat, run_bag, args.out / 'skyline_sheet.png')
     poses = ground_truth_poses(args.repeat)
     localization_summary(args.repeat, poses, run_bag, map_file, args.out / 'localization_matches.png')
     navigation_summary(poses, run_bag, map_file)
-    step('4. closed loop: a simulated robot follows the taught route, steered by the nodes',
-         ['skynav', 'sim', 'follow', str(args.teach), '--map', str(map_file), '--out', str(args.out)])
+    step(
+        '4. closed loop: a simulated robot follows the taught route, steered by the nodes',
+        ['skynav', 'sim', 'follow', str(args.teach), '--map', str(map_file), '--out', str(args.out)],
+    )
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
     return 0 if rates else 1
 
@@ -86,8 +102,9 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
     inputs: dict[int, dict] = {}
     camera = None
     with open_bag(recording) as bag:
-        for raw in bag.messages(['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask',
-                                 '/camera/uv/camera_info']):
+        for raw in bag.messages(
+            ['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/camera/uv/camera_info']
+        ):
             message = bag.deserialize(raw)
             if raw.topic == '/camera/uv/camera_info':
                 camera = camera or EquidistantCamera.from_camera_info(message)
@@ -100,18 +117,32 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
             masks[stamp_ns(message.header)] = image_to_array(message)
     circle = camera.image_circle()
     stamps = sorted(inputs)
-    rates = [classification_rate(masks[s], inputs[s]['/ground_truth/mask'], circle) if s in masks else float('nan')
-             for s in stamps]
-    print(f'\nskyline masks against ground truth: {len(masks)} masks for {len(stamps)} frames '
-          '(classification rate %, frame by frame)')
+    rates = [
+        classification_rate(masks[s], inputs[s]['/ground_truth/mask'], circle) if s in masks else float('nan')
+        for s in stamps
+    ]
+    print(
+        f'\nskyline masks against ground truth: {len(masks)} masks for {len(stamps)} frames '
+        '(classification rate %, frame by frame)'
+    )
     for row in range(0, len(rates), 10):
-        print(f'  frames {row:3d}-{min(row + 9, len(rates) - 1):3d}: '
-              + ' '.join(f'{100 * r:5.1f}' for r in rates[row : row + 10]))
+        print(
+            f'  frames {row:3d}-{min(row + 9, len(rates) - 1):3d}: '
+            + ' '.join(f'{100 * r:5.1f}' for r in rates[row : row + 10])
+        )
     valid = [r for r in rates if r == r]
-    print(f'  mean {100 * np.mean(valid):.2f} %, worst {100 * min(valid):.2f} % '
-          f'(frame {int(np.nanargmin(rates))}); frames without a mask: {len(stamps) - len(masks)}')
-    draw_sheet(sheet, [(i, inputs[stamps[i]], masks.get(stamps[i]), rates[i])
-                       for i in np.linspace(0, len(stamps) - 1, 4).round().astype(int)], circle)
+    print(
+        f'  mean {100 * np.mean(valid):.2f} %, worst {100 * min(valid):.2f} % '
+        f'(frame {int(np.nanargmin(rates))}); frames without a mask: {len(stamps) - len(masks)}'
+    )
+    draw_sheet(
+        sheet,
+        [
+            (i, inputs[stamps[i]], masks.get(stamps[i]), rates[i])
+            for i in np.linspace(0, len(stamps) - 1, 4).round().astype(int)
+        ],
+        circle,
+    )
     print(f'  contact sheet: {sheet}')
     return valid
 
@@ -124,8 +155,7 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    figure, axes = plt.subplots(len(frames), 4, figsize=(13, 3.2 * len(frames)), layout='constrained',
-                                squeeze=False)
+    figure, axes = plt.subplots(len(frames), 4, figsize=(13, 3.2 * len(frames)), layout='constrained', squeeze=False)
     for row, (index, parts, mask, rate) in enumerate(frames):
         truth = parts['/ground_truth/mask']
         error = np.zeros(truth.shape + (3,))
@@ -134,9 +164,12 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
             error[(mask == 0) & (truth > 0)] = (0.1, 0.3, 0.9)
             error[(mask > 0) == (truth > 0)] = np.where(truth[(mask > 0) == (truth > 0)][:, None] > 0, 0.85, 0.25)
         error[~circle] = 0
-        panels = [(parts['/camera/uv/image_raw'], 'UV input'), (parts['/camera/green/image_raw'], 'green input'),
-                  (mask if mask is not None else np.zeros_like(truth), '/skyline/mask'),
-                  (error, f'vs ground truth: {100 * rate:.1f} % right\nred: false sky, blue: false ground')]
+        panels = [
+            (parts['/camera/uv/image_raw'], 'UV input'),
+            (parts['/camera/green/image_raw'], 'green input'),
+            (mask if mask is not None else np.zeros_like(truth), '/skyline/mask'),
+            (error, f'vs ground truth: {100 * rate:.1f} % right\nred: false sky, blue: false ground'),
+        ]
         for column, (image, title) in enumerate(panels):
             axis = axes[row, column]
             axis.imshow(image, cmap='gray' if image.ndim == 2 else None)
@@ -183,19 +216,32 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     accepted = np.array([m.accepted for m in matches])
     correct = correct_matches(matched, query, snapshots, TOLERANCE)
     error = np.linalg.norm(snapshots[np.maximum(matched, 0)] - query, axis=1)
-    print(f'\nplace matches against the map {store.name!r} ({len(store)} snapshots): {len(matches)} views, '
-          f'{int(accepted.sum())} accepted, {int((accepted & correct).sum())} of them within {TOLERANCE:g} m '
-          f'of the true place (precision {100 * (accepted & correct).sum() / max(accepted.sum(), 1):.0f} %, '
-          f'recall {100 * (accepted & correct).sum() / len(matches):.0f} %)')
-    print(f'  distance from the true place to the matched snapshot: median {np.median(error):.2f} m, '
-          f'largest {error.max():.2f} m')
+    print(
+        f'\nplace matches against the map {store.name!r} ({len(store)} snapshots): {len(matches)} views, '
+        f'{int(accepted.sum())} accepted, {int((accepted & correct).sum())} of them within {TOLERANCE:g} m '
+        f'of the true place (precision {100 * (accepted & correct).sum() / max(accepted.sum(), 1):.0f} %, '
+        f'recall {100 * (accepted & correct).sum() / len(matches):.0f} %)'
+    )
+    print(
+        f'  distance from the true place to the matched snapshot: median {np.median(error):.2f} m, '
+        f'largest {error.max():.2f} m'
+    )
     print('  frame: matched snapshot (distance to the true place in m; * = not accepted)')
-    cells = [f'{k:3d}:{i:3d} ({e:4.2f}){" " if a else "*"}' for k, (i, e, a) in
-             enumerate(zip(matched, error, accepted))]
+    cells = [
+        f'{k:3d}:{i:3d} ({e:4.2f}){" " if a else "*"}' for k, (i, e, a) in enumerate(zip(matched, error, accepted))
+    ]
     for row in range(0, len(cells), 6):
         print('  ' + '  '.join(cells[row : row + 6]))
-    plot_matches_along_route(snapshots, query, matched, correct, accepted,
-                             f'skynav demo: {recording.stem} against the map of the teach drive', True, plot)
+    plot_matches_along_route(
+        snapshots,
+        query,
+        matched,
+        correct,
+        accepted,
+        f'skynav demo: {recording.stem} against the map of the teach drive',
+        True,
+        plot,
+    )
     store.close()
     print(f'  plot: {plot}')
 
@@ -216,8 +262,14 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
         snapshots = store.poses()
 
     def percentiles(values) -> str:
-        return (f'median {np.median(values):.1f} deg, 90th percentile {np.percentile(values, 90):.1f} deg, '
-                f'largest {np.max(values):.1f} deg') if len(values) else 'none'
+        return (
+            (
+                f'median {np.median(values):.1f} deg, 90th percentile {np.percentile(values, 90):.1f} deg, '
+                f'largest {np.max(values):.1f} deg'
+            )
+            if len(values)
+            else 'none'
+        )
 
     rotation_errors = []
     for estimate in compass:
@@ -225,8 +277,10 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
         truth = relative_rotation(snapshots[estimate.snapshot_index, 3:], current)  # d_snapshot = R d_current
         q = estimate.rotation
         rotation_errors.append(np.degrees(rotation_angle(truth, [q.x, q.y, q.z, q.w])))
-    print(f'\ncompass (/compass/orientation) against the matched snapshot: {len(compass)} estimates; '
-          f'3D rotation error {percentiles(rotation_errors)}')
+    print(
+        f'\ncompass (/compass/orientation) against the matched snapshot: {len(compass)} estimates; '
+        f'3D rotation error {percentiles(rotation_errors)}'
+    )
     direction_errors, distances, residuals = [], [], []
     for vector in homing:
         position, current = poses[stamp_ns(vector.header)]
@@ -241,13 +295,16 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
         return
     direction_errors, distances, residuals = np.array(direction_errors), np.array(distances), np.array(residuals)
     far = distances >= HOMING_NEAR
-    print(f'home vectors (/homing/home_vector) to the snapshot ahead: {len(homing)} vectors, '
-          f'{np.min(distances):.1f}-{np.max(distances):.1f} m from it; direction error')
+    print(
+        f'home vectors (/homing/home_vector) to the snapshot ahead: {len(homing)} vectors, '
+        f'{np.min(distances):.1f}-{np.max(distances):.1f} m from it; direction error'
+    )
     print(f'  {far.sum():3d} at {HOMING_NEAR:g} m or more: {percentiles(direction_errors[far])}')
-    print(f'  {(~far).sum():3d} nearer (little parallax; at the route\'s end): '
-          f'{percentiles(direction_errors[~far])}')
+    print(f"  {(~far).sum():3d} nearer (little parallax; at the route's end): {percentiles(direction_errors[~far])}")
     miss = direction_errors > HOMING_MISS
     if miss.any() and (~miss).any():
-        print(f'  the residual (1 - confidence) flags the misses: median {np.median(residuals[~miss]):.2f} where the '
-              f'error is under {HOMING_MISS:g} deg ({(~miss).sum()}), {np.median(residuals[miss]):.2f} where it is '
-              f'over ({miss.sum()})')
+        print(
+            f'  the residual (1 - confidence) flags the misses: median {np.median(residuals[~miss]):.2f} where the '
+            f'error is under {HOMING_MISS:g} deg ({(~miss).sum()}), {np.median(residuals[miss]):.2f} where it is '
+            f'over ({miss.sum()})'
+        )

@@ -21,11 +21,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--count', type=int, metavar='N', help='print N messages and exit')
     parser.add_argument('--type', metavar='PKG/msg/TYPE', help='message type; skips looking it up in the graph')
     parser.add_argument(
-        '--truncate-length', type=int, default=16, metavar='N',
+        '--truncate-length',
+        type=int,
+        default=16,
+        metavar='N',
         help='show at most N elements of an array (default 16); 0 shows all',
     )
     parser.add_argument(
-        '--wait', type=float, default=10.0, metavar='SECONDS',
+        '--wait',
+        type=float,
+        default=10.0,
+        metavar='SECONDS',
         help='how long to look for the topic in the graph before giving up (default 10)',
     )
 
@@ -66,8 +72,9 @@ def run(args: argparse.Namespace) -> int:
                 return 0
             if not types:
                 known = sorted(name for name, _ in node.get_topic_names_and_types())
-                raise CliError(f'no topic {topic} in the graph after {args.wait:g} s '
-                               f'(topics seen: {", ".join(known) or "none"})')
+                raise CliError(
+                    f'no topic {topic} in the graph after {args.wait:g} s (topics seen: {", ".join(known) or "none"})'
+                )
             if len(types) > 1:
                 raise CliError(f'{topic} carries several types ({", ".join(types)}); choose one with --type')
             msgtype = types[0]

@@ -19,8 +19,9 @@ HELP = 'start the whole node graph on live topics'
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav launch`."""
-    parser.add_argument('--params', metavar='FILE', type=Path,
-                        help='ROS 2 parameter file (YAML) over the shipped defaults')
+    parser.add_argument(
+        '--params', metavar='FILE', type=Path, help='ROS 2 parameter file (YAML) over the shipped defaults'
+    )
     parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--nodes', nargs='+', metavar='NAME', help='start only these nodes')
 
@@ -49,8 +50,9 @@ def run(args: argparse.Namespace) -> int:
     specs = installed_nodes()
     if args.nodes:
         if unknown := sorted(set(args.nodes) - {s.name for s in specs}):
-            raise CliError(f'no installed node {", ".join(unknown)} '
-                           f'(installed: {", ".join(s.name for s in specs) or "none"})')
+            raise CliError(
+                f'no installed node {", ".join(unknown)} (installed: {", ".join(s.name for s in specs) or "none"})'
+            )
         specs = [s for s in specs if s.name in args.nodes]
     if not specs:
         print('skynav launch: no skynav nodes are installed yet; nothing to start.', file=sys.stderr)

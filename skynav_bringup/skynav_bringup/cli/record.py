@@ -47,8 +47,11 @@ def run(args: argparse.Namespace) -> int:
     with BagWriter(args.out, compress=not args.no_compression) as writer:
         with StopRequest() as stop, tool_node('skynav_record') as (node, executor):
             recorder = Recorder(node, writer, None if args.all else args.topics, warn=warn)
-            print(f'skynav record: recording {"every topic" if args.all else " ".join(args.topics)} '
-                  f'into {args.out}; Ctrl-C to stop', file=sys.stderr)
+            print(
+                f'skynav record: recording {"every topic" if args.all else " ".join(args.topics)} '
+                f'into {args.out}; Ctrl-C to stop',
+                file=sys.stderr,
+            )
             while not stop.requested:
                 executor.spin_once(timeout_sec=0.1)
             recorder.drain(executor)

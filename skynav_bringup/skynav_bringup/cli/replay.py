@@ -18,13 +18,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav replay`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file')
     parser.add_argument(
-        '--rate', type=float, default=1.0, metavar='R',
+        '--rate',
+        type=float,
+        default=1.0,
+        metavar='R',
         help='speed factor of the recorded timing; 0 publishes as fast as possible (default 1)',
     )
     parser.add_argument('--loop', action='store_true', help='start again at the end, until Ctrl-C')
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='replay only these topics')
     parser.add_argument(
-        '--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS',
+        '--wait-for-subscribers',
+        type=float,
+        default=0.0,
+        metavar='SECONDS',
         help='before publishing, wait up to this long until every replayed topic has a subscriber',
     )
 
@@ -49,8 +55,9 @@ def run(args: argparse.Namespace) -> int:
             if args.wait_for_subscribers > 0:
                 lonely = player.wait_for_subscribers(executor, args.wait_for_subscribers)
                 if lonely:
-                    print(f'skynav replay: no subscriber yet on {", ".join(lonely)}; publishing anyway',
-                          file=sys.stderr)
+                    print(
+                        f'skynav replay: no subscriber yet on {", ".join(lonely)}; publishing anyway', file=sys.stderr
+                    )
             stats = _play_with_progress(player, args, stop)
     print(
         f'skynav replay: published {stats.total} messages on {len(stats.published)} topics '
@@ -60,8 +67,10 @@ def run(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     if stats.unacknowledged:
-        print(f'skynav replay: warning: not every subscriber acknowledged {", ".join(stats.unacknowledged)}',
-              file=sys.stderr)
+        print(
+            f'skynav replay: warning: not every subscriber acknowledged {", ".join(stats.unacknowledged)}',
+            file=sys.stderr,
+        )
     return 0
 
 

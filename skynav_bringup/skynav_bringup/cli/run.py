@@ -69,8 +69,9 @@ def run(args: argparse.Namespace) -> int:
             with in_process(specs, ros_args, sink=record) as graph:
                 topics = graph.input_topics & set(bag.topics)
                 if not topics:
-                    raise CliError(f'{args.bag} has none of the topics the nodes read '
-                                   f'({", ".join(sorted(graph.input_topics))})')
+                    raise CliError(
+                        f'{args.bag} has none of the topics the nodes read ({", ".join(sorted(graph.input_topics))})'
+                    )
                 total = sum(bag.topics[t].count for t in topics)
                 with tqdm(total=total, unit='msg', desc='skynav run', file=sys.stderr, disable=None) as bar:
                     graph.run(bag, progress=bar.update)
@@ -88,8 +89,11 @@ def run(args: argparse.Namespace) -> int:
     if errors:
         print(f'skynav run: error: {errors} inputs failed with an exception (see the log above)', file=sys.stderr)
     if refused:
-        print(f'skynav run: error: {", ".join(refused)} could not use the given parameters and ran on defaults '
-              '(see the log above)', file=sys.stderr)
+        print(
+            f'skynav run: error: {", ".join(refused)} could not use the given parameters and ran on defaults '
+            '(see the log above)',
+            file=sys.stderr,
+        )
     return 1 if errors or refused else 0
 
 
@@ -99,7 +103,9 @@ def summary(graph) -> str:
     for node in graph.nodes:
         per_input = 1e3 * node.processing_total / node.processing_count if node.processing_count else float('nan')
         rejected = ', '.join(f'{k} {v}' for k, v in sorted(node.rejected.items()))
-        lines.append(f'{node.get_name():12s} {sum(node.received.values()):9d} {sum(node.published.values()):10d} '
-                     f'{sum(node.rejected.values()):9d} {node.errors:7d} {per_input:9.2f}'
-                     + (f'   ({rejected})' if rejected else ''))
+        lines.append(
+            f'{node.get_name():12s} {sum(node.received.values()):9d} {sum(node.published.values()):10d} '
+            f'{sum(node.rejected.values()):9d} {node.errors:7d} {per_input:9.2f}'
+            + (f'   ({rejected})' if rejected else '')
+        )
     return '\n'.join(lines)

@@ -37,17 +37,27 @@ HELP = 'compass error against ground truth, per method, for pure rotations and m
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval compass`."""
     parser.add_argument('bag', metavar='BAG', help='recording with camera topics and /ground_truth/pose')
-    parser.add_argument('--map', type=Path, metavar='MAP.db',
-                        help="compare against a snapshot of this map (default: the recording's reference frame)")
+    parser.add_argument(
+        '--map',
+        type=Path,
+        metavar='MAP.db',
+        help="compare against a snapshot of this map (default: the recording's reference frame)",
+    )
     parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to compare against (0)')
     add_methods_argument(parser, NODE_METHODS, DEFAULT_METHODS)
     add_plots_argument(parser, 'compass_eval', 'the plot')
-    parser.add_argument('--repeats', type=int, default=1, metavar='N',
-                        help='time every estimate N times, the least counts (default 1)')
+    parser.add_argument(
+        '--repeats', type=int, default=1, metavar='N', help='time every estimate N times, the least counts (default 1)'
+    )
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
-    parser.add_argument('--max-tilt', type=float, default=None, metavar='DEG',
-                        help='largest tilt between the two views the fft-masked and fft-zero compasses consider '
-                             "(default: the compass node's max_tilt_deg, 45)")
+    parser.add_argument(
+        '--max-tilt',
+        type=float,
+        default=None,
+        metavar='DEG',
+        help='largest tilt between the two views the fft-masked and fft-zero compasses consider '
+        "(default: the compass node's max_tilt_deg, 45)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -70,15 +80,26 @@ def run(args: argparse.Namespace) -> int:
     elif args.index:
         raise CliError('--index chooses a map snapshot; give the map with --map', exit_code=2)
     try:
-        evaluation = evaluate_recording(args.bag, args.methods, snapshot, graph_arguments(args.params, None),
-                                        repeats=args.repeats, max_tilt=max_tilt(args.max_tilt))
+        evaluation = evaluate_recording(
+            args.bag,
+            args.methods,
+            snapshot,
+            graph_arguments(args.params, None),
+            repeats=args.repeats,
+            max_tilt=max_tilt(args.max_tilt),
+        )
     except EvaluationError as exc:
         raise CliError(str(exc)) from None
     print(format_report(evaluation))
     stem = Path(args.bag).stem
-    path = plot_errors(evaluation.results, evaluation.tilts, evaluation.translations,
-                       plots_folder(args.plots) / f'{stem}_errors.png', evaluation.synthetic,
-                       f'{stem} against {evaluation.snapshot}')
+    path = plot_errors(
+        evaluation.results,
+        evaluation.tilts,
+        evaluation.translations,
+        plots_folder(args.plots) / f'{stem}_errors.png',
+        evaluation.synthetic,
+        f'{stem} against {evaluation.snapshot}',
+    )
     print(f'plot: {path}')
     return 0
 

@@ -28,11 +28,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--out', required=True, type=Path, metavar='MAP.db', help='map file to write')
     parser.add_argument('--name', help='map name (default: the file name)')
     parser.add_argument('--min-travel', type=float, default=0.1, metavar='M', help='metres between snapshots (0.1)')
-    parser.add_argument('--min-change', type=float, default=0.05, metavar='D',
-                        help='amplitude-spectrum change that also makes a snapshot (0.05)')
+    parser.add_argument(
+        '--min-change',
+        type=float,
+        default=0.05,
+        metavar='D',
+        help='amplitude-spectrum change that also makes a snapshot (0.05)',
+    )
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
-    parser.add_argument('--baselines', action='store_true',
-                        help="also store the baselines' descriptors (raw UV, ORB), for `skynav eval localization`")
+    parser.add_argument(
+        '--baselines',
+        action='store_true',
+        help="also store the baselines' descriptors (raw UV, ORB), for `skynav eval localization`",
+    )
     parser.add_argument('--overwrite', action='store_true', help='replace an existing map')
 
 
@@ -59,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
     with open_bag(args.bag) as bag:
         inputs = sum(bag.topics[t].count for t in CAMERA_TOPICS if t in bag.topics)
     with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
-        recording = recording_views(args.bag, graph_arguments(args.params, None), images=args.baselines,
-                                    progress=bar.update)
+        recording = recording_views(
+            args.bag, graph_arguments(args.params, None), images=args.baselines, progress=bar.update
+        )
     if not recording.views:
         raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')
     degree = recording.views[0].max_degree
@@ -84,9 +93,16 @@ def run(args: argparse.Namespace) -> int:
     camera_info = {name: getattr(recording.camera, name) for name in ('width', 'height', 'fx', 'fy', 'cx', 'cy')}
     camera_info['k'] = list(recording.camera.k)
     try:
-        store = build_map(args.out, args.name or args.out.stem, degree, snapshots(), created_from=str(args.bag),
-                          metadata={'camera': json.dumps(camera_info), 'synthetic': str(recording.synthetic)},
-                          overwrite=args.overwrite, finish=finish if args.baselines else None)
+        store = build_map(
+            args.out,
+            args.name or args.out.stem,
+            degree,
+            snapshots(),
+            created_from=str(args.bag),
+            metadata={'camera': json.dumps(camera_info), 'synthetic': str(recording.synthetic)},
+            overwrite=args.overwrite,
+            finish=finish if args.baselines else None,
+        )
     except MapError as exc:
         raise CliError(str(exc)) from None
     for line in left_out:
@@ -94,8 +110,11 @@ def run(args: argparse.Namespace) -> int:
     info = store.info()
     route = f', route {info["route_length_m"]:.1f} m' if 'route_length_m' in info else ''
     held = ', with baseline descriptors' if args.baselines else ''
-    print(f'skynav map build: {len(store)} snapshots of {len(recording.views)} frames (degree {degree}{route}) '
-          f'-> {args.out} ({info["file_bytes"] / 1e3:.0f} kB, {info["file_bytes"] / len(store):.0f} bytes per '
-          f'snapshot{held})', file=sys.stderr)
+    print(
+        f'skynav map build: {len(store)} snapshots of {len(recording.views)} frames (degree {degree}{route}) '
+        f'-> {args.out} ({info["file_bytes"] / 1e3:.0f} kB, {info["file_bytes"] / len(store):.0f} bytes per '
+        f'snapshot{held})',
+        file=sys.stderr,
+    )
     store.close()
     return 0

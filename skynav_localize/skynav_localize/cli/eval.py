@@ -26,11 +26,21 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from ..localizer import METHODS
 
     parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
-    parser.add_argument('--map', required=True, type=Path, metavar='MAP.db',
-                        help='map of the teach drive (built with --baselines to compare with the baselines)')
+    parser.add_argument(
+        '--map',
+        required=True,
+        type=Path,
+        metavar='MAP.db',
+        help='map of the teach drive (built with --baselines to compare with the baselines)',
+    )
     add_methods_argument(parser, list(METHODS))
-    parser.add_argument('--tolerance', type=float, default=1.0, metavar='M',
-                        help='a match is correct within this distance (default 1 m)')
+    parser.add_argument(
+        '--tolerance',
+        type=float,
+        default=1.0,
+        metavar='M',
+        help='a match is correct within this distance (default 1 m)',
+    )
     add_plots_argument(parser, 'localization_eval')
     parser.add_argument('--params', type=Path, metavar='FILE', help='node parameters (skyline, sh)')
 
@@ -58,8 +68,11 @@ def run(args: argparse.Namespace) -> int:
         if not methods:
             raise CliError(f'{args.map} holds no descriptors of {", ".join(args.methods)} ({BASELINES_HINT})')
         if skipped := [name for name in args.methods if lacking[name]]:
-            print(f'skynav eval localization: {args.map} holds no descriptors of {", ".join(skipped)}: their rows '
-                  f'are left out ({BASELINES_HINT})', file=sys.stderr)
+            print(
+                f'skynav eval localization: {args.map} holds no descriptors of {", ".join(skipped)}: their rows '
+                f'are left out ({BASELINES_HINT})',
+                file=sys.stderr,
+            )
         plots_folder(args.plots)
         for bag in args.bags:
             evaluate_bag(bag, store, methods, args.tolerance, args.plots, ros_args)
@@ -92,22 +105,40 @@ def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: P
             localizer = Localizer(store, name, circle=circle)
         except MapError as exc:
             raise CliError(str(exc)) from None
-        matches = localizer.match_sequence(coefficients=coefficients, uvs=uvs,
-                                           field_of_view=views[0].field_of_view, fill=views[0].fill)
+        matches = localizer.match_sequence(
+            coefficients=coefficients, uvs=uvs, field_of_view=views[0].field_of_view, fill=views[0].fill
+        )
         all_matches[name] = matches
-        results.append(evaluate(METHODS[name].label, matches.index, matches.score, positions,
-                                store.positions(), tolerance, accepted=matches.accepted))
+        results.append(
+            evaluate(
+                METHODS[name].label,
+                matches.index,
+                matches.score,
+                positions,
+                store.positions(),
+                tolerance,
+                accepted=matches.accepted,
+            )
+        )
     kind = 'synthetic ' if recording.synthetic else ''
-    print(f'\n{Path(bag).name}: {len(views)} {kind}queries against map {store.name!r} '
-          f'({len(store)} snapshots); a match is correct within {tolerance:g} m')
+    print(
+        f'\n{Path(bag).name}: {len(views)} {kind}queries against map {store.name!r} '
+        f'({len(store)} snapshots); a match is correct within {tolerance:g} m'
+    )
     print(format_table(results))
     stem = Path(bag).stem
     title = f'{stem} against map {store.name}'
     plot_pr_curves(results, title, recording.synthetic, plots / f'{stem}_pr.png')
     shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else methods[0]
     matches = all_matches[shown]
-    plot_matches_along_route(store.positions(), positions, matches.index,
-                             correct_matches(matches.index, positions, store.positions(), tolerance),
-                             matches.accepted, f'{title}: {shown}', recording.synthetic,
-                             plots / f'{stem}_matches.png')
+    plot_matches_along_route(
+        store.positions(),
+        positions,
+        matches.index,
+        correct_matches(matches.index, positions, store.positions(), tolerance),
+        matches.accepted,
+        f'{title}: {shown}',
+        recording.synthetic,
+        plots / f'{stem}_matches.png',
+    )
     print(f'plots: {plots / (stem + "_pr.png")}, {plots / (stem + "_matches.png")} (matches of {shown})')

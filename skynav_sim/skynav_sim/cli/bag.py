@@ -54,9 +54,18 @@ def run(args: argparse.Namespace) -> int:
         world, frames, description = options.scenario(args)
     except (ValueError, RuntimeError) as exc:
         raise CliError(str(exc), exit_code=2 if isinstance(exc, ValueError) else 1) from None
-    with tqdm(total=len(frames), unit='frame', desc=f'synthetic {args.scenario}', file=sys.stderr,
-              disable=None, dynamic_ncols=True) as bar:
+    with tqdm(
+        total=len(frames),
+        unit='frame',
+        desc=f'synthetic {args.scenario}',
+        file=sys.stderr,
+        disable=None,
+        dynamic_ncols=True,
+    ) as bar:
         recording.write(out, world, camera, frames, args.encoding, args.seed, description, progress=bar.update)
-    print(f'skynav sim bag: wrote {len(frames)} synthetic frames ({args.scenario}, {args.world} world, '
-          f'seed {args.seed}) to {out}', file=sys.stderr)
+    print(
+        f'skynav sim bag: wrote {len(frames)} synthetic frames ({args.scenario}, {args.world} world, '
+        f'seed {args.seed}) to {out}',
+        file=sys.stderr,
+    )
     return 0

@@ -23,17 +23,35 @@ END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim follow`."""
-    parser.add_argument('teach', type=Path, metavar='TEACH.mcap', help='the synthetic teach drive the map was built from')
+    parser.add_argument(
+        'teach', type=Path, metavar='TEACH.mcap', help='the synthetic teach drive the map was built from'
+    )
     parser.add_argument('--map', type=Path, required=True, metavar='MAP.db', help='its map (`skynav map build`)')
-    parser.add_argument('--offset', type=float, default=0.3, metavar='M',
-                        help="start this far left of the route's first snapshot (negative: right; default 0.3)")
-    parser.add_argument('--turn', type=float, default=20.0, metavar='DEG',
-                        help="start turned this far left of the route's direction (default 20)")
+    parser.add_argument(
+        '--offset',
+        type=float,
+        default=0.3,
+        metavar='M',
+        help="start this far left of the route's first snapshot (negative: right; default 0.3)",
+    )
+    parser.add_argument(
+        '--turn',
+        type=float,
+        default=20.0,
+        metavar='DEG',
+        help="start turned this far left of the route's direction (default 20)",
+    )
     parser.add_argument('--time', default='morning', help='time of day of the run (default morning)')
-    parser.add_argument('--max-steps', type=int, default=0, metavar='N',
-                        help='steps before the run is given up (default: twice the route length over the step)')
-    parser.add_argument('--out', type=Path, default=Path('sim_follow'), metavar='DIR',
-                        help='folder for the plot (default sim_follow)')
+    parser.add_argument(
+        '--max-steps',
+        type=int,
+        default=0,
+        metavar='N',
+        help='steps before the run is given up (default: twice the route length over the step)',
+    )
+    parser.add_argument(
+        '--out', type=Path, default=Path('sim_follow'), metavar='DIR', help='folder for the plot (default sim_follow)'
+    )
 
 
 def teach_world(teach: Path):
@@ -55,8 +73,11 @@ def teach_world(teach: Path):
     if description.get('scenario') != 'teach' or description.get('world') not in STYLES or info is None:
         raise CliError(f'{teach}: not a synthetic teach drive of skynav_sim (its world is needed to drive in)')
     seed = int(description['seed'])
-    return generate(description['world'], int(description.get('world_seed', seed))), seed, \
-        EquidistantCamera.from_camera_info(info)
+    return (
+        generate(description['world'], int(description.get('world_seed', seed))),
+        seed,
+        EquidistantCamera.from_camera_info(info),
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -91,18 +112,26 @@ def run(args: argparse.Namespace) -> int:
     start = route[0] + args.offset * left
     length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
     max_steps = args.max_steps or int(2 * length / STEP) + 10
-    print(f'following the {length:.1f} m route of {args.map.name} ({count} snapshots) in the synthetic '
-          f'{world.style} world (seed {seed}) at {hours:.1f} h, from {args.offset:+.2f} m beside its start, '
-          f'turned {args.turn:+.0f} deg', flush=True)
-    run, route = follow_route(world, camera, args.map, start, route_heading + np.radians(args.turn), hours, seed,
-                              max_steps)
+    print(
+        f'following the {length:.1f} m route of {args.map.name} ({count} snapshots) in the synthetic '
+        f'{world.style} world (seed {seed}) at {hours:.1f} h, from {args.offset:+.2f} m beside its start, '
+        f'turned {args.turn:+.0f} deg',
+        flush=True,
+    )
+    run, route = follow_route(
+        world, camera, args.map, start, route_heading + np.radians(args.turn), hours, seed, max_steps
+    )
     deviation = route_deviation(run, route)
     end = float(np.linalg.norm(run.path[-1] - route[-1]))
     reached = run.stopped == 'end' and end <= END_RADIUS
-    print(f'{len(run.path) - 1} steps; stopped: {run.stopped}; {end:.2f} m from the last snapshot '
-          f'({"reached the end" if reached else "did NOT reach the end"})')
-    print(f'distance from the taught route: median {np.median(deviation):.2f} m, 90th percentile '
-          f'{np.percentile(deviation, 90):.2f} m, largest {deviation.max():.2f} m (at the start {deviation[0]:.2f} m)')
+    print(
+        f'{len(run.path) - 1} steps; stopped: {run.stopped}; {end:.2f} m from the last snapshot '
+        f'({"reached the end" if reached else "did NOT reach the end"})'
+    )
+    print(
+        f'distance from the taught route: median {np.median(deviation):.2f} m, 90th percentile '
+        f'{np.percentile(deviation, 90):.2f} m, largest {deviation.max():.2f} m (at the start {deviation[0]:.2f} m)'
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     plot = args.out / 'route_following.png'
     draw_route(plot, world, route, run, f'SYNTHETIC closed-loop route following: {world.style} world, seed {seed}')
@@ -126,8 +155,9 @@ def draw_route(path: Path, world, route, run, title: str) -> None:
     half = float(np.max(both.max(axis=0) - both.min(axis=0))) / 2 + 1.5
     figure, axis = plt.subplots(figsize=(9, 8), layout='constrained')
     draw_world(figure, axis, world, 40.0)
-    axis.plot(route[:, 0], route[:, 1], '.-', color='gold', markeredgecolor='k', linewidth=2,
-              label='taught route (snapshots)')
+    axis.plot(
+        route[:, 0], route[:, 1], '.-', color='gold', markeredgecolor='k', linewidth=2, label='taught route (snapshots)'
+    )
     axis.plot(points[:, 0], points[:, 1], 'o-', color='#1565c0', markersize=3, linewidth=1.5, label='driven path')
     axis.plot(*points[0], 's', color='#1565c0', markersize=8, label='start')
     axis.set_xlim(centre[0] - half, centre[0] + half)

@@ -30,12 +30,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--max-distance', type=float, default=4.0, metavar='M', help='farthest start (4 m)')
     parser.add_argument('--max-steps', type=int, default=60, help='steps before a run is given up (60)')
     parser.add_argument('--time', default='forenoon', help='time of day (default forenoon)')
-    parser.add_argument('--bump-tilt', type=float, default=0.0, metavar='DEG',
-                        help='bumpy ground: every view (the snapshot too) tilted up to DEG more (default 0)')
+    parser.add_argument(
+        '--bump-tilt',
+        type=float,
+        default=0.0,
+        metavar='DEG',
+        help='bumpy ground: every view (the snapshot too) tilted up to DEG more (default 0)',
+    )
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (200)')
-    parser.add_argument('--out', type=Path, default=Path('sim_home'), metavar='DIR',
-                        help='folder for the plot and the snapshot map (default sim_home)')
+    parser.add_argument(
+        '--out',
+        type=Path,
+        default=Path('sim_home'),
+        metavar='DIR',
+        help='folder for the plot and the snapshot map (default sim_home)',
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
         raise CliError('--bump-tilt must be between 0 and 90 degrees', exit_code=2)
     try:
         hours = parse_time(args.time)
-        camera = options.camera(argparse.Namespace(size=args.size, fov=args.fov,
-                                                   distortion=options.DEFAULT_DISTORTION))
+        camera = options.camera(argparse.Namespace(size=args.size, fov=args.fov, distortion=options.DEFAULT_DISTORTION))
     except ValueError as exc:
         raise CliError(str(exc), exit_code=2) from None
     args.out.mkdir(parents=True, exist_ok=True)
@@ -66,13 +75,24 @@ def run(args: argparse.Namespace) -> int:
     goal = snapshot_place(world, ScenarioParameters())
     map_path = args.out / 'home.db'
     snapshot_map(world, camera, goal, 0.0, hours, args.seed, map_path, bump_tilt=args.bump_tilt)
-    starts = random_starts(world, goal, args.starts, args.min_distance, args.max_distance,
-                           np.random.default_rng(args.seed))
+    starts = random_starts(
+        world, goal, args.starts, args.min_distance, args.max_distance, np.random.default_rng(args.seed)
+    )
     if len(starts) < args.starts:
         print(f'skynav sim home: only {len(starts)} free start places found', file=sys.stderr)
     with tqdm(total=len(starts), unit='run', desc='homing (synthetic)', file=sys.stderr, disable=None) as bar:
-        runs = home_runs(world, camera, goal, starts, map_path, hours, args.seed, args.max_steps,
-                         progress=lambda _: bar.update(), bump_tilt=args.bump_tilt)
+        runs = home_runs(
+            world,
+            camera,
+            goal,
+            starts,
+            map_path,
+            hours,
+            args.seed,
+            args.max_steps,
+            progress=lambda _: bar.update(),
+            bump_tilt=args.bump_tilt,
+        )
     print(report(runs, args))
     plot = args.out / 'homing_paths.png'
     ground = f', bumps up to {args.bump_tilt:g} deg' if args.bump_tilt else ''
@@ -89,14 +109,21 @@ def report(runs, args) -> str:
 
     lines = [f'{"run":>4s} {"start (m)":>10s} {"end (m)":>8s} {"steps":>6s} {"path / line":>12s}  stopped']
     for k, r in enumerate(runs):
-        lines.append(f'{k:4d} {np.linalg.norm(r.start - r.goal):10.2f} {r.final_error:8.2f} {len(r.path) - 1:6d} '
-                     f'{r.path_ratio:12.2f}  {r.stopped}{"" if r.success else "  (missed)"}')
+        lines.append(
+            f'{k:4d} {np.linalg.norm(r.start - r.goal):10.2f} {r.final_error:8.2f} {len(r.path) - 1:6d} '
+            f'{r.path_ratio:12.2f}  {r.stopped}{"" if r.success else "  (missed)"}'
+        )
     successes = [r for r in runs if r.success]
     ratios = [r.path_ratio for r in successes]
-    lines.append(f'\n{len(successes)} of {len(runs)} runs ({100 * len(successes) / max(len(runs), 1):.0f} %) ended '
-                 f'within {SUCCESS_RADIUS} m of home, from starts {args.min_distance}-{args.max_distance} m away; '
-                 + (f'their paths were {np.median(ratios):.2f} times the straight line (median), '
-                    f'{max(ratios):.2f} at most' if ratios else 'none succeeded'))
+    lines.append(
+        f'\n{len(successes)} of {len(runs)} runs ({100 * len(successes) / max(len(runs), 1):.0f} %) ended '
+        f'within {SUCCESS_RADIUS} m of home, from starts {args.min_distance}-{args.max_distance} m away; '
+        + (
+            f'their paths were {np.median(ratios):.2f} times the straight line (median), {max(ratios):.2f} at most'
+            if ratios
+            else 'none succeeded'
+        )
+    )
     return '\n'.join(lines)
 
 

@@ -15,21 +15,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from ..world import WORLDS
 
     parser.add_argument('scenario', metavar='SCENARIO', choices=SCENARIOS, help=f'one of {", ".join(SCENARIOS)}')
-    parser.add_argument('--world', choices=WORLDS, default='garden',
-                        help='synthetic world style, or a real Stellarium landscape (fetched on first use) under the '
-                             'synthetic sky (default garden)')
+    parser.add_argument(
+        '--world',
+        choices=WORLDS,
+        default='garden',
+        help='synthetic world style, or a real Stellarium landscape (fetched on first use) under the '
+        'synthetic sky (default garden)',
+    )
     parser.add_argument('--seed', type=int, default=0, help='world and scenario seed (default 0)')
     camera = parser.add_argument_group('camera')
     camera.add_argument('--size', default='640x480', metavar='WxH', help='image size in pixels (default 640x480)')
-    camera.add_argument('--fov', type=float, default=200.0, metavar='DEG',
-                        help=f'field of view of the image circle, up to {MAX_FOV:g} degrees (default 200)')
-    camera.add_argument('--distortion', default=DEFAULT_DISTORTION, metavar='K1,K2,K3,K4',
-                        help=f'Kannala-Brandt coefficients D (default {DEFAULT_DISTORTION})')
-    camera.add_argument('--encoding', choices=('mono8', 'mono16', '32FC1'), default='mono16',
-                        help='image encoding (default mono16)')
+    camera.add_argument(
+        '--fov',
+        type=float,
+        default=200.0,
+        metavar='DEG',
+        help=f'field of view of the image circle, up to {MAX_FOV:g} degrees (default 200)',
+    )
+    camera.add_argument(
+        '--distortion',
+        default=DEFAULT_DISTORTION,
+        metavar='K1,K2,K3,K4',
+        help=f'Kannala-Brandt coefficients D (default {DEFAULT_DISTORTION})',
+    )
+    camera.add_argument(
+        '--encoding', choices=('mono8', 'mono16', '32FC1'), default='mono16', help='image encoding (default mono16)'
+    )
     light = parser.add_argument_group('daylight')
-    light.add_argument('--time', default='forenoon', metavar='TIME',
-                       help='local solar time: hours (0-24) or dawn, sunrise, morning, forenoon, noon')
+    light.add_argument(
+        '--time',
+        default='forenoon',
+        metavar='TIME',
+        help='local solar time: hours (0-24) or dawn, sunrise, morning, forenoon, noon',
+    )
     light.add_argument('--clouds', type=float, default=0.0, metavar='COVER', help='cloud cover 0-1 (default 0)')
     drive = parser.add_argument_group('teach and repeat drives')
     drive.add_argument('--route-seed', type=int, default=0, help='which route through the world (default 0)')
@@ -37,23 +55,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     drive.add_argument('--speed', type=float, default=0.5, metavar='M/S', help='speed; frames at 10 Hz (default 0.5)')
     drive.add_argument('--offset', type=float, default=0.0, metavar='M', help='sideways shift, left positive')
     drive.add_argument('--shake', type=float, default=0.0, metavar='DEG', help='extra roll/pitch rms')
-    drive.add_argument('--wobble', type=float, default=0.0, metavar='DEG',
-                       help='heading deviation from the route, rms (repeat drives)')
-    drive.add_argument('--detour', type=float, default=0.0, metavar='M',
-                       help='repeat drives: leave the route in its middle for a loop reaching M m from it, then '
-                            'come back and drive on (default 0: no detour)')
+    drive.add_argument(
+        '--wobble', type=float, default=0.0, metavar='DEG', help='heading deviation from the route, rms (repeat drives)'
+    )
+    drive.add_argument(
+        '--detour',
+        type=float,
+        default=0.0,
+        metavar='M',
+        help='repeat drives: leave the route in its middle for a loop reaching M m from it, then '
+        'come back and drive on (default 0: no detour)',
+    )
     grid = parser.add_argument_group('homing grid and compass set')
     grid.add_argument('--spacing', type=float, default=0.5, metavar='M', help='homing grid spacing (default 0.5)')
     grid.add_argument('--grid-radius', type=float, default=3.0, metavar='M', help='homing grid half side (3)')
-    grid.add_argument('--count', type=int, default=40, help='compass views of each kind / skyline places per '
-                                                            'time and cloud condition (default 40)')
+    grid.add_argument(
+        '--count',
+        type=int,
+        default=40,
+        help='compass views of each kind / skyline places per time and cloud condition (default 40)',
+    )
     grid.add_argument('--max-tilt', type=float, default=30.0, metavar='DEG', help='compass tilt limit (30)')
-    grid.add_argument('--max-translation', type=float, default=0.5, metavar='M',
-                      help='compass translation limit (0.5)')
-    grid.add_argument('--reference-time', default=None, metavar='TIME',
-                      help="compass: the reference frame's time of day (as --time; default: --time)")
-    grid.add_argument('--bump-tilt', type=float, default=0.0, metavar='DEG',
-                      help='homing: each place sits on a bump that tilts the camera up to DEG more (default 0)')
+    grid.add_argument('--max-translation', type=float, default=0.5, metavar='M', help='compass translation limit (0.5)')
+    grid.add_argument(
+        '--reference-time',
+        default=None,
+        metavar='TIME',
+        help="compass: the reference frame's time of day (as --time; default: --time)",
+    )
+    grid.add_argument(
+        '--bump-tilt',
+        type=float,
+        default=0.0,
+        metavar='DEG',
+        help='homing: each place sits on a bump that tilts the camera up to DEG more (default 0)',
+    )
 
 
 def camera(args: argparse.Namespace):
@@ -69,8 +105,9 @@ def camera(args: argparse.Namespace):
     if not (16 <= width <= 8192 and 16 <= height <= 8192):
         raise ValueError(f'--size {args.size} is out of range (16 to 8192 pixels a side)')
     if not 0 < args.fov <= MAX_FOV:
-        raise ValueError(f'--fov {args.fov:g} is impossible: a fish-eye sees more than 0 and at most '
-                         f'{MAX_FOV:g} degrees')
+        raise ValueError(
+            f'--fov {args.fov:g} is impossible: a fish-eye sees more than 0 and at most {MAX_FOV:g} degrees'
+        )
     try:
         k = tuple(float(v) for v in args.distortion.split(','))
     except ValueError:
@@ -81,8 +118,9 @@ def camera(args: argparse.Namespace):
     theta = np.linspace(0, half, 512)
     probe = EquidistantCamera(width, height, 1.0, 1.0, 0.0, 0.0, k)
     if np.any(np.diff(probe.distort(theta)) <= 0):
-        raise ValueError(f'--distortion {args.distortion} folds the image: r(theta) must grow up to '
-                         f'{args.fov / 2:g} degrees')
+        raise ValueError(
+            f'--distortion {args.distortion} folds the image: r(theta) must grow up to {args.fov / 2:g} degrees'
+        )
     return EquidistantCamera.for_field_of_view(width, height, np.radians(args.fov), k)
 
 
@@ -105,9 +143,20 @@ def scenario(args: argparse.Namespace):
         if not 0 <= getattr(args, name) <= 90:
             raise ValueError(f'--{name.replace("_", "-")} must be between 0 and 90 degrees')
     params = ScenarioParameters(
-        hours=parse_time(args.time), cloud_cover=args.clouds, route_seed=args.route_seed, route_length=args.length,
-        speed=args.speed, offset=args.offset, shake=args.shake, wobble=args.wobble, spacing=args.spacing, grid_radius=args.grid_radius,
-        count=args.count, max_tilt=args.max_tilt, max_translation=args.max_translation, bump_tilt=args.bump_tilt,
+        hours=parse_time(args.time),
+        cloud_cover=args.clouds,
+        route_seed=args.route_seed,
+        route_length=args.length,
+        speed=args.speed,
+        offset=args.offset,
+        shake=args.shake,
+        wobble=args.wobble,
+        spacing=args.spacing,
+        grid_radius=args.grid_radius,
+        count=args.count,
+        max_tilt=args.max_tilt,
+        max_translation=args.max_translation,
+        bump_tilt=args.bump_tilt,
         detour=args.detour,
         reference_hours=None if getattr(args, 'reference_time', None) is None else parse_time(args.reference_time),
     )

@@ -79,13 +79,23 @@ def _from_scenario(args):
     sheet = []
     for index, capture in zip(chosen, captures(world, camera, [frames[i] for i in chosen], args.encoding, args.seed)):
         f = capture.frame
-        sheet.append(SheetFrame(index, capture.uv, capture.green, capture.view.sky.astype(np.uint8) * 255,
-                                f.pose.position, f.pose.quaternion,
-                                f'{f.label}, {f.hours:.2f} h, clouds {f.cloud_cover:g}, '
-                                f'tilt {np.degrees(tilt(f.pose.rotation)):.0f} deg'))
+        sheet.append(
+            SheetFrame(
+                index,
+                capture.uv,
+                capture.green,
+                capture.view.sky.astype(np.uint8) * 255,
+                f.pose.position,
+                f.pose.quaternion,
+                f'{f.label}, {f.hours:.2f} h, clouds {f.cloud_cover:g}, '
+                f'tilt {np.degrees(tilt(f.pose.rotation)):.0f} deg',
+            )
+        )
     positions = np.array([f.pose.position for f in frames])
-    title = (f'SYNTHETIC {args.scenario}: {args.world} world, seed {args.seed}, {len(frames)} frames, '
-             f'{camera.width}x{camera.height}, fov {args.fov:g} deg, {args.encoding}')
+    title = (
+        f'SYNTHETIC {args.scenario}: {args.world} world, seed {args.seed}, {len(frames)} frames, '
+        f'{camera.width}x{camera.height}, fov {args.fov:g} deg, {args.encoding}'
+    )
     return sheet, positions, world, title
 
 
@@ -105,8 +115,9 @@ def _from_bag(args):
 
                 raise CliError(f'{args.bag} has no {topic}; a preview needs images, masks and poses')
         by_stamp: dict[int, dict] = {}
-        for message in bag.messages(['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask',
-                                     '/ground_truth/pose']):
+        for message in bag.messages(
+            ['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/ground_truth/pose']
+        ):
             data = bag.deserialize(message)
             stamp = data.header.stamp.sec * 10**9 + data.header.stamp.nanosec
             by_stamp.setdefault(stamp, {})[message.topic] = data
@@ -119,19 +130,30 @@ def _from_bag(args):
         parts = complete[index]
         pose = parts['/ground_truth/pose'].pose
         label = labels[index] if index < len(labels) else {}
-        caption = (f'{label.get("label", "")}, {label.get("hours", "?")} h, clouds {label.get("cloud_cover", "?")}'
-                   if label else '')
-        sheet.append(SheetFrame(index, _pixels(parts['/camera/uv/image_raw']),
-                                _pixels(parts['/camera/green/image_raw']), _pixels(parts['/ground_truth/mask']),
-                                np.array([pose.position.x, pose.position.y, pose.position.z]),
-                                np.array([pose.orientation.x, pose.orientation.y, pose.orientation.z,
-                                          pose.orientation.w]), caption))
-    positions = np.array([[p['/ground_truth/pose'].pose.position.x, p['/ground_truth/pose'].pose.position.y]
-                          for p in complete]).reshape(-1, 2)
+        caption = (
+            f'{label.get("label", "")}, {label.get("hours", "?")} h, clouds {label.get("cloud_cover", "?")}'
+            if label
+            else ''
+        )
+        sheet.append(
+            SheetFrame(
+                index,
+                _pixels(parts['/camera/uv/image_raw']),
+                _pixels(parts['/camera/green/image_raw']),
+                _pixels(parts['/ground_truth/mask']),
+                np.array([pose.position.x, pose.position.y, pose.position.z]),
+                np.array([pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w]),
+                caption,
+            )
+        )
+    positions = np.array(
+        [[p['/ground_truth/pose'].pose.position.x, p['/ground_truth/pose'].pose.position.y] for p in complete]
+    ).reshape(-1, 2)
     world = generate(info['world'], int(info['world_seed'])) if 'world' in info else None
     kind = 'SYNTHETIC ' if info.get('synthetic') else ''
     title = f'{kind}recording {args.bag}: {len(complete)} frames' + (
-        f', {info.get("scenario")} in the {info.get("world")} world, seed {info.get("seed")}' if info else '')
+        f', {info.get("scenario")} in the {info.get("world")} world, seed {info.get("seed")}' if info else ''
+    )
     return sheet, positions, world, title
 
 
@@ -141,4 +163,3 @@ def _pixels(image):
 
     dtype = {'mono8': np.uint8, 'mono16': np.uint16, '32FC1': np.float32}[image.encoding]
     return np.frombuffer(image.data.tobytes(), dtype=dtype).reshape(image.height, image.width)
-

@@ -28,10 +28,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('bags', nargs='+', metavar='BAG', help='recordings with /ground_truth/mask')
     parser.add_argument('--params', metavar='FILE', help='skyline node parameters (default: the shipped ones)')
     add_methods_argument(parser, METHODS)
-    parser.add_argument('--channels', nargs='+', default=['uv', 'uv-green'], choices=('uv', 'uv-green'),
-                        help='channel modes to compare (default both)')
-    parser.add_argument('--plot', default='skyline_eval.png', metavar='FILE.png',
-                        help='where to save the histogram plot (default skyline_eval.png)')
+    parser.add_argument(
+        '--channels',
+        nargs='+',
+        default=['uv', 'uv-green'],
+        choices=('uv', 'uv-green'),
+        help='channel modes to compare (default both)',
+    )
+    parser.add_argument(
+        '--plot',
+        default='skyline_eval.png',
+        metavar='FILE.png',
+        help='where to save the histogram plot (default skyline_eval.png)',
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -130,19 +139,26 @@ def report(rates: dict, values: dict) -> str:
     first = next(iter(rates.values()))
     worlds = list(dict.fromkeys(world for world, _, _ in first))
     times = [t for t in (*TIME_LABELS, 'all') if any(time == t for _, time, _ in first)]
-    lines = [f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
-             f'{values.get("channels", "?")}; structure: the structure steps (enclosed ground, ground ring)']
+    lines = [
+        f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
+        f'{values.get("channels", "?")}; structure: the structure steps (enclosed ground, ground ring)'
+    ]
     for world in worlds:
         count = sum(1 for w, _, _ in first if w == world)
         rows = []
         for key, values_ in rates.items():
             mine = [(t, r) for w, t, r in values_ if w == world]
-            cells = [np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan
-                     for t in times]
+            cells = [
+                np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan for t in times
+            ]
             rows.append(rate_row(key, cells, [r for _, r in mine]))
         lines += ['', f'{world} ({count} exposures)', rate_table(times, rows)]
-    rows = [rate_row(key, [np.mean([r for w, _, r in values_ if w == world]) for world in worlds],
-                     [r for _, _, r in values_]) for key, values_ in rates.items()]
+    rows = [
+        rate_row(
+            key, [np.mean([r for w, _, r in values_ if w == world]) for world in worlds], [r for _, _, r in values_]
+        )
+        for key, values_ in rates.items()
+    ]
     lines += ['', 'all worlds', rate_table(worlds, rows)]
     return '\n'.join(lines)
 
@@ -152,14 +168,24 @@ def rate_row(key: tuple[str, str, str], cells: list[float], everything: list[flo
     import numpy as np
 
     method, channels, structure = key
-    return [f'  {method}', channels, structure, *(100 * c for c in cells), 100 * np.mean(everything),
-            100 * np.min(everything)]
+    return [
+        f'  {method}',
+        channels,
+        structure,
+        *(100 * c for c in cells),
+        100 * np.mean(everything),
+        100 * np.min(everything),
+    ]
 
 
 def rate_table(titles: list[str], rows: list[list]) -> str:
     """Return a table of classification rates (%): method, channels, structure, one column per title, mean, worst."""
-    columns = [Column('method', 20, align='<'), Column('channels', 10, align='<'), Column('structure', 10),
-               *(Column(title, 10, '.2f') for title in [*titles, 'mean', 'worst'])]
+    columns = [
+        Column('method', 20, align='<'),
+        Column('channels', 10, align='<'),
+        Column('structure', 10),
+        *(Column(title, 10, '.2f') for title in [*titles, 'mean', 'worst']),
+    ]
     return text_table(columns, rows, gap='', rule=False)
 
 
@@ -177,12 +203,24 @@ def structure_report(rates: dict) -> str:
     for world in [*worlds, 'all worlds']:
         before = [r for w, _, r in off if world in (w, 'all worlds')]
         after = [r for w, _, r in on if world in (w, 'all worlds')]
-        rows.append([f'  {world}', len(before), 100 * np.mean(before), 100 * np.mean(after), 100 * np.min(before),
-                     100 * np.min(after)])
-    columns = [Column('world', 20, align='<'), Column('exposures', 10, 'd'),
-               *(Column(title, 10, '.2f') for title in ('mean off', 'mean on', 'worst off', 'worst on'))]
-    return '\n'.join(['', f'{method} {channels} without -> with the structure steps',
-                      text_table(columns, rows, gap='', rule=False)])
+        rows.append(
+            [
+                f'  {world}',
+                len(before),
+                100 * np.mean(before),
+                100 * np.mean(after),
+                100 * np.min(before),
+                100 * np.min(after),
+            ]
+        )
+    columns = [
+        Column('world', 20, align='<'),
+        Column('exposures', 10, 'd'),
+        *(Column(title, 10, '.2f') for title in ('mean off', 'mean on', 'worst off', 'worst on')),
+    ]
+    return '\n'.join(
+        ['', f'{method} {channels} without -> with the structure steps', text_table(columns, rows, gap='', rule=False)]
+    )
 
 
 def draw_histogram(path, samples: dict, values: dict, synthetic: bool) -> None:
@@ -203,21 +241,32 @@ def draw_histogram(path, samples: dict, values: dict, synthetic: bool) -> None:
         bins = np.linspace(lo, hi, 160)
         for mask, colour, label in ((sky, 'Blues', 'sky'), (~sky, 'Oranges', 'ground')):
             counts, xe, ye = np.histogram2d(x[mask], y[mask], bins=(bins, bins))
-            axis.contourf(0.5 * (xe[1:] + xe[:-1]), 0.5 * (ye[1:] + ye[:-1]), np.log1p(counts.T), levels=12,
-                          cmap=colour, alpha=0.6)
+            axis.contourf(
+                0.5 * (xe[1:] + xe[:-1]),
+                0.5 * (ye[1:] + ye[:-1]),
+                np.log1p(counts.T),
+                levels=12,
+                cmap=colour,
+                alpha=0.6,
+            )
             axis.plot([], [], 's', color=plt.get_cmap(colour)(0.7), label=f'{label} pixels')
         line_x = np.array([lo, hi])
         threshold, angle = float(values.get('threshold', math.nan)), math.radians(float(values.get('angle_deg', 0)))
         if not math.isnan(threshold) and abs(math.sin(angle)) > 1e-6:
-            axis.plot(line_x, (threshold - math.cos(angle) * line_x) / math.sin(angle), 'k-', linewidth=2,
-                      label=f'UV/green separator (a = {math.degrees(angle):.1f} deg)')
+            axis.plot(
+                line_x,
+                (threshold - math.cos(angle) * line_x) / math.sin(angle),
+                'k-',
+                linewidth=2,
+                label=f'UV/green separator (a = {math.degrees(angle):.1f} deg)',
+            )
         threshold_uv = float(values.get('threshold_uv', math.nan))
         if not math.isnan(threshold_uv):
             axis.axvline(threshold_uv, color='k', linestyle='--', linewidth=2, label='UV-only threshold')
         axis.set_xlim(lo, hi)
         axis.set_ylim(lo, hi)
-    axis.set_xlabel('log UV (relative to the image\'s 90th percentile)')
-    axis.set_ylabel('log green (relative to the image\'s 90th percentile)')
+    axis.set_xlabel("log UV (relative to the image's 90th percentile)")
+    axis.set_ylabel("log green (relative to the image's 90th percentile)")
     axis.set_title(('Synthetic recordings: ' if synthetic else '') + 'sky and ground pixels (5 % sample)')
     axis.legend(loc='lower right')
     figure.savefig(path, dpi=90)

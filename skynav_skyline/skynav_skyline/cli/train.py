@@ -20,11 +20,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav skyline train`."""
     parser.add_argument('bags', nargs='+', metavar='BAG', help='recordings with /ground_truth/mask')
     parser.add_argument('--out', required=True, metavar='params.yaml', help='parameter file to write')
-    parser.add_argument('--channels', choices=('uv', 'uv-green'), default='uv-green',
-                        help='which the node should use (both are learned; default uv-green)')
+    parser.add_argument(
+        '--channels',
+        choices=('uv', 'uv-green'),
+        default='uv-green',
+        help='which the node should use (both are learned; default uv-green)',
+    )
     parser.add_argument('--method', default=None, help='method to write (default: keep the shipped one)')
-    parser.add_argument('--max-pixels', type=int, default=2_000_000, metavar='N',
-                        help='learn from at most N pixels, drawn at random (default 2e6)')
+    parser.add_argument(
+        '--max-pixels',
+        type=int,
+        default=2_000_000,
+        metavar='N',
+        help='learn from at most N pixels, drawn at random (default 2e6)',
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,13 +86,16 @@ def run(args: argparse.Namespace) -> int:
         f'# skyline node parameters learned by `skynav skyline train` from {len(features)} exposures of\n'
         + ''.join(f'#   {path}\n' for path in args.bags)
         + f'# classification rate on those exposures: UV only {100 * models["uv"].rate:.2f} %, '
-          f'UV/green {100 * models["uv-green"].rate:.2f} % (a = {parameters["angle_deg"]} deg)\n'
+        f'UV/green {100 * models["uv-green"].rate:.2f} % (a = {parameters["angle_deg"]} deg)\n'
     )
     text = header + yaml.safe_dump({'skyline': {'ros__parameters': parameters}}, sort_keys=False)
     partial = out.with_name(f'.{out.name}.partial')
     partial.write_text(text)
     os.replace(partial, out)
-    print(f'skynav skyline train: UV only t = {parameters["threshold_uv"]} ({100 * models["uv"].rate:.2f} %), '
-          f'UV/green a = {parameters["angle_deg"]} deg, t = {parameters["threshold"]} '
-          f'({100 * models["uv-green"].rate:.2f} %); wrote {out} (channels {chosen.channels})', file=sys.stderr)
+    print(
+        f'skynav skyline train: UV only t = {parameters["threshold_uv"]} ({100 * models["uv"].rate:.2f} %), '
+        f'UV/green a = {parameters["angle_deg"]} deg, t = {parameters["threshold"]} '
+        f'({100 * models["uv-green"].rate:.2f} %); wrote {out} (channels {chosen.channels})',
+        file=sys.stderr,
+    )
     return 0

@@ -36,8 +36,12 @@ HELP = 'angular error of home vectors (3D-, 2D-, min-warping) against ground tru
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval homing`."""
     parser.add_argument('bag', metavar='BAG', help='homing grid recording with /ground_truth/pose')
-    parser.add_argument('--map', type=Path, metavar='MAP.db',
-                        help="home to a snapshot of this map (default: the recording's snapshot frame)")
+    parser.add_argument(
+        '--map',
+        type=Path,
+        metavar='MAP.db',
+        help="home to a snapshot of this map (default: the recording's snapshot frame)",
+    )
     parser.add_argument('--index', type=int, default=0, metavar='I', help='the map snapshot to home to (default 0)')
     add_methods_argument(parser, list(METHODS))
     add_plots_argument(parser, 'homing_eval', 'the quiver plot')
@@ -66,8 +70,9 @@ def run(args: argparse.Namespace) -> int:
             inputs = sum(t.count for name, t in bag.topics.items() if name.startswith('/camera/'))
         plots_folder(args.plots)
         with tqdm(total=inputs, unit='msg', desc='skyline + SH', file=sys.stderr, disable=None) as bar:
-            recording = recording_views(args.bag, graph_arguments(args.params, None), images=False, masks=True,
-                                        progress=bar.update)
+            recording = recording_views(
+                args.bag, graph_arguments(args.params, None), images=False, masks=True, progress=bar.update
+            )
         if not recording.views:
             raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')
         snapshot = None if store is None else map_snapshot(store, args.index, recording)
@@ -82,13 +87,17 @@ def run(args: argparse.Namespace) -> int:
     stem = Path(args.bag).stem
     kind = 'synthetic ' if evaluation.synthetic else ''
     d, tilt = evaluation.distances, evaluation.tilts
-    print(f'\n{Path(args.bag).name}: {len(d)} {kind}views homing to {evaluation.snapshot.name}, '
-          f'{d.min():.2f}-{d.max():.2f} m away, camera tilt {tilt.min():.1f}-{tilt.max():.1f} deg')
+    print(
+        f'\n{Path(args.bag).name}: {len(d)} {kind}views homing to {evaluation.snapshot.name}, '
+        f'{d.min():.2f}-{d.max():.2f} m away, camera tilt {tilt.min():.1f}-{tilt.max():.1f} deg'
+    )
     if evaluation.left_out:
         views = 'view' if evaluation.left_out == 1 else 'views'
         print(f'({evaluation.left_out} {views} within 5 cm of the snapshot left out: no home direction)')
-    print('angular error of the home vector (degrees): median / 90th percentile; ms/estimate: CPU time '
-          '(all threads) from SH coefficients or masks')
+    print(
+        'angular error of the home vector (degrees): median / 90th percentile; ms/estimate: CPU time '
+        '(all threads) from SH coefficients or masks'
+    )
     print(evaluation.table())
     for method, why in evaluation.skipped.items():
         print(f'{method} skipped: it {why}')
