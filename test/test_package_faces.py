@@ -16,7 +16,7 @@ def test_every_exported_name_resolves(package):
     for name in module.__all__:
         assert getattr(module, name) is not None and name in dir(module)
     with pytest.raises(AttributeError, match='no attribute'):
-        module.not_a_public_name
+        _ = module.not_a_public_name
 
 
 def test_importing_the_packages_loads_no_submodule_and_no_scipy():

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The visual 3D compass: full 3D rotation between a current view and a snapshot, from the skyline, in the SH basis.
 
-Convention (docs/interfaces.md, camera_link): every estimate is R with d_snapshot = R d_current for any view direction d,
+Convention (docs/interfaces.md, camera_link): every estimate is R with d_snapshot = R d_current for any direction d,
 so f_snapshot(d) = f_current(R^T d); from ground-truth orientations of camera_link in map, R = Q_s^-1 Q_c.
 R comes as a 3x3 matrix, a scipy Rotation or a quaternion (x, y, z, w). ZYZ Euler angles mean
 R = Rz(alpha) Ry(beta) Rz(gamma); beta is the tilt between the two views' z axes.

@@ -28,7 +28,6 @@ work once (padded and complex coefficients, the derivative matrix of the refinem
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
@@ -40,8 +39,8 @@ from skynav_compass.verify import current_masks, is_binary, verify
 from skynav_compass.views import CompassView
 from skynav_core.rotations import as_matrix, rotation_angle, zyz_matrix
 
-View = Union[CompassView, np.ndarray]
-Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by Compass.prepare
+View = CompassView | np.ndarray
+Snapshot = CompassView | np.ndarray | PreparedSnapshot  # a view, or one prepared by Compass.prepare
 #: Largest tilt between the two views searched by default (rad): a mower's camera tilts by some 20-25 degrees on
 #: rough lawn, so two views on opposite slopes differ by up to 45 (the bundled bumpy homing grid: 35 at most; the
 #: compass sets: 36). A wider bound lets more wrong hypotheses in (see README, "The 3D compass").

@@ -35,6 +35,7 @@ from skynav_compass.so3 import (
     to_padded,
 )
 from skynav_compass.views import CompassView
+from skynav_sh.spectra import illumination_invariant
 
 COSTS = ('masked', 'plain')
 
@@ -238,8 +239,6 @@ def prepare_snapshot(
     if kind == 'plain':
         f_s = _plain_terms(snapshot)
         if normalise:
-            from skynav_sh.spectra import illumination_invariant
-
             f_s = illumination_invariant(f_s[: (max_degree + 1) ** 2])
         a = to_padded(f_s, max_degree)
         return PreparedSnapshot('plain', bool(normalise), int(max_degree), a[None], norm_square=float(np.sum(a * a)))
@@ -392,8 +391,6 @@ def build_problem(
     if kind == 'plain':
         f_c = _plain_terms(current)
         if normalise:
-            from skynav_sh.spectra import illumination_invariant
-
             f_c = illumination_invariant(f_c[: (max_degree + 1) ** 2])
         b = to_padded(f_c, max_degree)
         constant = side.norm_square + float(np.sum(b * b))

@@ -12,7 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from skynav_compass.evaluation import relative_tilt
+from skynav_core.bag import open_bag
+from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.rotations import as_quaternion, relative_rotation
+from skynav_core.views import recorded_frames
 
 IMAGE_TOPICS = {'uv': '/camera/uv/image_raw', 'green': '/camera/green/image_raw', 'mask': '/ground_truth/mask'}
 
@@ -56,16 +60,12 @@ class CompassSet:
 
     def tilts(self) -> np.ndarray:
         """Return every frame's relative tilt (deg) against the reference: angle between their camera z axes."""
-        from skynav_compass.evaluation import relative_tilt
 
         return relative_tilt(self.true_rotations())
 
 
 def load_compass_set(path: str | Path) -> CompassSet:
     """Return the compass set of a recording (first camera info; frames in stamp order; labels from metadata)."""
-    from skynav_core.bag import open_bag
-    from skynav_core.camera_input import CAMERA_INFO_TOPIC
-    from skynav_core.views import recorded_frames
 
     with open_bag(path) as bag:
         recorded = recorded_frames(bag, list(IMAGE_TOPICS.values()), encodings=('mono8',))

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from skynav_core.rotations import as_quaternion, zyz_angles
 
@@ -20,7 +21,6 @@ class Hypothesis:
     @property
     def rotation(self):  # -> scipy.spatial.transform.Rotation
         """Return R as a scipy Rotation."""
-        from scipy.spatial.transform import Rotation
 
         return Rotation.from_matrix(self.matrix)
 
@@ -43,7 +43,6 @@ class CompassEstimate:
     @property
     def rotation(self):  # -> scipy.spatial.transform.Rotation
         """Return R as a scipy Rotation (d_snapshot = R d_current)."""
-        from scipy.spatial.transform import Rotation
 
         return Rotation.from_matrix(self.matrix)
 

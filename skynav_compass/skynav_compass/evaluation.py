@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import rankdata
 
 from skynav_core.evaluation import Column, text_table
 from skynav_core.rotations import RotationLike, as_matrix, rotation_angle, tilt
@@ -85,7 +86,6 @@ def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD
 def roc_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
     """Return the area under the ROC curve of scores (higher: more likely positive): the probability that a random
     positive scores above a random negative, ties counting half; NaN if either class is empty."""
-    from scipy.stats import rankdata
 
     scores, positive = np.asarray(scores, dtype=float), np.asarray(positive, dtype=bool)
     n_positive, n_negative = int(positive.sum()), int((~positive).sum())

@@ -11,7 +11,6 @@ searches +-1 old step around the best candidates with the step divided by `facto
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
@@ -22,8 +21,8 @@ from skynav_compass.so3 import quarter_turn_padded, rotate_z_padded
 from skynav_compass.views import CompassView
 from skynav_core.rotations import rotation_angle, zyz_matrix
 
-View = Union[CompassView, np.ndarray]
-Snapshot = Union[CompassView, np.ndarray, PreparedSnapshot]  # a view, or one prepared by ExhaustiveCompass.prepare
+View = CompassView | np.ndarray
+Snapshot = CompassView | np.ndarray | PreparedSnapshot  # a view, or one prepared by ExhaustiveCompass.prepare
 
 
 def grid_channel_values(
@@ -154,7 +153,7 @@ class ExhaustiveCompass:
         while step > c.final_step and candidates:
             step /= c.factor
             refined = []
-            for cost, (a, b, g) in candidates:
+            for _cost, (a, b, g) in candidates:
                 local_a, local_g = a + step * offsets, g + step * offsets
                 local_b = np.unique(np.clip(b + step * offsets, -max_beta, max_beta))  # stay within the tilt limit
                 local = grid_search_costs(problem, local_a, local_b, local_g)

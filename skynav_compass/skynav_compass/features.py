@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from skynav_compass.estimate import CompassEstimate, Hypothesis
@@ -105,7 +106,6 @@ class FeatureCompass:
 
     def __init__(self, camera, config: FeatureConfig | None = None) -> None:
         """Prepare the detector and the image-circle mask of a camera."""
-        import cv2
 
         self.camera = camera
         self.config = config or FeatureConfig()
@@ -135,7 +135,6 @@ class FeatureCompass:
 
     def matches(self, snapshot: Features, current: Features) -> tuple[np.ndarray, np.ndarray]:
         """Return matched bearings (d_s, d_c), each (M, 3), by ratio test and mutual consistency."""
-        import cv2
 
         (d_s, desc_s), (d_c, desc_c) = snapshot, current
         if desc_s is None or desc_c is None or len(d_s) < 2 or len(d_c) < 2:

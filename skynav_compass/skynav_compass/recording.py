@@ -25,20 +25,24 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from skynav_compass.compass import MAX_TILT
+from skynav_compass.dataset import true_rotation
 from skynav_compass.evaluation import (
     RIGHT_DEG,
     STATISTICS_COLUMNS,
     CompassResult,
     ErrorStatistics,
     error_statistics,
+    relative_tilt,
     share_cell,
     summary_rows,
 )
 from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
 from skynav_compass.runner import Method, NodeViews, build_method, compass_result, timed_estimates
 from skynav_core.evaluation import Column, text_table, unknown_methods
+from skynav_core.views import recording_views
 
 GROUPS = ('rotation', 'moved')  # pure rotations, views moved against the snapshot
 GROUP_TITLES = {'rotation': 'pure rotations', 'moved': 'moved views'}
@@ -192,8 +196,6 @@ def evaluate_views(
         raise EvaluationError(f'{path}: the image methods need the UV images of the recording')
     if 'mask' in compared and any(v.mask is None for v in [snapshot_view, *queries]):
         raise EvaluationError(f'{path}: the panorama compass needs the skyline masks of the recording')
-    from skynav_compass.dataset import true_rotation
-    from skynav_compass.evaluation import relative_tilt
 
     truth = true_rotation(snapshot_pose[3:], np.array([v.pose[3:] for v in queries]))
     tilts = relative_tilt(truth)
@@ -246,7 +248,6 @@ def evaluate_recording(
 
     See evaluate_views; the SH node's fill and field of view come from the parameter files in ros_args.
     """
-    from skynav_core.views import recording_views
 
     check_node_methods(methods)
     images = snapshot is None and any(METHODS[m].needs_images for m in methods)
@@ -260,7 +261,6 @@ def evaluate_recording(
 
 def sh_node_settings(ros_args: Sequence[str] | None) -> dict:
     """Return the SH node's parameters set in the --params-file files of ROS arguments (later files win)."""
-    import yaml
 
     settings: dict = {}
     args = list(ros_args or [])

@@ -130,7 +130,7 @@ def refine(
     if not np.isfinite(jet.value):
         return Refined(matrix, float('inf'), float('inf'), 0, np.zeros((3, 3)))
     iterations = 0
-    for iterations in range(1, max_iterations + 1):
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 (the count run is read after the loop)
         step = _newton_step(jet.grad, jet.hess)
         length = newton_length = float(np.linalg.norm(step))
         if length > radius:

@@ -17,9 +17,12 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from scipy.fft import irfft2, next_fast_len
+from scipy.sparse import block_diag, vstack
 
 from skynav_core.rotations import zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order
+from skynav_sh.rotation import quarter_turn
 
 
 @lru_cache(maxsize=16)
@@ -72,7 +75,6 @@ def complex_form(padded: np.ndarray) -> np.ndarray:
 @lru_cache(maxsize=16)
 def quarter_turn_padded(max_degree: int) -> np.ndarray:
     """Return J_l = D_l(Rx(-90 deg)) for l = 0..L as a read-only padded stack (L+1, 2L+1, 2L+1)."""
-    from skynav_sh.rotation import quarter_turn
 
     L = int(max_degree)
     out = np.zeros((L + 1, 2 * L + 1, 2 * L + 1))
@@ -179,7 +181,6 @@ def generators(max_degree: int) -> np.ndarray:
 @lru_cache(maxsize=16)
 def stacked_generators(max_degree: int):  # -> scipy.sparse.csr_matrix
     """Return [G_x; G_y; G_z] as one sparse (3 N, N) matrix on flattened padded coefficients, N = (L+1)(2L+1)."""
-    from scipy.sparse import block_diag, vstack
 
     parts = []
     for blocks in generators(max_degree):
@@ -227,7 +228,6 @@ class EulerGrid:
     @classmethod
     def create(cls, max_degree: int, oversampling: float = 1.0, max_beta: float = np.pi) -> EulerGrid:
         """Return the grid of degree L with n >= oversampling (2L+2) azimuth steps and betas of the same step."""
-        from scipy.fft import next_fast_len
 
         n = int(np.ceil(oversampling * (2 * max_degree + 2) / 2.0)) * 2
         while n % 2 or next_fast_len(n) != n:  # even, with small prime factors only (fast FFTs)
@@ -304,7 +304,6 @@ def so3_correlation_cells(products: np.ndarray, grid: EulerGrid) -> np.ndarray:
     products[m + L, n, l, k] = sum conj(A_lm) B_ln of correlation k (n >= 0), complex and C-contiguous (the layout
     so3_correlation turns its input into; building it directly saves the copies).
     """
-    from scipy.fft import irfft2
 
     L = grid.max_degree
     k = products.shape[-1]

@@ -22,6 +22,7 @@ import numpy as np
 
 from skynav_compass.cost import CostProblem
 from skynav_compass.so3 import from_padded, rotate_by_matrix
+from skynav_sh.transform import GaussLegendreGrid
 
 #: Sample grid: 65 Gauss-Legendre rings of 128 nodes, 2.8 degrees apart (more if the views' degree needs them).
 #: Fine enough to follow the recovered skyline (at 3.7 degrees the choice got worse on the real landscapes at
@@ -58,7 +59,6 @@ class Verification:
 @lru_cache(maxsize=8)
 def sample_grid(max_degree: int):  # -> skynav_sh.transform.GaussLegendreGrid
     """Return the shared Gauss-Legendre sample grid for views of SH degree L (SAMPLE_RINGS x SAMPLE_AZIMUTHS)."""
-    from skynav_sh.transform import GaussLegendreGrid
 
     L = int(max_degree)
     return GaussLegendreGrid(L, n_phi=max(SAMPLE_AZIMUTHS, 2 * L + 2), n_theta=max(SAMPLE_RINGS, L + 1))

@@ -12,8 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import eval_legendre
 
 from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
+from skynav_sh.fisheye import image_values
+from skynav_sh.product import product
 
 FILL_MODES = ('zero', 'mean', 'mirror')
 
@@ -22,7 +25,6 @@ def cap_visibility(max_degree: int, theta_max: float) -> np.ndarray:
     """Return the SH coefficients (degree L) of the cap theta <= theta_max (rad) about +z: 1 inside, 0 outside."""
     # zonal: c_l0 = 2 pi N_l0 integral_{cos theta_max}^1 P_l(x) dx,
     # with (2l+1) integral_a^1 P_l = P_(l-1)(a) - P_(l+1)(a)
-    from scipy.special import eval_legendre
 
     L = int(max_degree)
     a = float(np.cos(theta_max))
@@ -90,7 +92,6 @@ class CompassView:
     def from_image(cls, transform, image: np.ndarray, binary: bool | None = None) -> CompassView:
         """Return the view of a fish-eye mask or grey image through a zero-fill FisheyeTransform (camera_link)."""
         # binary None: decided from the data (bool images, or only the values 0 and the dtype's maximum)
-        from skynav_sh.fisheye import image_values
 
         if transform.fill != 'zero':
             raise ValueError("CompassView.from_image needs a FisheyeTransform with fill='zero' (it yields v f)")
@@ -114,7 +115,6 @@ class CompassView:
         The products are exact for band-limited f and v (degree L defaults to that of f); visibility None means the
         full sphere (v = 1).
         """
-        from skynav_sh.product import product
 
         f = np.asarray(coefficients, dtype=float)
         degree = degree_from_size(f.shape[-1]) if max_degree is None else int(max_degree)
@@ -138,7 +138,6 @@ class CompassView:
         zero fill: v f is the message itself; mean fill: v f = f - mu (1 - v) with mu = c_00 / sqrt(4 pi) exactly;
         mirror fill: v f by the SH product with the cap (approximate). A mask is binary, so v f^2 = v f.
         """
-        from skynav_sh.product import product
 
         f = np.asarray(coefficients, dtype=float)
         degree = degree_from_size(f.shape[-1]) if max_degree is None else int(max_degree)

@@ -11,13 +11,17 @@ d_current with R = Rz(psi) (camera_link); a yaw-only compass cannot see tilt, so
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from skynav_compass.compass import UNITS
 from skynav_compass.cost import build_problem
 from skynav_compass.estimate import CompassEstimate, Hypothesis
+from skynav_compass.so3 import complex_form
 from skynav_compass.views import CompassView
+from skynav_core.camera import directions_from_angles
 from skynav_core.rotations import yaw_matrix
+from skynav_sh.fisheye import image_values
 
 
 def _parabola_offset(left: float, centre: float, right: float) -> float:
@@ -33,9 +37,6 @@ class PanoramicCompass:
 
     def __init__(self, camera, n_azimuth: int = 360, n_polar: int = 60, max_theta: float | None = None) -> None:
         """Prepare the unwrapping remap of a camera: n_azimuth columns over 2 pi, n_polar rows up to max_theta (rad)."""
-        import cv2
-
-        from skynav_core.camera import directions_from_angles
 
         self.camera = camera
         self.n_azimuth = int(n_azimuth)
@@ -49,9 +50,6 @@ class PanoramicCompass:
 
     def unwrap(self, image: np.ndarray) -> np.ndarray:
         """Return the panorama (n_polar, n_azimuth) float32 of a fish-eye image (uint8 as / 255)."""
-        import cv2
-
-        from skynav_sh.fisheye import image_values
 
         return cv2.remap(
             image_values(image),
@@ -112,7 +110,6 @@ class YawCompass:
 
     def estimate(self, snapshot: CompassView | np.ndarray, current: CompassView | np.ndarray) -> CompassEstimate:
         """Return R = Rz(psi) minimising the compass cost over yaw (d_snapshot = R d_current)."""
-        from skynav_compass.so3 import complex_form
 
         problem = build_problem(snapshot, current, self.max_degree, self.cost, self.normalise)
         L = self.max_degree

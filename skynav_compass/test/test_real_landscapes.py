@@ -4,13 +4,14 @@
 For each real landscape a compass set (seed 2, held out from the choices made on seed 1: the tilt bound, the sample
 grid, the confidence's scale) of rotations at the snapshot's place (any yaw, tilt up to 30 degrees) and views moved
 0.1-0.5 m goes through the skyline and SH nodes as `skynav eval compass` runs them; once with every frame in the
-morning, once with the snapshot taken at noon. The issue's targets hold at SH degree 32: median error under 1
-degree and 90th percentile under 3 degrees for the rotations of guereins, hurricane and geneva (snapshot and views
-at the same time of day), not of garching, whose skyline lies below the horizontal (PRECISE below). At the shipped degree 16 a skyline 0-10 degrees above the rim of the fish-eye (garching, geneva) is
-blurred into the rim and the compass misses those targets there, but at every degree and time no estimate tilts
-the views further apart than 90 degrees, and the confidence separates estimates under 5 degrees of error from the
-others (ROC AUC at least 0.9 over all sets). The images are synthetic renderings of real photographs; the test
-skips with one line where the package cannot be fetched.
+morning, once with the snapshot taken at noon. The issue's targets hold at SH degree 32: median error under 1 degree
+and 90th percentile under 3 degrees for the rotations of guereins, hurricane and geneva (snapshot and views at the
+same time of day), not of garching, whose skyline lies below the horizontal (PRECISE below). At the shipped degree
+16 a skyline 0-10 degrees above the rim of the fish-eye (garching, geneva) is blurred into the rim and the compass
+misses those targets there, but at every degree and time no estimate tilts the views further apart than 90 degrees,
+and the confidence separates estimates under 5 degrees of error from the others (ROC AUC at least 0.9 over all
+sets). The images are synthetic renderings of real photographs; the test skips with one line where the package
+cannot be fetched.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import os
 from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Self, Union
+from typing import Self
 
 import numpy as np
 
@@ -305,7 +305,7 @@ class OCamCamera(_PixelCamera):
         return theta <= self.theta_max
 
 
-Camera = Union[EquidistantCamera, OCamCamera]
+Camera = EquidistantCamera | OCamCamera
 
 
 def load_camera(source: object) -> Camera:

@@ -46,7 +46,7 @@ def graph_arguments(params: Path | None, map_path: Path | None) -> list[str]:
 
 def open_map(path: Path) -> MapStore:
     """Open a map file for a command; CliError with the map's problem in one line if it cannot be used."""
-    from .maps import MapError, MapStore  # numpy: not loaded while the `skynav` command builds its parser
+    from .maps import MapError, MapStore  # noqa: PLC0415 (numpy is not loaded while the `skynav` command builds its parser)
 
     try:
         return MapStore.open(path)

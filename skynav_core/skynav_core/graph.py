@@ -22,6 +22,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 
 from .bag import BagReader, RawMessage
+from .environment import apply_ros_environment
 from .node import DIAGNOSTICS_PERIOD, SkynavNode
 from .nodes import NodeSpec
 from .ros import message_class
@@ -129,7 +130,6 @@ def in_process(
     specs: Iterable[NodeSpec], ros_args: list[str] | None = None, sink: Sink | None = None
 ) -> Iterator[InProcessGraph]:
     """Yield an InProcessGraph of the given nodes in an rclpy context of its own (ros_args: --params-file, -p)."""
-    from .environment import apply_ros_environment
 
     apply_ros_environment()
     context = Context()

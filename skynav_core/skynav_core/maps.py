@@ -731,7 +731,7 @@ class MapStore:
 
 
 def map_for_parameter(current: MapStore | None, path: str) -> MapStore | None:
-    """Return the map a node's `map` parameter names: `current` if it is that file, None for ''; ValueError if unusable."""
+    """Return the map a node's `map` parameter names: `current` if it is that file, None for ''; ValueError if bad."""
     if path == (str(current.path) if current is not None else ''):
         return current
     if not path:

@@ -42,7 +42,7 @@ def defaults(table: ParameterTable) -> dict[str, Any]:
 
 
 def load_parameter_file(path: str | Path) -> dict[str, dict]:
-    """Return a ROS 2 parameter file's sections ({node: {'ros__parameters': {...}}}); ParameterFileError if it is not one."""
+    """Return a ROS 2 parameter file's sections ({node: {'ros__parameters': {...}}}); else ParameterFileError."""
     try:
         content = yaml.safe_load(Path(path).read_text())
     except OSError as exc:

@@ -26,7 +26,7 @@ RotationLike = Union[
 def _scipy_rotation() -> type[Rotation]:
     """Return scipy's Rotation class."""
     # imported on first use: scipy.spatial takes some 0.2 s to load, which every node's start would pay
-    from scipy.spatial.transform import Rotation
+    from scipy.spatial.transform import Rotation  # noqa: PLC0415 (scipy.spatial loads in 0.2 s and every node imports this module at start-up)
 
     return Rotation
 

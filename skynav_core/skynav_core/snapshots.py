@@ -59,7 +59,7 @@ class SnapshotChoice:
             self.match = match
 
     def choose(self, count: bool = True) -> int | None:
-        """Return the snapshot to compare against, None when there is none (the reason counted unless count is False)."""
+        """Return the snapshot to compare against, None if there is none (the reason counted unless not count)."""
         reject = self.reject if count else _uncounted
         if self.store is None or len(self.store) == 0:
             reject('no_map', 'no map with snapshots to compare against (set the map parameter)')

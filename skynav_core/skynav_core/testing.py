@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import os
 import random
@@ -11,6 +12,15 @@ import sys
 import tempfile
 from pathlib import Path
 from typing import IO
+
+import numpy as np
+import yaml
+
+from skynav_core.camera import EquidistantCamera
+
+from .bag import BagWriter, open_bag
+from .rotations import as_matrix
+from .typestore import ensure_type, typestore
 
 # Fast DDS maps domain ids up to 232 to UDP ports; tests take theirs from the upper part.
 TEST_DOMAINS = range(100, 232)
@@ -74,9 +84,6 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
     Images (mono16 UV and green), camera info, a ground-truth pose and one
     message of each skynav_msgs type per frame, with values that differ per frame.
     """
-    import numpy as np
-
-    from .typestore import ensure_type, typestore
 
     store = typestore()
     for name in ('ShCoefficients', 'PlaceMatch', 'CompassEstimate', 'HomeVector'):
@@ -181,8 +188,6 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
 
 def write_sample_bag(path: str | os.PathLike, frames: int = 5, width: int = 64, height: int = 48) -> list:
     """Write `sample_messages` into a bag at `path`; return them."""
-    from .bag import BagWriter
-    from .typestore import typestore
 
     messages = sample_messages(frames, width, height)
     with BagWriter(path) as writer:
@@ -194,9 +199,6 @@ def write_sample_bag(path: str | os.PathLike, frames: int = 5, width: int = 64, 
 
 def messages_equal(a: object, b: object) -> bool:
     """Return whether two rosbags messages hold the same values, field by field (NaN equals NaN)."""
-    import dataclasses
-
-    import numpy as np
 
     if dataclasses.is_dataclass(a):
         return type(a).__name__ == type(b).__name__ and all(
@@ -228,16 +230,6 @@ def write_featureless_recording(
     OPEN_FIELD_HORIZON in map (the camera's own tilt included), ground below. No texture anywhere, so ORB finds
     nothing to describe. The ground-truth mask matches the images; the recording stays marked synthetic.
     """
-    import dataclasses
-
-    import numpy as np
-    import yaml
-
-    from skynav_core.camera import EquidistantCamera
-
-    from .bag import BagWriter, open_bag
-    from .rotations import as_matrix
-    from .typestore import typestore
 
     if kind not in FEATURELESS_KINDS:
         raise ValueError(f'unknown kind {kind!r}; expected one of {", ".join(FEATURELESS_KINDS)}')

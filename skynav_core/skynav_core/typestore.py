@@ -13,6 +13,9 @@ import os
 from functools import cache
 from typing import TYPE_CHECKING
 
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.base import Nodetype
+
 from .environment import ament_prefixes
 from .errors import SkynavError
 
@@ -27,7 +30,6 @@ class UnknownMessageType(SkynavError, LookupError):
 @cache
 def typestore() -> Typestore:
     """Return the process-wide type store (ROS 2 Jazzy standard types, more added on demand)."""
-    from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_JAZZY)
 
@@ -63,8 +65,6 @@ def ensure_type(msgtype: str, msgdef: str = '', store: Typestore | None = None) 
     `msgdef` is an optional ros2msg definition (as bags carry them, dependencies
     included); without it the installed .msg files are read.
     """
-    from rosbags.typesys import get_types_from_msg
-    from rosbags.typesys.base import Nodetype
 
     store = typestore() if store is None else store
     msgtype = normalise_type(msgtype)

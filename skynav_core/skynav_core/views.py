@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from skynav_core.bag import BagError, open_bag
+
 from .camera import EquidistantCamera
 from .camera_input import CAMERA_INFO_TOPIC
 from .images import DTYPES, image_to_array, stamp_ns
@@ -111,9 +113,8 @@ def recording_views(
 
     `images` keeps each view's raw UV image, `masks` the skyline node's mask.
     """
-    from skynav_core.bag import BagError, open_bag
-    from skynav_core.graph import in_process
-    from skynav_core.nodes import installed_nodes
+    from skynav_core.graph import in_process  # noqa: PLC0415 (the graph loads rclpy; callers that only read views need no ROS)
+    from skynav_core.nodes import installed_nodes  # noqa: PLC0415 (node discovery reads the ament index; only a run of the graph needs it)
 
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
     if len(specs) != 2:

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
+from scipy.sparse import csr_matrix
 
 RAW_UV_SIZE = (32, 24)  # px (width, height) of the down-sampled fish-eye image
 RAW_UV_PATCH = 4  # px, side of the normalisation patches of the down-sampled image
@@ -39,7 +41,6 @@ def image_as_float(image: np.ndarray) -> np.ndarray:
 
 def raw_uv_descriptor(image: np.ndarray, size: tuple[int, int] = RAW_UV_SIZE, patch: int = RAW_UV_PATCH) -> np.ndarray:
     """Return SeqSLAM's patch-normalised down-sampled image (width x height values, float32) of a UV image."""
-    import cv2
 
     width, height = size
     if width % patch or height % patch:
@@ -68,7 +69,6 @@ def orb_mask(circle: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray | 
     """Return ORB's detection mask (uint8, 255 inside): the image circle shrunk by ORB_CIRCLE_MARGIN px, or None."""
     if circle is None:
         return None
-    import cv2
 
     circle = np.asarray(circle, dtype=bool)
     if circle.shape != tuple(shape):
@@ -79,7 +79,6 @@ def orb_mask(circle: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray | 
 
 def orb_descriptors(image: np.ndarray, circle: np.ndarray | None = None, n_features: int = ORB_FEATURES) -> np.ndarray:
     """Return the ORB descriptors (n, 32) uint8 of a UV image, features inside the image circle (bool mask) only."""
-    import cv2
 
     image8 = as_uint8(image, None if circle is None else np.asarray(circle, dtype=bool))
     orb = cv2.ORB_create(nfeatures=int(n_features))
@@ -94,7 +93,6 @@ def _bits(descriptors: np.ndarray) -> np.ndarray:
 
 def kmeans(points: np.ndarray, count: int, rng: np.random.Generator, iterations: int = BOW_ITERATIONS) -> np.ndarray:
     """Return `count` k-means centres (count, D) float32 of points (n, D), started from distinct random points."""
-    from scipy.sparse import csr_matrix
 
     points = np.asarray(points, dtype=np.float32)
     centres = points[rng.choice(len(points), count, replace=False)].copy()

@@ -23,6 +23,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from skynav_sh.basis import degree_from_size
+from skynav_sh.spectra import amplitude_spectrum, bispectrum, bispectrum_triples
+
 #: Version of the normalisation above; maps store it so that a change makes stored descriptors stale.
 DESCRIPTOR_VERSION = 1
 #: Scale (of b / E^(3/2), dimensionless) below which the bispectrum's log compression is linear.
@@ -39,7 +42,6 @@ def _unit_rows(values: np.ndarray) -> np.ndarray:
 
 def _truncate(coefficients: np.ndarray, max_degree: int | None) -> np.ndarray:
     """Return coefficients (..., n) cut to degree max_degree (None: keep all); ValueError if there are fewer."""
-    from skynav_sh.basis import degree_from_size
 
     coefficients = np.asarray(coefficients, dtype=float)
     degree = degree_from_size(coefficients.shape[-1])
@@ -52,14 +54,12 @@ def _truncate(coefficients: np.ndarray, max_degree: int | None) -> np.ndarray:
 
 def amplitude_descriptor(coefficients: np.ndarray, max_degree: int | None = None) -> np.ndarray:
     """Return the unit-norm amplitude spectrum (A_1..A_L), shape (..., L), dimensionless, of coefficients (..., n)."""
-    from skynav_sh.spectra import amplitude_spectrum
 
     return _unit_rows(amplitude_spectrum(_truncate(coefficients, max_degree))[..., 1:])
 
 
 def _bispectrum_rows(max_degree: int) -> np.ndarray:
     """Return the positions, among skynav_sh's bispectrum triples of degree L, of those with l1 >= 1."""
-    from skynav_sh.spectra import bispectrum_triples
 
     return np.flatnonzero(bispectrum_triples(int(max_degree))[:, 0] >= 1)
 
@@ -71,8 +71,6 @@ def bispectrum_size(max_degree: int) -> int:
 
 def bispectrum_descriptor(coefficients: np.ndarray, max_degree: int | None = None) -> np.ndarray:
     """Return the normalised, log-compressed bispectrum (..., K) (dimensionless, unit norm) of coefficients (..., n)."""
-    from skynav_sh.basis import degree_from_size
-    from skynav_sh.spectra import bispectrum
 
     coefficients = _truncate(coefficients, max_degree)
     degree = degree_from_size(coefficients.shape[-1])

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from skynav_sh.basis import lm_index, n_coefficients, normalised_legendre
 
@@ -35,7 +36,6 @@ class RealGaunt:
     @cached_property
     def product_matrix(self):  # -> scipy.sparse.csr_matrix
         """Return the sparse (n3, n1 * n2) matrix M with h = M @ outer(f, g).ravel() (SH of the product f g)."""
-        from scipy.sparse import csr_matrix
 
         n1, n2, n3 = (n_coefficients(d) for d in self.degrees)
         return csr_matrix((self.values, (self.third, self.first * n2 + self.second)), shape=(n3, n1 * n2))

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import cached_property
 
+import cv2
 import numpy as np
 
 from skynav_core.camera import Camera
@@ -88,7 +89,6 @@ class FisheyeTransform:
         pixels = camera.project(directions).astype(np.float32)
         if fill != 'mirror':
             pixels[~seen] = OUTSIDE_PIXEL  # only in cells nothing of which is seen: they read the constant 0 border
-        import cv2
 
         self._map_fixed, self._map_fraction = cv2.convertMaps(pixels[..., 0], pixels[..., 1], cv2.CV_16SC2)
 
@@ -149,7 +149,6 @@ class FisheyeTransform:
         """Return the mean of every cell's k x k sub-samples: (n_theta k, n_phi k) float32 -> (n_theta, n_phi)."""
         if self.supersampling == 1:
             return sub
-        import cv2
 
         n_theta, n_phi = self.grid.shape
         return cv2.resize(sub, (n_phi, n_theta), interpolation=cv2.INTER_AREA)  # integer factor: exact box mean
@@ -168,7 +167,6 @@ class FisheyeTransform:
 
     def samples(self, image: np.ndarray) -> np.ndarray:
         """Return the area-averaged, filled grid samples (n_theta, n_phi) of an (H, W) image (mask: sky 1)."""
-        import cv2
 
         values = camera_image_values(image, self.camera)
         return self._cell_means(

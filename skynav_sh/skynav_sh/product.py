@@ -19,6 +19,7 @@ from skynav_core.rotations import RotationLike
 from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
 from skynav_sh.coupling import real_gaunt
 from skynav_sh.rotation import rotate
+from skynav_sh.transform import grid
 
 
 def product_grid_degree(degree_f: int, degree_g: int, degree_out: int) -> int:
@@ -37,8 +38,6 @@ def product(f: np.ndarray, g: np.ndarray, max_degree: int | None = None, method:
     f = np.broadcast_to(f, batch + f.shape[-1:]).reshape(-1, f.shape[-1])
     g = np.broadcast_to(g, batch + g.shape[-1:]).reshape(-1, g.shape[-1])
     if method == 'grid':
-        from skynav_sh.transform import grid
-
         quadrature = grid(product_grid_degree(degree_f, degree_g, degree))
         out = quadrature.analysis(quadrature.synthesis(f) * quadrature.synthesis(g))[:, : n_coefficients(degree)]
     elif method == 'gaunt':

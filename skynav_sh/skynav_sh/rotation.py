@@ -14,6 +14,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from scipy.linalg import block_diag as dense_block_diag
+from scipy.sparse import block_diag as sparse_block_diag
+from scipy.special import eval_jacobi, gammaln
 
 from skynav_core.rotations import RotationLike, as_matrix, zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order, degree_slices
@@ -103,7 +106,6 @@ def wigner_small_d(degree: int, beta: float) -> np.ndarray:
     # d = xi sqrt(s! (s+mu+nu)! / ((s+mu)! (s+nu)!)) sin(beta/2)^mu cos(beta/2)^nu P_s^(mu,nu)(cos beta) with
     # mu = |m - m'|, nu = |m + m'|, s = l - (mu + nu)/2, xi = (-1)^(m' - m) for m < m'; factorials through
     # log-gamma and the Jacobi polynomial by its three-term recurrence, so it stays accurate to high degree
-    from scipy.special import eval_jacobi, gammaln
 
     l = int(degree)
     order = np.arange(-l, l + 1)
@@ -213,9 +215,8 @@ def rotate_z(coefficients: np.ndarray, alpha: float) -> np.ndarray:
 @lru_cache(maxsize=16)
 def quarter_turn_sparse(max_degree: int):  # -> tuple[scipy.sparse.csr_matrix, scipy.sparse.csr_matrix]
     """Return the block-diagonal J = diag(J_0..J_L) and J^T as sparse matrices (about a quarter of J_l is non-zero)."""
-    from scipy.sparse import block_diag
 
-    forward = block_diag(quarter_turn(max_degree), format='csr')
+    forward = sparse_block_diag(quarter_turn(max_degree), format='csr')
     forward.eliminate_zeros()
     return forward, forward.T.tocsr()
 
@@ -265,6 +266,5 @@ def wigner_d(rotation: RotationLike, max_degree: int) -> list[np.ndarray]:
 
 def wigner_d_matrix(rotation: RotationLike, max_degree: int) -> np.ndarray:
     """Return the block-diagonal ((L+1)^2, (L+1)^2) matrix of all D_l(R)."""
-    from scipy.linalg import block_diag
 
-    return block_diag(*wigner_d(rotation, max_degree))
+    return dense_block_diag(*wigner_d(rotation, max_degree))

@@ -17,6 +17,7 @@ import numpy as np
 
 from skynav_sh.basis import degree_from_size, degree_order
 from skynav_sh.coupling import real_gaunt
+from skynav_sh.transform import grid
 
 
 def amplitude_spectrum(coefficients: np.ndarray) -> np.ndarray:
@@ -76,7 +77,6 @@ BISPECTRUM_BATCH = 16
 
 def _bispectrum_grid(flat: np.ndarray, degree: int) -> np.ndarray:
     """Return bispectra (B, count) of coefficients (B, n) as quadratures of f_l1 f_l2 f_l3 on an exact grid."""
-    from skynav_sh.transform import grid
 
     quadrature = grid((3 * degree + 1) // 2)  # exact for products of degree up to 3L
     triples = bispectrum_triples(degree)

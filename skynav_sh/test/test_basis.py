@@ -22,7 +22,7 @@ from skynav_sh.transform import grid
 
 
 def contract_real_sh_from_scipy(max_degree: int, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """The contract's real basis built from scipy's complex Y_l^m (scipy: sph_harm_y(n, m, theta, phi), with CS phase)."""
+    """The contract's real basis built from scipy's complex Y_l^m (scipy's sph_harm_y(n, m, theta, phi), CS phase)."""
     columns = []
     for l in range(max_degree + 1):
         for m in range(-l, l + 1):

@@ -21,7 +21,7 @@ def natural_view(degree: int, seed: int) -> np.ndarray:
 
 
 def resampled_translation(coefficients: np.ndarray, tau: np.ndarray, grid_degree: int) -> np.ndarray:
-    """Sample g(d') = f(d) with normalise(d - tau) = d' on a grid of degree grid_degree, transform, keep degrees <= L."""
+    """Sample g(d') = f(d) with normalise(d - tau) = d' on a grid of grid_degree, transform, keep degrees <= L."""
     g = grid(grid_degree)
     values = g.synthesis_at(coefficients, source_directions(g.directions(), tau))
     return g.analysis(values)[..., : coefficients.shape[-1]]

@@ -299,7 +299,7 @@ class Backdrop:
     def __init__(
         self, landscape: Landscape, distance: float = BACKDROP_DISTANCE, eye_height: float = CAMERA_HEIGHT
     ) -> None:
-        """Put a landscape on a cylinder of radius `distance` (m), seen undistorted from `eye_height` (m) above its centre."""
+        """Put a landscape on a cylinder of radius `distance` (m), seen undistorted from `eye_height` (m) above."""
         self.landscape = landscape
         self.distance = float(distance)
         self.eye_height = float(eye_height)

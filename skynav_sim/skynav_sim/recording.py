@@ -18,7 +18,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from skynav_core.bag import BagWriter
 from skynav_core.camera import EquidistantCamera
+from skynav_core.typestore import typestore
 
 from .render import Renderer, View
 from .scenarios import FRAME_RATE, Frame
@@ -90,8 +92,6 @@ def write(
     progress: Callable[[int], None] | None = None,
 ) -> Path:
     """Render `frames` into a recording at `path` (written atomically); return the path."""
-    from skynav_core.bag import BagWriter
-    from skynav_core.typestore import typestore
 
     store = typestore()
     T = store.types

@@ -243,7 +243,7 @@ def _terrain(params: StyleParameters, rng: np.random.Generator) -> Terrain:
     heights[near] += bumps
     heights -= heights[n // 2, n // 2]
     materials = np.full((n, n), params.ground, dtype=np.uint8)
-    for index, (surface, share) in enumerate(params.patches):
+    for surface, share in params.patches:
         patch = FractalNoise(int(rng.integers(2**31)), scale=rng.uniform(6, 14), octaves=3)(x, y)
         materials[patch > np.quantile(patch[near], 1 - share)] = surface
     return Terrain(heights, materials, TERRAIN_EXTENT)

@@ -13,8 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
 
+from skynav_core.bag import BagError, open_bag
 from skynav_core.camera import EquidistantCamera
+from skynav_core.images import image_to_array, stamp_ns
 
 UV, GREEN, INFO, TRUTH = (
     '/camera/uv/image_raw',
@@ -40,7 +43,6 @@ class LabelledFrame:
 
 def count_frames(path: str | Path) -> int:
     """Return how many labelled exposures a recording holds (its ground-truth masks)."""
-    from skynav_core.bag import open_bag
 
     with open_bag(path) as bag:
         return bag.topics[TRUTH].count if TRUTH in bag.topics else 0
@@ -48,10 +50,6 @@ def count_frames(path: str | Path) -> int:
 
 def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
     """Yield the exposures of a recording that have UV, green, camera info and a ground-truth mask."""
-    import yaml
-
-    from skynav_core.bag import BagError, open_bag
-    from skynav_core.images import image_to_array, stamp_ns
 
     with open_bag(path) as bag:
         missing = [t for t in (UV, GREEN, INFO, TRUTH) if t not in bag.topics]

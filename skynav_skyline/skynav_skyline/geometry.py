@@ -37,7 +37,7 @@ class SectorLayout:
         )
 
     def interpolate(self, per_sector: np.ndarray, pixels: np.ndarray | None = None) -> np.ndarray:
-        """Return values linearly interpolated in azimuth from one value per sector: a map (H, W), or at flat `pixels`."""
+        """Return values interpolated linearly in azimuth from one value per sector: a map (H, W) or at `pixels`."""
         values = np.asarray(per_sector, np.float64)
         if values.shape != (self.count,):
             raise ValueError(f'expected {self.count} sector values, got shape {values.shape}')

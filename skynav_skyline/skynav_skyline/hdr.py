@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import cv2
 import numpy as np
 
 from .features import decode
@@ -84,7 +85,6 @@ def merge_brackets(
 
 def _merge_debevec(images: Sequence[np.ndarray], times: np.ndarray, encoding: str, black_level: float) -> np.ndarray:
     """Return the float32 radiance of 8-bit brackets merged by OpenCV's MergeDebevec with a linear response."""
-    import cv2
 
     if encoding != 'mono8' or black_level != 0:
         raise ValueError("the 'debevec' merge takes mono8 brackets with zero black level")

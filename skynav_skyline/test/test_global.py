@@ -63,7 +63,7 @@ def test_learned_uv_green_separator_beats_uv_only_on_minerals(scene_factory, enc
     assert uv_green.rate >= 0.99
     assert uv_green.rate > uv_only.rate + 0.03  # the mineral patch is bright in UV but has ground's colour
     assert np.deg2rad(-80) < uv_green.angle < np.deg2rad(-20)  # a UV/green contrast, not UV alone
-    for model, most in ((uv_only, 0.9), (uv_green, 1.0)):
+    for model in (uv_only, uv_green):
         mineral_sky = [
             SkylineSegmenter(scene.circle, SkylineParams.from_model(model)).segment(uv, green, 'mono8', 'mono8')[
                 scene.mineral

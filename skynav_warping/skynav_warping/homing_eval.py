@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_compass import Compass, CompassView
 from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_warping.evaluation import (
     DISTANCE_BINS,
@@ -36,7 +37,11 @@ from skynav_warping.evaluation import (
     tilt_angles,
     true_home_directions,
 )
+from skynav_warping.homing import estimate_home_vector
 from skynav_warping.methods import METHODS, PANORAMA_METHODS
+from skynav_warping.panorama import PanoramaUnwrapper
+from skynav_warping.planar import min_warping, warping_2d
+from skynav_warping.views import view_from_coefficients
 from skynav_warping.warping3d import WarpingSettings
 
 EVAL_TILT_BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
@@ -60,7 +65,7 @@ class HomingSnapshot:
 
 @dataclass(frozen=True)
 class HomingResult:
-    """One homing method's home vectors (current camera_link) over the evaluated views, and its CPU time per estimate."""
+    """One homing method's home vectors (current camera_link) over the evaluated views and its CPU time per estimate."""
 
     name: str
     directions: np.ndarray  # (N, 3) unit vectors
@@ -211,11 +216,6 @@ def evaluate_homing(
     pose except the snapshot's frame and any nearer its place than MIN_DISTANCE. progress(k) is called per method
     and view, if given. HomingEvalError for input that cannot be evaluated.
     """
-    from skynav_compass import Compass, CompassView
-    from skynav_warping.homing import estimate_home_vector
-    from skynav_warping.panorama import PanoramaUnwrapper
-    from skynav_warping.planar import min_warping, warping_2d
-    from skynav_warping.views import view_from_coefficients
 
     if problem := unknown_methods(methods, METHODS):
         raise HomingEvalError(problem)

@@ -10,9 +10,11 @@ The planar warping baselines read these images.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from skynav_core.camera import directions_from_angles
+from skynav_sh.fisheye import camera_image_values
 
 DEFAULT_ELEVATIONS = (np.radians(-10.0), np.radians(40.0))  # rad, lowest and highest elevation of the band
 
@@ -29,7 +31,6 @@ class PanoramaUnwrapper:
         supersampling: int = 3,
     ) -> None:
         """Precompute the remap tables of a band from elevations[0] to elevations[1] (rad) for a skynav_sh camera."""
-        import cv2
 
         low, high = float(elevations[0]), float(elevations[1])
         if not low < high:
@@ -58,9 +59,6 @@ class PanoramaUnwrapper:
 
     def unwrap(self, image: np.ndarray) -> np.ndarray:
         """Return the panoramic band (n_elevation, n_azimuth) float32 of an image or mask (uint8 / max, bool 0/1)."""
-        import cv2
-
-        from skynav_sh.fisheye import camera_image_values
 
         values = camera_image_values(image, self.camera)
         sub = cv2.remap(values, self._map_fixed, self._map_fraction, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

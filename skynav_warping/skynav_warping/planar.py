@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 
 @dataclass(frozen=True)
@@ -149,7 +150,6 @@ def min_warping_costs(
     planes: np.ndarray, scales: tuple[float, ...] = DEFAULT_SCALES, n_alpha: int | None = None
 ) -> np.ndarray:
     """Return min-warping costs [alpha a, psi q] (alpha = 2 pi a / n_alpha, psi = q column steps) from scale planes."""
-    from numpy.lib.stride_tricks import sliding_window_view
 
     n_scales, n, _ = planes.shape
     n_alpha = n if n_alpha is None else int(n_alpha)

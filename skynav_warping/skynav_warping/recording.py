@@ -12,6 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_core.bag import open_bag
+from skynav_core.camera_input import CAMERA_INFO_TOPIC
+from skynav_core.views import recorded_frames
+
 MASK = '/ground_truth/mask'
 UV = '/camera/uv/image_raw'
 GREEN = '/camera/green/image_raw'
@@ -33,9 +37,6 @@ class HomingGrid:
 
 def load_homing_grid(path: str) -> HomingGrid:
     """Return the frames of a homing recording (needs /ground_truth/pose, /ground_truth/mask, camera info)."""
-    from skynav_core.bag import open_bag
-    from skynav_core.camera_input import CAMERA_INFO_TOPIC
-    from skynav_core.views import recorded_frames
 
     with open_bag(path) as bag:
         recorded = recorded_frames(bag, [MASK, UV, GREEN])

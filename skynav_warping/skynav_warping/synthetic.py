@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_sh.transform import grid
 from skynav_warping.views import WarpView, cap_fraction, rim_weights, view_from_samples
 
 
@@ -61,7 +62,6 @@ def render_equal_distance_view(
     rim_taper: float = np.radians(10.0),
 ) -> WarpView:
     """Return the WarpView of a camera at `position` (map, |position| < radius) turned by `rotation` (d_map = Q d)."""
-    from skynav_sh.transform import grid
 
     quadrature = grid(2 * degree + 2)
     d_camera = quadrature.directions()

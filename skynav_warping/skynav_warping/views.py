@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skynav_sh.basis import degree_from_size, n_coefficients
+from skynav_sh.transform import grid
 
 DEFAULT_RIM_TAPER = np.radians(10.0)  # rad
 
@@ -105,7 +106,6 @@ def view_from_coefficients(
     standardise: bool = False,
 ) -> WarpView:
     """Return the terms of a view given as SH coefficients (e.g. /skyline/sh) seen up to field_of_view / 2 (rad)."""
-    from skynav_sh.transform import grid
 
     coefficients = np.asarray(coefficients, dtype=float)
     source_degree = degree_from_size(coefficients.shape[-1])

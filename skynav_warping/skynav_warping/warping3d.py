@@ -42,7 +42,8 @@ from skynav_compass.compass import MAX_TILT
 from skynav_compass.refine import within_tilt
 from skynav_core.rotations import rotation_angle, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
-from skynav_sh.rotation import quarter_turn_sparse, z_rotation_index
+from skynav_sh.rotation import quarter_turn_sparse, rotate, z_rotation_index
+from skynav_sh.translation import z_translation_blocks
 from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
@@ -95,7 +96,6 @@ class DegreeTables:
 
     def __init__(self, degree: int, ratios: tuple[float, ...], used: tuple[int, ...] | None = None) -> None:
         """Precompute the T_z blocks of the used ratios (default all) at this degree (skynav_sh caches them too)."""
-        from skynav_sh.translation import z_translation_blocks
 
         self.degree = L = int(degree)
         self.n = n_coefficients(L)
@@ -623,7 +623,6 @@ def _coarse_hypotheses(
 ) -> tuple[list[Hypothesis], Hypothesis, int]:
     """Return the best coarse hypotheses from start rotation r0 and the best pure rotation, both with their coarse
     cost, and the number of costs spent; current, snapshot: terms (3, n) at the coarse degree."""
-    from skynav_sh.rotation import rotate
 
     settings = tables.settings
     costs, still = coarse_costs(tables, current, rotate(snapshot, r0.T))
