@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_compass.errors import CompassError
 from skynav_compass.so3 import (
     EulerGrid,
     complex_form,
@@ -217,7 +218,7 @@ def cost_channels(kind: str, normalise: bool) -> tuple[Channel, ...]:
     if kind == 'plain':
         return PLAIN_CHANNELS
     if kind != 'masked':
-        raise ValueError(f'unknown cost {kind!r}; expected one of {COSTS}')
+        raise CompassError(f'unknown cost {kind!r}; expected one of {COSTS}')
     return MASKED_NORMALISED_CHANNELS if normalise else MASKED_CHANNELS
 
 
@@ -230,7 +231,7 @@ def prepare_snapshot(
     """Return the snapshot's side of a cost kind ('masked' or 'plain') at degree L (a PreparedSnapshot as it is)."""
     if isinstance(snapshot, PreparedSnapshot):
         if (snapshot.kind, snapshot.normalise, snapshot.max_degree) != (kind, bool(normalise), int(max_degree)):
-            raise ValueError(
+            raise CompassError(
                 f'the snapshot was prepared for the {snapshot.kind} cost (normalise '
                 f'{snapshot.normalise}) at degree {snapshot.max_degree}, not for the {kind} cost '
                 f'(normalise {bool(normalise)}) at degree {int(max_degree)}'
@@ -243,7 +244,7 @@ def prepare_snapshot(
         a = to_padded(f_s, max_degree)
         return PreparedSnapshot('plain', bool(normalise), int(max_degree), a[None], norm_square=float(np.sum(a * a)))
     if kind != 'masked':
-        raise ValueError(f'unknown cost {kind!r}; expected one of {COSTS}')
+        raise CompassError(f'unknown cost {kind!r}; expected one of {COSTS}')
     if not isinstance(snapshot, CompassView):
         raise TypeError('the masked cost needs CompassView inputs (v f, v f^2 and v)')
     # a = (v_s f_s^2, v_s f_s, v_s)

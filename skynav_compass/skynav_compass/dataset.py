@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from skynav_compass.errors import CompassError
 from skynav_compass.evaluation import relative_tilt
 from skynav_core.bag import open_bag
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
@@ -70,7 +71,7 @@ def load_compass_set(path: str | Path) -> CompassSet:
     with open_bag(path) as bag:
         recorded = recorded_frames(bag, list(IMAGE_TOPICS.values()), encodings=('mono8',))
     if recorded.camera is None:
-        raise ValueError(f'{path}: no {CAMERA_INFO_TOPIC} message')
+        raise CompassError(f'{path}: no {CAMERA_INFO_TOPIC} message')
     images = {key: recorded.images[topic] for key, topic in IMAGE_TOPICS.items()}
     stamps = sorted(s for s in recorded.poses if all(s in by_stamp for by_stamp in images.values()))
     meta_frames = recorded.description.get('frames') or []

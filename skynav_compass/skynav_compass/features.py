@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from skynav_compass.errors import CompassError
 from skynav_compass.estimate import CompassEstimate, Hypothesis
 
 Features = tuple  # (bearings (N, 3) in camera_link, descriptors (N, D) or None)
@@ -117,7 +118,7 @@ class FeatureCompass:
             self._detector = cv2.ORB_create(nfeatures=c.max_features)
             self._norm = cv2.NORM_HAMMING
         else:
-            raise ValueError(f'unknown detector {c.detector!r} (expected sift or orb)')
+            raise CompassError(f'unknown detector {c.detector!r} (expected sift or orb)')
         self._mask = camera.image_circle().astype(np.uint8) * 255
 
     @property

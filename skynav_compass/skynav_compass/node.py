@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from std_srvs.srv import Trigger
 
+from skynav_compass.errors import CompassError
 from skynav_core.images import stamp_ns
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
@@ -66,11 +67,11 @@ class CompassNode(SkynavNode):
     def configure(self, values: dict) -> None:
         """Open the map and set the compass up (ValueError if unusable)."""
         if values['reference'] not in REFERENCES:
-            raise ValueError(f'reference must be one of {", ".join(REFERENCES)}')
+            raise CompassError(f'reference must be one of {", ".join(REFERENCES)}')
         if values['index'] < 0 or not 2 <= values['max_degree'] <= 64:
-            raise ValueError('index must not be negative; max_degree must be within 2..64')
+            raise CompassError('index must not be negative; max_degree must be within 2..64')
         if not 0 < values['max_tilt_deg'] <= 180:
-            raise ValueError('max_tilt_deg must be more than 0 and at most 180 degrees')
+            raise CompassError('max_tilt_deg must be more than 0 and at most 180 degrees')
         self.snapshots.configure(values['map'], values['reference'], values['index'])
         self.values = values
         self.compass = Compass(values['max_degree'], CompassConfig(max_tilt=np.radians(values['max_tilt_deg'])))

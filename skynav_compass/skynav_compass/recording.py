@@ -29,6 +29,7 @@ import yaml
 
 from skynav_compass.compass import MAX_TILT
 from skynav_compass.dataset import true_rotation
+from skynav_compass.errors import CompassError
 from skynav_compass.evaluation import (
     RIGHT_DEG,
     STATISTICS_COLUMNS,
@@ -49,7 +50,7 @@ GROUP_TITLES = {'rotation': 'pure rotations', 'moved': 'moved views'}
 MOVED_FROM_M = 0.05  # without frame labels, a view this far (m) or farther from the snapshot counts as moved
 
 
-class EvaluationError(ValueError):
+class EvaluationError(CompassError):
     """A recording, snapshot or method choice the evaluation cannot use; the message says why in one line."""
 
 

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from skynav_compass.compass import MAX_TILT, Compass, CompassConfig, any_tilt_config
+from skynav_compass.errors import CompassError
 from skynav_compass.estimate import CompassEstimate
 from skynav_compass.evaluation import CompassResult, angular_error, relative_tilt
 from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
@@ -90,7 +91,7 @@ class NodeViews:
             return view if kind == 'masked' else view.weighted  # v f: nothing outside the field of view
         if kind in ('mask', 'image'):
             return frame.mask if kind == 'mask' else frame.uv
-        raise ValueError(f'the SH node gives no {kind!r} view')
+        raise CompassError(f'the SH node gives no {kind!r} view')
 
 
 def build_method(
@@ -135,7 +136,7 @@ def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None =
         name for name, entry in entries.items() if entry is None or (name.endswith(PREPARED) and not entry.prepares)
     ]
     if unknown:
-        raise ValueError(
+        raise CompassError(
             f'unknown methods {unknown}; expected some of {tuple(METHODS)} (the fft-* and exhaustive-* '
             f'ones also as NAME{PREPARED})'
         )

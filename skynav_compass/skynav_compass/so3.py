@@ -20,6 +20,7 @@ import numpy as np
 from scipy.fft import irfft2, next_fast_len
 from scipy.sparse import block_diag, vstack
 
+from skynav_compass.errors import CompassError
 from skynav_core.rotations import zyz_angles
 from skynav_sh.basis import degree_from_size, degree_order
 from skynav_sh.rotation import quarter_turn
@@ -294,7 +295,7 @@ def so3_correlation(products: np.ndarray, grid: EulerGrid) -> np.ndarray:
     """
     L = grid.max_degree
     if products.shape[1:] != (L + 1, 2 * L + 1, L + 1):
-        raise ValueError('products and grid of different degrees')
+        raise CompassError('products and grid of different degrees')
     return so3_correlation_cells(np.ascontiguousarray(products.transpose(2, 3, 1, 0)), grid)
 
 
@@ -308,7 +309,7 @@ def so3_correlation_cells(products: np.ndarray, grid: EulerGrid) -> np.ndarray:
     L = grid.max_degree
     k = products.shape[-1]
     if products.shape[:3] != (2 * L + 1, L + 1, L + 1) or products.dtype != complex:
-        raise ValueError('products and grid of different degrees (or not complex)')
+        raise CompassError('products and grid of different degrees (or not complex)')
     n_beta = len(grid.betas)
     cells = (2 * L + 1) * (L + 1)
     # T[(m, n), b, k] = sum_l d[(m, n), b, l] P[(m, n), l, k]: one batched real product over the (m, n) cells, on

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import eval_legendre
 
+from skynav_compass.errors import CompassError
 from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
 from skynav_sh.fisheye import image_values
 from skynav_sh.product import product
@@ -57,7 +58,7 @@ class CompassView:
     def __post_init__(self) -> None:
         sizes = {np.shape(self.weighted)[-1], np.shape(self.weighted_square)[-1], np.shape(self.visibility)[-1]}
         if len(sizes) != 1:
-            raise ValueError('the three functions of a CompassView must have the same degree')
+            raise CompassError('the three functions of a CompassView must have the same degree')
         degree_from_size(sizes.pop())
 
     @property
@@ -94,7 +95,7 @@ class CompassView:
         # binary None: decided from the data (bool images, or only the values 0 and the dtype's maximum)
 
         if transform.fill != 'zero':
-            raise ValueError("CompassView.from_image needs a FisheyeTransform with fill='zero' (it yields v f)")
+            raise CompassError("CompassView.from_image needs a FisheyeTransform with fill='zero' (it yields v f)")
         values = image_values(image)
         if binary is None:
             binary = bool(np.all((values == 0) | (values == 1)))
@@ -152,5 +153,5 @@ class CompassView:
         elif fill == 'mirror':
             weighted = product(cap_visibility(degree_from_size(f.shape[-1]), field_of_view / 2), f, max_degree=degree)
         else:
-            raise ValueError(f'unknown fill {fill!r}; expected one of {FILL_MODES}')
+            raise CompassError(f'unknown fill {fill!r}; expected one of {FILL_MODES}')
         return cls(weighted, weighted, v)

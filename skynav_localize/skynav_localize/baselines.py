@@ -20,6 +20,8 @@ import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from skynav_localize.errors import LocalizeError
+
 RAW_UV_SIZE = (32, 24)  # px (width, height) of the down-sampled fish-eye image
 RAW_UV_PATCH = 4  # px, side of the normalisation patches of the down-sampled image
 ORB_FEATURES = 500  # features per image
@@ -35,7 +37,7 @@ def image_as_float(image: np.ndarray) -> np.ndarray:
     """Return a single-channel image (mono8, mono16 or 32FC1 array) as float32 radiance units (any gain)."""
     image = np.asarray(image)
     if image.ndim != 2:
-        raise ValueError(f'expected a single-channel (H, W) image, got shape {image.shape}')
+        raise LocalizeError(f'expected a single-channel (H, W) image, got shape {image.shape}')
     return image.astype(np.float32, copy=False)
 
 
@@ -44,7 +46,7 @@ def raw_uv_descriptor(image: np.ndarray, size: tuple[int, int] = RAW_UV_SIZE, pa
 
     width, height = size
     if width % patch or height % patch:
-        raise ValueError(f'size {size} must be a multiple of the patch side {patch}')
+        raise LocalizeError(f'size {size} must be a multiple of the patch side {patch}')
     small = cv2.resize(image_as_float(image), (width, height), interpolation=cv2.INTER_AREA)
     blocks = small.reshape(height // patch, patch, width // patch, patch)
     mean = blocks.mean(axis=(1, 3), keepdims=True)
@@ -72,7 +74,7 @@ def orb_mask(circle: np.ndarray | None, shape: tuple[int, int]) -> np.ndarray | 
 
     circle = np.asarray(circle, dtype=bool)
     if circle.shape != tuple(shape):
-        raise ValueError(f'image circle {circle.shape} does not fit the image {tuple(shape)}')
+        raise LocalizeError(f'image circle {circle.shape} does not fit the image {tuple(shape)}')
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ORB_CIRCLE_MARGIN + 1,) * 2)
     return cv2.erode(circle.astype(np.uint8) * 255, kernel)
 
@@ -112,7 +114,7 @@ def kmeans(points: np.ndarray, count: int, rng: np.random.Generator, iterations:
     return centres
 
 
-class NoFeatures(ValueError):
+class NoFeatures(LocalizeError):
     """No ORB feature in any snapshot (a featureless teach drive: all sky, an open field, all ground): no vocabulary."""
 
 

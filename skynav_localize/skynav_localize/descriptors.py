@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from skynav_localize.errors import LocalizeError
 from skynav_sh.basis import degree_from_size
 from skynav_sh.spectra import amplitude_spectrum, bispectrum, bispectrum_triples
 
@@ -48,7 +49,7 @@ def _truncate(coefficients: np.ndarray, max_degree: int | None) -> np.ndarray:
     if max_degree is None or max_degree == degree:
         return coefficients
     if max_degree > degree:
-        raise ValueError(f'coefficients of degree {degree} cannot give descriptors of degree {max_degree}')
+        raise LocalizeError(f'coefficients of degree {degree} cannot give descriptors of degree {max_degree}')
     return coefficients[..., : (max_degree + 1) ** 2]
 
 
@@ -93,7 +94,7 @@ def describe(name: str, coefficients: np.ndarray, max_degree: int | None = None)
     try:
         function = SH_DESCRIPTORS[name]
     except KeyError:
-        raise ValueError(f'unknown SH descriptor {name!r}; expected one of {", ".join(SH_DESCRIPTORS)}') from None
+        raise LocalizeError(f'unknown SH descriptor {name!r}; expected one of {", ".join(SH_DESCRIPTORS)}') from None
     return function(coefficients, max_degree)
 
 
@@ -103,10 +104,10 @@ class DescriptorIndex:
     def __init__(self, matrix: np.ndarray, metric: str = 'euclidean', dtype: np.dtype | type = np.float64) -> None:
         """Keep the matrix (cast to dtype) and what the metric needs precomputed (squared norms)."""
         if metric not in METRICS:
-            raise ValueError(f'unknown metric {metric!r}; expected one of {", ".join(METRICS)}')
+            raise LocalizeError(f'unknown metric {metric!r}; expected one of {", ".join(METRICS)}')
         matrix = np.asarray(matrix)
         if matrix.ndim != 2:
-            raise ValueError(f'a descriptor matrix is (N, D), got shape {matrix.shape}')
+            raise LocalizeError(f'a descriptor matrix is (N, D), got shape {matrix.shape}')
         self.metric = metric
         self.matrix = np.ascontiguousarray(matrix, dtype=dtype)
         self._squared_norms = np.einsum('nd,nd->n', self.matrix, self.matrix) if metric == 'euclidean' else None
@@ -124,7 +125,7 @@ class DescriptorIndex:
         """Return the distances (N,) of one query descriptor (D,) to every snapshot (metric units)."""
         query = np.asarray(query, dtype=self.matrix.dtype)
         if query.shape != (self.dimension,):
-            raise ValueError(f'a query descriptor must be ({self.dimension},), got shape {query.shape}')
+            raise LocalizeError(f'a query descriptor must be ({self.dimension},), got shape {query.shape}')
         if self.metric == 'euclidean':  # matrix-vector product and in-place element-wise steps
             squared = self.matrix @ query
             squared *= -2.0
@@ -140,7 +141,7 @@ class DescriptorIndex:
         """Return the distances (Q, N) of query descriptors (Q, D) to every snapshot (metric units)."""
         queries = np.asarray(queries, dtype=self.matrix.dtype)
         if queries.ndim != 2 or queries.shape[1] != self.dimension:
-            raise ValueError(f'queries must be (Q, {self.dimension}), got shape {queries.shape}')
+            raise LocalizeError(f'queries must be (Q, {self.dimension}), got shape {queries.shape}')
         if self.metric == 'euclidean':
             squared = self._squared_norms[None, :] - 2.0 * (queries @ self.matrix.T)
             squared += np.einsum('qd,qd->q', queries, queries)[:, None]
@@ -168,4 +169,4 @@ def descriptor_distance(a: np.ndarray, b: np.ndarray, metric: str = 'euclidean')
         return np.mean(np.abs(a - b), axis=-1)
     if metric == 'cosine':
         return 1.0 - np.sum(a * b, axis=-1)
-    raise ValueError(f'unknown metric {metric!r}; expected one of {", ".join(METRICS)}')
+    raise LocalizeError(f'unknown metric {metric!r}; expected one of {", ".join(METRICS)}')

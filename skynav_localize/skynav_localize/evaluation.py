@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.evaluation import Column, text_table
+from skynav_localize.errors import LocalizeError
 
 DEFAULT_TOLERANCE = 1.0  # m
 
@@ -33,7 +34,9 @@ def _distances_to(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Return the Euclidean distances (Q, N) between points (Q, k) and targets (N, k) (m)."""
     points, targets = np.asarray(points, float), np.asarray(targets, float)
     if points.ndim != 2 or targets.ndim != 2 or points.shape[1] != targets.shape[1]:
-        raise ValueError(f'positions must be (Q, k) and (N, k) with the same k, got {points.shape} and {targets.shape}')
+        raise LocalizeError(
+            f'positions must be (Q, k) and (N, k) with the same k, got {points.shape} and {targets.shape}'
+        )
     return np.linalg.norm(points[:, None, :] - targets[None, :, :], axis=-1)
 
 
@@ -83,7 +86,7 @@ def precision_recall(scores: np.ndarray, correct: np.ndarray, positives: int) ->
     scores = np.asarray(scores, dtype=float)
     correct = np.asarray(correct, dtype=bool)
     if scores.shape != correct.shape or scores.ndim != 1:
-        raise ValueError(f'scores and correct must be (Q,) arrays of one shape, got {scores.shape}, {correct.shape}')
+        raise LocalizeError(f'scores and correct must be (Q,) arrays of one shape, got {scores.shape}, {correct.shape}')
     order = np.argsort(scores, kind='stable')
     sorted_scores = scores[order]
     true_positives = np.cumsum(correct[order])

@@ -20,6 +20,7 @@ import numpy as np
 from skynav_core.maps import MapError, MapStore
 from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, DescriptorIndex, describe, descriptor_distance
+from skynav_localize.errors import LocalizeError
 from skynav_localize.mapping import stored_settings
 from skynav_localize.matching import (
     DEFAULT_CANDIDATES,
@@ -128,7 +129,7 @@ def method(name: str) -> Method:
     try:
         return METHODS[name]
     except KeyError:
-        raise ValueError(f'unknown localization method {name!r}; expected one of {", ".join(METHODS)}') from None
+        raise LocalizeError(f'unknown localization method {name!r}; expected one of {", ".join(METHODS)}') from None
 
 
 BASELINES_HINT = 'build the map with `skynav map build --baselines`'
@@ -258,10 +259,10 @@ class Localizer:
         """Return the method's descriptor (D,) of one query: SH coefficients, or the UV image for the baselines."""
         if self.method.source == 'sh':
             if coefficients is None:
-                raise ValueError(f'method {self.method.name!r} needs SH coefficients')
+                raise LocalizeError(f'method {self.method.name!r} needs SH coefficients')
             return describe(self.method.descriptor, coefficients, self.degree)
         if uv is None:
-            raise ValueError(f'method {self.method.name!r} needs the UV image')
+            raise LocalizeError(f'method {self.method.name!r} needs the UV image')
         if self.method.descriptor == 'raw_uv':
             size = tuple(self.settings.get('raw_uv_size', baselines.RAW_UV_SIZE))
             return baselines.raw_uv_descriptor(uv, size, int(self.settings.get('raw_uv_patch', baselines.RAW_UV_PATCH)))
@@ -272,10 +273,10 @@ class Localizer:
         """Return the descriptors (Q, D) of a query sequence: coefficients (Q, n) or UV images (Q, H, W)."""
         if self.method.source == 'sh':
             if coefficients is None:
-                raise ValueError(f'method {self.method.name!r} needs SH coefficients')
+                raise LocalizeError(f'method {self.method.name!r} needs SH coefficients')
             return describe(self.method.descriptor, np.atleast_2d(coefficients), self.degree)
         if uvs is None:
-            raise ValueError(f'method {self.method.name!r} needs the UV images')
+            raise LocalizeError(f'method {self.method.name!r} needs the UV images')
         return np.stack([self.describe(uv=uv) for uv in uvs]) if len(uvs) else np.zeros((0, self.index.dimension))
 
     # --- matching ------------------------------------------------------------------------------------------------

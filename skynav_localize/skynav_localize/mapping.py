@@ -32,6 +32,7 @@ import numpy as np
 from skynav_core.maps import MapStore, Snapshot
 from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, describe
+from skynav_localize.errors import LocalizeError
 
 #: skynav's descriptors: derived from the coefficients (stored only if a caller asks snapshot_descriptors for them).
 SH_DESCRIPTOR_NAMES = ('amplitude', 'bispectrum')
@@ -76,10 +77,10 @@ def snapshot_descriptors(
             out[name] = describe(name, coefficients, max_degree)
         elif name in IMAGE_DESCRIPTOR_NAMES:
             if uv is None:
-                raise ValueError(f'descriptor {name!r} needs the UV image')
+                raise LocalizeError(f'descriptor {name!r} needs the UV image')
             out.update(baseline_descriptors(uv, circle, (name,)))
         else:
-            raise ValueError(
+            raise LocalizeError(
                 f'unknown descriptor {name!r}; expected one of '
                 f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}'
             )

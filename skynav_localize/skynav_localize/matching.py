@@ -47,6 +47,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_localize.errors import LocalizeError
+
 #: Snapshots either side of the best one that the runner-up may not come from (default; 1 m at 0.1 m spacing).
 DEFAULT_EXCLUSION = 10
 #: Candidates reported with each match (best first), for PlaceMatch.candidate_indices/distances.
@@ -116,11 +118,11 @@ class SequenceParams:
     def __post_init__(self) -> None:
         """Check the settings (ValueError)."""
         if self.length < 1:
-            raise ValueError(f'sequence length must be >= 1, got {self.length}')
+            raise LocalizeError(f'sequence length must be >= 1, got {self.length}')
         if not 0 <= self.min_speed <= self.max_speed:
-            raise ValueError(f'need 0 <= min_speed <= max_speed, got {self.min_speed}, {self.max_speed}')
+            raise LocalizeError(f'need 0 <= min_speed <= max_speed, got {self.min_speed}, {self.max_speed}')
         if self.window < 0:
-            raise ValueError(f'normalisation window must be >= 0 snapshots (0: off), got {self.window}')
+            raise LocalizeError(f'normalisation window must be >= 0 snapshots (0: off), got {self.window}')
 
     def offsets(self) -> np.ndarray:
         """Return the snapshot offsets (S, length) of the trajectories: row s, step k back -> round(v_s k)."""

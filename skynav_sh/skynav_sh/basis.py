@@ -12,6 +12,8 @@ from functools import cache
 
 import numpy as np
 
+from skynav_sh.errors import ShError
+
 SPHERE_AREA = 4 * np.pi  # sr, solid angle of the whole unit sphere
 SQRT2 = np.sqrt(2.0)
 
@@ -25,7 +27,7 @@ def degree_from_size(size: int) -> int:
     """Return L of a coefficient vector of length (L+1)^2; raise ValueError for other lengths."""
     degree = int(round(np.sqrt(size))) - 1
     if degree < 0 or n_coefficients(degree) != size:
-        raise ValueError(f'{size} is not a number of SH coefficients (L+1)^2')
+        raise ShError(f'{size} is not a number of SH coefficients (L+1)^2')
     return degree
 
 

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from skynav_core.camera import Camera
+from skynav_sh.errors import ShError
 from skynav_sh.transform import GaussLegendreGrid, grid
 
 FILLS = ('zero', 'mean', 'mirror')
@@ -33,7 +34,7 @@ def image_values(image: np.ndarray) -> np.ndarray:
     """Return an image as float32 in mask units: bool as 0/1, uint8 / 255, other integers / their maximum."""
     image = np.asarray(image)
     if image.ndim != 2:
-        raise ValueError(f'expected a single-channel (H, W) image, got shape {image.shape}')
+        raise ShError(f'expected a single-channel (H, W) image, got shape {image.shape}')
     if image.dtype == bool:
         return image.astype(np.float32)
     if np.issubdtype(image.dtype, np.integer):
@@ -45,7 +46,7 @@ def camera_image_values(image: np.ndarray, camera: Camera) -> np.ndarray:
     """Return image_values of an image taken by `camera`; ValueError if its size is not the camera's."""
     values = image_values(image)
     if values.shape != (camera.height, camera.width):
-        raise ValueError(f'image of shape {values.shape} does not fit the camera ({camera.height}, {camera.width})')
+        raise ShError(f'image of shape {values.shape} does not fit the camera ({camera.height}, {camera.width})')
     return values
 
 
@@ -65,16 +66,16 @@ class FisheyeTransform:
         # sampling 'point' reads each node only (k = 1; a cell counts as seen if its node is). The defaults gave a
         # relative coefficient error of ~0.3 % on a skyline mask at L = 32 (the pixel floor), 2.3 ms per 640x480 mask
         if fill not in FILLS:
-            raise ValueError(f'unknown fill {fill!r}; expected one of {FILLS}')
+            raise ShError(f'unknown fill {fill!r}; expected one of {FILLS}')
         if sampling not in SAMPLINGS:
-            raise ValueError(f'unknown sampling {sampling!r}; expected one of {SAMPLINGS}')
+            raise ShError(f'unknown sampling {sampling!r}; expected one of {SAMPLINGS}')
         self.camera = camera
         self.max_degree = int(max_degree)
         self.fill = fill
         self.sampling = sampling
         self.oversampling = int(oversampling)
         if self.oversampling < 1:
-            raise ValueError('oversampling must be >= 1')
+            raise ShError('oversampling must be >= 1')
         # a finer quadrature than degree L needs, analysed only up to L: the sampled function is not band-limited
         self.grid: GaussLegendreGrid = grid(
             self.max_degree, self.oversampling * (2 * self.max_degree + 2), self.oversampling * (self.max_degree + 1)
@@ -82,7 +83,7 @@ class FisheyeTransform:
         self.theta_max = float(camera.theta_max)
         k = 1 if sampling == 'point' else int(supersampling)
         if k < 1:
-            raise ValueError('supersampling must be >= 1')
+            raise ShError('supersampling must be >= 1')
         self.supersampling = k
         self._seen_fraction = self._exact_seen_fraction()
         directions, seen = self.sample_directions()

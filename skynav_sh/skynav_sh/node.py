@@ -17,6 +17,7 @@ from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.ros import run_node
 from skynav_msgs.msg import ShCoefficients
+from skynav_sh.errors import ShError
 
 from .fisheye import FILLS, FisheyeTransform
 from .parameters import PARAMETERS
@@ -44,11 +45,11 @@ class ShNode(SkynavNode):
     def configure(self, values: dict) -> None:
         """Check the settings (ValueError for unusable ones); the transform is rebuilt for the next mask."""
         if not 0 <= values['max_degree'] <= MAX_DEGREE_LIMIT:
-            raise ValueError(f'max_degree must be between 0 and {MAX_DEGREE_LIMIT}')
+            raise ShError(f'max_degree must be between 0 and {MAX_DEGREE_LIMIT}')
         if values['fill'] not in FILLS:
-            raise ValueError(f'fill must be one of {", ".join(FILLS)}')
+            raise ShError(f'fill must be one of {", ".join(FILLS)}')
         if values['supersampling'] < 1:
-            raise ValueError('supersampling must be at least 1')
+            raise ShError('supersampling must be at least 1')
         self.settings = values
         self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
         self.transform = None

@@ -18,6 +18,7 @@ import numpy as np
 from skynav_core.rotations import RotationLike
 from skynav_sh.basis import SPHERE_AREA, degree_from_size, n_coefficients
 from skynav_sh.coupling import real_gaunt
+from skynav_sh.errors import ShError
 from skynav_sh.rotation import rotate
 from skynav_sh.transform import grid
 
@@ -45,7 +46,7 @@ def product(f: np.ndarray, g: np.ndarray, max_degree: int | None = None, method:
         outer = (f[:, :, None] * g[:, None, :]).reshape(f.shape[0], -1)
         out = np.asarray((matrix @ outer.T).T)
     else:
-        raise ValueError(f"unknown product method {method!r} (expected 'grid' or 'gaunt')")
+        raise ShError(f"unknown product method {method!r} (expected 'grid' or 'gaunt')")
     return out.reshape(*batch, n_coefficients(degree))
 
 
@@ -83,7 +84,7 @@ class MaskedView:
 def masked_distance_views(a: MaskedView, b: MaskedView) -> np.ndarray:
     """Return the integral of v_a v_b (f_a - f_b)^2 over that of v_a v_b (value^2); inf where the overlap is empty."""
     if a.visibility.shape[-1] != b.visibility.shape[-1] or a.weighted.shape[-1] != b.weighted.shape[-1]:
-        raise ValueError('masked views of different degrees')
+        raise ShError('masked views of different degrees')
     squared = (
         inner(a.weighted_square, b.visibility)
         - 2 * inner(a.weighted, b.weighted)

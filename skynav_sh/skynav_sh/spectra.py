@@ -17,6 +17,7 @@ import numpy as np
 
 from skynav_sh.basis import degree_from_size, degree_order
 from skynav_sh.coupling import real_gaunt
+from skynav_sh.errors import ShError
 from skynav_sh.transform import grid
 
 
@@ -117,7 +118,7 @@ def bispectrum(coefficients: np.ndarray, method: str = 'grid') -> np.ndarray:
     elif method == 'gaunt':
         out = _bispectrum_gaunt(flat, degree)
     else:
-        raise ValueError(f"unknown bispectrum method {method!r} (expected 'grid' or 'gaunt')")
+        raise ShError(f"unknown bispectrum method {method!r} (expected 'grid' or 'gaunt')")
     return out.reshape(*coefficients.shape[:-1], out.shape[-1])
 
 

@@ -12,6 +12,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from skynav_sh.basis import SQRT2, degree_order, n_coefficients, normalised_legendre, real_sh_directions
+from skynav_sh.errors import ShError
 
 # Directions per block in synthesis_at; bounds the (block, (L+1)^2) basis table to ~32 MB at L = 32.
 _SYNTHESIS_BLOCK_VALUES = 4_000_000
@@ -24,11 +25,11 @@ class GaussLegendreGrid:
         """Grid for degree L; defaults n_theta = L + 1 (the least for exactness), n_phi = 2L + 2 (>= 2L + 1)."""
         self.max_degree = L = int(max_degree)
         if L < 0:
-            raise ValueError('max_degree must be >= 0')
+            raise ShError('max_degree must be >= 0')
         self.n_theta = L + 1 if n_theta is None else int(n_theta)
         self.n_phi = 2 * L + 2 if n_phi is None else int(n_phi)
         if self.n_theta < L + 1 or self.n_phi < 2 * L + 1:
-            raise ValueError(f'grid too small for degree {L}: needs n_theta >= {L + 1}, n_phi >= {2 * L + 1}')
+            raise ShError(f'grid too small for degree {L}: needs n_theta >= {L + 1}, n_phi >= {2 * L + 1}')
         x, w = np.polynomial.legendre.leggauss(self.n_theta)
         self.cos_theta: np.ndarray = x[::-1].copy()  # descending cos = ascending theta from the zenith
         self.theta_weights: np.ndarray = w[::-1].copy()  # Gauss-Legendre weights in cos(theta), sum 2
@@ -91,7 +92,7 @@ class GaussLegendreGrid:
         """Return coefficients (..., (L+1)^2) of samples (..., n_theta, n_phi) on this grid (exact up to degree L)."""
         samples = np.asarray(samples, dtype=float)
         if samples.shape[-2:] != self.shape:
-            raise ValueError(f'samples of shape {samples.shape} do not fit the grid {self.shape}')
+            raise ShError(f'samples of shape {samples.shape} do not fit the grid {self.shape}')
         L = self.max_degree
         batch = samples.shape[:-2]
         spectrum = np.fft.rfft(samples.reshape(-1, *self.shape), axis=-1)[..., : L + 1]  # (B, k, m)
@@ -111,7 +112,7 @@ class GaussLegendreGrid:
         batch = coefficients.shape[:-1]
         source_degree = int(round(np.sqrt(coefficients.shape[-1]))) - 1
         if n_coefficients(source_degree) != coefficients.shape[-1] or source_degree > L:
-            raise ValueError(f'{coefficients.shape[-1]} coefficients do not fit a grid of degree {L}')
+            raise ShError(f'{coefficients.shape[-1]} coefficients do not fit a grid of degree {L}')
         flat = coefficients.reshape(-1, coefficients.shape[-1])
         n_batch, n = flat.shape
         part, order, degree = self._flat_index
@@ -136,7 +137,7 @@ class GaussLegendreGrid:
         batch = coefficients.shape[:-1]
         source_degree = int(round(np.sqrt(coefficients.shape[-1]))) - 1
         if n_coefficients(source_degree) != coefficients.shape[-1] or source_degree > self.max_degree:
-            raise ValueError(f'{coefficients.shape[-1]} coefficients do not fit a grid of degree {self.max_degree}')
+            raise ShError(f'{coefficients.shape[-1]} coefficients do not fit a grid of degree {self.max_degree}')
         rings = self.n_theta if rings is None else int(rings)
         flat = coefficients.reshape(-1, coefficients.shape[-1])
         n = flat.shape[1]
@@ -166,7 +167,7 @@ def synthesis_at(coefficients: np.ndarray, directions: np.ndarray) -> np.ndarray
     n = coefficients.shape[-1]
     degree = int(round(np.sqrt(n))) - 1
     if n_coefficients(degree) != n:
-        raise ValueError(f'{n} is not a number of SH coefficients (L+1)^2')
+        raise ShError(f'{n} is not a number of SH coefficients (L+1)^2')
     points = directions.reshape(-1, 3)
     flat = coefficients.reshape(-1, n)
     out = np.empty((flat.shape[0], points.shape[0]))

@@ -16,6 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from skynav_sh.basis import degree_from_size, degree_order, normalised_legendre
+from skynav_sh.errors import ShError
 from skynav_sh.rotation import rotate_zyz
 
 # Gauss-Legendre nodes per degree for the T_z quadrature: the warped integrand is smooth but not polynomial;
@@ -40,7 +41,7 @@ def z_translation_blocks(max_degree: int, distance_ratio: float, n_nodes: int | 
     L = int(max_degree)
     tau = float(distance_ratio)
     if not 0.0 <= tau < 1.0:
-        raise ValueError(f'distance ratio |t|/rho must be in [0, 1), got {tau}')
+        raise ShError(f'distance ratio |t|/rho must be in [0, 1), got {tau}')
     n = _QUADRATURE_NODES_PER_DEGREE * (L + 1) + _QUADRATURE_EXTRA_NODES if n_nodes is None else int(n_nodes)
     x, w = np.polynomial.legendre.leggauss(n)
     target = normalised_legendre(L, x)  # (k, l, m) at the translated view's directions

@@ -38,6 +38,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from skynav_sim.errors import SimError
+
 from .robot import CAMERA_HEIGHT
 
 LANDSCAPES = ('garching', 'guereins', 'hurricane', 'geneva')
@@ -53,7 +55,7 @@ FETCH_TIMEOUT = 600.0  # s for apt-get and unpacking
 _COMPLETE = '.complete'
 
 
-class LandscapeUnavailable(RuntimeError):
+class LandscapeUnavailable(SimError, RuntimeError):
     """The landscapes could not be fetched or read; the message is one line saying why."""
 
 
@@ -196,7 +198,7 @@ class Landscape:
 def load(name: str, cache: Path | None = None) -> Landscape:
     """Return landscape `name` (one of LANDSCAPES), fetching stellarium-data first if needed."""
     if name not in LANDSCAPES:
-        raise ValueError(f'unknown landscape {name!r} (known: {", ".join(LANDSCAPES)})')
+        raise SimError(f'unknown landscape {name!r} (known: {", ".join(LANDSCAPES)})')
     folder = fetch(cache) / name
     ini = configparser.ConfigParser(interpolation=None, inline_comment_prefixes=(';',))
     ini.read(folder / 'landscape.ini', encoding='utf-8')
@@ -319,7 +321,7 @@ class Backdrop:
         along = directions[:, :2] @ origin[:2]
         outside = self.distance**2 - origin[:2] @ origin[:2]
         if outside <= 0:
-            raise ValueError(f'the camera at {origin[:2]} stands outside the {self.distance:g} m backdrop')
+            raise SimError(f'the camera at {origin[:2]} stands outside the {self.distance:g} m backdrop')
         with np.errstate(divide='ignore', invalid='ignore'):
             t = (-along + np.sqrt(along**2 + horizontal * outside)) / horizontal
         vertical = horizontal < 1e-12

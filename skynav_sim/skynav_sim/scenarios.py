@@ -21,6 +21,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
+from skynav_sim.errors import SimError
+
 from .render import CameraPose
 from .robot import bump, camera_pose
 from .sky import TIMES_OF_DAY
@@ -66,7 +68,7 @@ class ScenarioParameters:
 def build(name: str, world: World, params: ScenarioParameters, seed: int) -> list[Frame]:
     """Return the frames of scenario `name` in `world`; `seed` drives every random choice."""
     if name not in SCENARIOS:
-        raise ValueError(f'unknown scenario {name!r} (known: {", ".join(SCENARIOS)})')
+        raise SimError(f'unknown scenario {name!r} (known: {", ".join(SCENARIOS)})')
     rng = np.random.default_rng([seed, SCENARIOS.index(name), 7])
     return {'teach': _teach, 'repeat': _repeat, 'homing': _homing, 'compass': _compass, 'skyline': _skyline}[name](
         world, params, rng
@@ -98,7 +100,7 @@ def route(world: World, route_seed: int, length: float) -> tuple[CubicSpline, fl
         samples = spline(np.linspace(0, total, int(total / 0.1) + 1))
         if world.is_free(samples[:, 0], samples[:, 1]).all():
             return spline, total
-    raise RuntimeError(f'found no free route of {length} m in this {world.style} world; try a shorter one')
+    raise SimError(f'found no free route of {length} m in this {world.style} world; try a shorter one')
 
 
 def _free_point(world: World, rng: np.random.Generator, radius: float) -> np.ndarray:
@@ -106,7 +108,7 @@ def _free_point(world: World, rng: np.random.Generator, radius: float) -> np.nda
         p = rng.uniform(-radius, radius, 2)
         if world.is_free(*p):
             return p
-    raise RuntimeError('the yard has no free space')
+    raise SimError('the yard has no free space')
 
 
 def _segment_free(world: World, a: np.ndarray, b: np.ndarray) -> bool:
@@ -154,7 +156,7 @@ def _drive(
         xy, heading = _beside(spline, arc, offset)
         labels = [label] * len(arc)
     if not world.is_free(xy[:, 0], xy[:, 1]).all():
-        raise ValueError(f'a sideways offset of {offset} m leaves the free space of this route')
+        raise SimError(f'a sideways offset of {offset} m leaves the free space of this route')
     jitter = _smooth_noise(rng, len(xy), 2, np.radians(shake)) if shake > 0 else None
     if wobble > 0:
         heading = heading + _smooth_noise(rng, len(xy), 1, np.radians(wobble))[:, 0]
@@ -215,7 +217,7 @@ def _detour_loop(
                 samples = loop(np.linspace(0, length, int(length / DETOUR_CHECK_STEP) + 2))
                 if world.is_free(samples[:, 0], samples[:, 1]).all():
                     return loop, length, leave, rejoin
-    raise ValueError(
+    raise SimError(
         f'no free room in this world for a detour of {reach:g} m from the middle of the route; try a shorter one'
     )
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from skynav_sim.errors import SimError
+
 ENCODINGS = ('mono8', 'mono16', '32FC1')
 FULL_SCALE = {'mono8': 255, 'mono16': 65535}
 
@@ -44,7 +46,7 @@ class Sensor:
     ) -> np.ndarray:
         """Return the image of a radiance field (H, W) in `encoding`: uint8, uint16 or float32 radiance."""
         if encoding not in ENCODINGS:
-            raise ValueError(f'unknown encoding {encoding!r} (one of {", ".join(ENCODINGS)})')
+            raise SimError(f'unknown encoding {encoding!r} (one of {", ".join(ENCODINGS)})')
         gain = self.exposure(radiance, inside) if exposure is None else exposure
         blurred = (
             cv2.GaussianBlur(radiance.astype(np.float32), (0, 0), self.blur_sigma) if self.blur_sigma else radiance

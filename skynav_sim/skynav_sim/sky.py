@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_sim.errors import SimError
+
 from .noise import FractalNoise
 
 BANDS = ('uv', 'green')
@@ -76,11 +78,11 @@ def parse_time(value: str | float) -> float:
     try:
         hours = float(value)
     except ValueError:
-        raise ValueError(
+        raise SimError(
             f'unknown time of day {value!r} (a number of hours or one of {", ".join(TIMES_OF_DAY)})'
         ) from None
     if not 0 <= hours <= 24:
-        raise ValueError(f'time of day {hours} h is not within 0-24 h')
+        raise SimError(f'time of day {hours} h is not within 0-24 h')
     return hours
 
 

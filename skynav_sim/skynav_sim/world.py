@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_sim.errors import SimError
+
 from .landscape import LANDSCAPES, Backdrop, load
 from .materials import Surface
 from .noise import FractalNoise
@@ -214,7 +216,7 @@ def generate(style: str, seed: int) -> World:
         rng = np.random.default_rng([seed, len(STYLES) + LANDSCAPES.index(style)])
         return World(style, seed, _terrain(LAWN, rng), [], [], [], _free_space([]), backdrop=Backdrop(load(style)))
     if style not in STYLE_PARAMETERS:
-        raise ValueError(f'unknown world style {style!r} (known: {", ".join(WORLDS)})')
+        raise SimError(f'unknown world style {style!r} (known: {", ".join(WORLDS)})')
     params = STYLE_PARAMETERS[style]
     rng = np.random.default_rng([seed, STYLES.index(style)])
     terrain = _terrain(params, rng)

@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 from .features import REFERENCE_PERCENTILE, Features
 
 #: Channel modes: UV only (projection angle 0) or the UV/green contrast (learned angle).
@@ -42,7 +44,7 @@ def project(x: np.ndarray, y: np.ndarray | None, angle: float) -> np.ndarray:
     x = np.asarray(x, np.float32)
     if y is None:
         if angle != 0:
-            raise ValueError(f'contrast at angle {angle} rad needs the green feature')
+            raise SkylineError(f'contrast at angle {angle} rad needs the green feature')
         return x.copy()
     return np.float32(np.cos(angle)) * x + np.float32(np.sin(angle)) * np.asarray(y, np.float32)
 
@@ -59,7 +61,7 @@ def best_threshold(contrast: np.ndarray, is_sky: np.ndarray) -> tuple[float, int
     contrast = np.ravel(contrast)
     is_sky = np.ravel(np.asarray(is_sky, bool))
     if contrast.shape != is_sky.shape:
-        raise ValueError(f'{contrast.size} contrast values but {is_sky.size} labels')
+        raise SkylineError(f'{contrast.size} contrast values but {is_sky.size} labels')
     n = contrast.size
     if n == 0:
         return 0.0, 0
@@ -115,7 +117,7 @@ def _labels(truth: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Return a ground-truth mask (255 sky, 0 ground) as bool sky, checking its shape."""
     truth = np.asarray(truth)
     if truth.shape != tuple(shape):
-        raise ValueError(f'ground-truth mask {truth.shape} and image {tuple(shape)} differ in shape')
+        raise SkylineError(f'ground-truth mask {truth.shape} and image {tuple(shape)} differ in shape')
     return truth > 127
 
 
@@ -128,7 +130,7 @@ def _training_pixels(
     for feature, truth, circle in zip(features, truths, circles, strict=True):
         circle = np.asarray(circle, bool)
         if circle.shape != feature.shape:
-            raise ValueError(f'image circle mask {circle.shape} and image {feature.shape} differ in shape')
+            raise SkylineError(f'image circle mask {circle.shape} and image {feature.shape} differ in shape')
         sky = _labels(truth, feature.shape)
         decided = feature.by_threshold(circle, uses_green)
         fixed = circle & ~decided
@@ -168,21 +170,21 @@ def learn_global(
     this model on the same images.
     """
     if channels not in CHANNEL_MODES:
-        raise ValueError(f'unknown channel mode {channels!r}; expected one of {", ".join(CHANNEL_MODES)}')
+        raise SkylineError(f'unknown channel mode {channels!r}; expected one of {", ".join(CHANNEL_MODES)}')
     features = list(features)
     truths = list(truths)
     if not features or len(features) != len(truths):
-        raise ValueError(f'need one ground-truth mask per feature image, got {len(features)} and {len(truths)}')
+        raise SkylineError(f'need one ground-truth mask per feature image, got {len(features)} and {len(truths)}')
     percentiles = {f.reference_percentile for f in features}
     if len(percentiles) != 1:
-        raise ValueError(f'features were normalised with different reference percentiles: {sorted(percentiles)}')
+        raise SkylineError(f'features were normalised with different reference percentiles: {sorted(percentiles)}')
     circles = [circles] * len(features) if isinstance(circles, np.ndarray) and circles.ndim == 2 else list(circles)
     uses_green = channels == 'uv-green'
     if uses_green and any(f.y is None for f in features):
-        raise ValueError('uv-green learning needs features with the green channel')
+        raise SkylineError('uv-green learning needs features with the green channel')
     x, y, sky, fixed_correct, total = _training_pixels(features, truths, circles, uses_green)
     if total == 0:
-        raise ValueError('no pixel inside the image circle')
+        raise SkylineError('no pixel inside the image circle')
 
     if not uses_green:
         best_angle = 0.0
@@ -202,7 +204,7 @@ def learn_global(
             else np.asarray(angles, float)
         )
         if grid.size == 0:
-            raise ValueError('no angle to search')
+            raise SkylineError('no angle to search')
         best_angle = float(grid[int(np.argmax([score(a) for a in grid]))])
         if refine > 0 and np.unique(grid).size > 1:
             step = float(np.min(np.diff(np.unique(grid))))
@@ -217,10 +219,10 @@ def classification_rate(mask: np.ndarray, truth: np.ndarray, circle: np.ndarray)
     """Return the share (0..1) of pixels inside the image circle whose class (255 sky, 0 ground) matches the truth."""
     mask, truth, circle = np.asarray(mask), np.asarray(truth), np.asarray(circle, bool)
     if not mask.shape == truth.shape == circle.shape:
-        raise ValueError(
+        raise SkylineError(
             f'mask {mask.shape}, ground truth {truth.shape} and image circle {circle.shape} differ in shape'
         )
     inside = int(np.count_nonzero(circle))
     if inside == 0:
-        raise ValueError('the image circle is empty')
+        raise SkylineError('the image circle is empty')
     return int(np.count_nonzero(((mask > 127) == (truth > 127)) & circle)) / inside

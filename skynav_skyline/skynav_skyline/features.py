@@ -35,6 +35,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 #: Largest raw value of each integer encoding (counts); it means saturated.
 ENCODING_MAX_COUNTS: dict[str, int] = {'mono8': 255, 'mono16': 65535}
 #: Encodings the skyline accepts (docs/interfaces.md, input topics).
@@ -68,19 +70,19 @@ class Channel:
 def _as_image(image: np.ndarray, encoding: str) -> np.ndarray:
     """Return `image` as a 2-D array checked against `encoding`; raise ValueError otherwise."""
     if encoding not in ENCODINGS:
-        raise ValueError(f'unknown image encoding {encoding!r}; expected one of {", ".join(ENCODINGS)}')
+        raise SkylineError(f'unknown image encoding {encoding!r}; expected one of {", ".join(ENCODINGS)}')
     image = np.asarray(image)
     if image.ndim == 3 and image.shape[2] == 1:
         image = image[:, :, 0]
     if image.ndim != 2 or image.size == 0:
-        raise ValueError(f'{encoding} image must be a non-empty single-channel 2-D array, got shape {image.shape}')
+        raise SkylineError(f'{encoding} image must be a non-empty single-channel 2-D array, got shape {image.shape}')
     if encoding in _EXPECTED_DTYPES:
         if image.dtype != _EXPECTED_DTYPES[encoding]:
-            raise ValueError(
+            raise SkylineError(
                 f'{encoding} image must have dtype {np.dtype(_EXPECTED_DTYPES[encoding])}, got {image.dtype}'
             )
     elif not np.issubdtype(image.dtype, np.floating):
-        raise ValueError(f'32FC1 image must have a floating dtype, got {image.dtype}')
+        raise SkylineError(f'32FC1 image must have a floating dtype, got {image.dtype}')
     return image
 
 
@@ -94,12 +96,12 @@ def decode(image: np.ndarray, encoding: str, black_level: float = 0.0, dark_marg
     image = _as_image(image, encoding)
     black_level = float(black_level)
     if not np.isfinite(black_level) or black_level < 0:
-        raise ValueError(f'black level must be finite and non-negative, got {black_level}')
+        raise SkylineError(f'black level must be finite and non-negative, got {black_level}')
     if encoding in ENCODING_MAX_COUNTS:
         full = ENCODING_MAX_COUNTS[encoding]
         margin = DARK_MARGIN_COUNTS[encoding] if dark_margin is None else float(dark_margin)
         if black_level + margin >= full:
-            raise ValueError(f'black level {black_level} + dark margin {margin} leaves no range in {encoding}')
+            raise SkylineError(f'black level {black_level} + dark margin {margin} leaves no range in {encoding}')
         raw = image.astype(np.float32)
         saturated = image >= full
         dark = raw <= black_level + margin
@@ -132,11 +134,11 @@ def reference_level(
     With `stride` > 1 only every stride-th column counts: a sample for large images.
     """
     if not 0 < percentile <= 100:
-        raise ValueError(f'reference percentile must be in (0, 100], got {percentile}')
+        raise SkylineError(f'reference percentile must be in (0, 100], got {percentile}')
     every = (slice(None), slice(None, None, stride))
     usable = circle[every] if channel.counts is not None else circle[every] & ~channel.invalid[every]
     if not usable.any():
-        raise ValueError('no finite pixel inside the image circle (all NaN/inf or empty circle)')
+        raise SkylineError('no finite pixel inside the image circle (all NaN/inf or empty circle)')
     if channel.counts is not None:
         # Integer images (never invalid): the same inverted-CDF percentile, counted in a histogram of raw values.
         counts = channel.counts[every]
@@ -211,7 +213,7 @@ class Features:
     def _green(self) -> Channel:
         """Return the green channel; ValueError if it was not decoded."""
         if self.green is None:
-            raise ValueError('the green channel is needed but was not decoded')
+            raise SkylineError('the green channel is needed but was not decoded')
         return self.green
 
 
@@ -236,10 +238,10 @@ def extract_features(
     green_channel = None
     if green is not None:
         if encoding_green is None:
-            raise ValueError('a green image needs its encoding')
+            raise SkylineError('a green image needs its encoding')
         green_channel = decode(green, encoding_green, black_level[1], dark_margin)
         if green_channel.linear.shape != uv_channel.linear.shape:
-            raise ValueError(
+            raise SkylineError(
                 f'UV image {uv_channel.linear.shape} and green image {green_channel.linear.shape} differ in shape'
             )
     x = log_feature(uv_channel, circle, reference_percentile, stride)
@@ -251,5 +253,5 @@ def _check_circle(circle: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     """Return the image-circle mask as bool after checking its shape; raise ValueError otherwise."""
     circle = np.asarray(circle)
     if circle.shape != tuple(shape):
-        raise ValueError(f'image circle mask {circle.shape} and image {tuple(shape)} differ in shape')
+        raise SkylineError(f'image circle mask {circle.shape} and image {tuple(shape)} differ in shape')
     return circle.astype(bool, copy=False)

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 
 @dataclass(frozen=True)
 class SectorLayout:
@@ -40,7 +42,7 @@ class SectorLayout:
         """Return values interpolated linearly in azimuth from one value per sector: a map (H, W) or at `pixels`."""
         values = np.asarray(per_sector, np.float64)
         if values.shape != (self.count,):
-            raise ValueError(f'expected {self.count} sector values, got shape {values.shape}')
+            raise SkylineError(f'expected {self.count} sector values, got shape {values.shape}')
         low = values.astype(np.float32)
         step = (np.roll(values, -1) - values).astype(np.float32)  # from each centre to the next
         lower, weight = self.lower, self.weight
@@ -81,9 +83,9 @@ class SkylineGeometry:
         """Check the mask (ValueError) and store it as bool."""
         self.circle = np.asarray(self.circle).astype(bool, copy=False)
         if self.circle.ndim != 2:
-            raise ValueError(f'image circle mask must be 2-D, got shape {self.circle.shape}')
+            raise SkylineError(f'image circle mask must be 2-D, got shape {self.circle.shape}')
         if not self.circle.any():
-            raise ValueError('image circle mask is empty')
+            raise SkylineError('image circle mask is empty')
         self.centre = (float(self.centre[0]), float(self.centre[1]))
 
     @property
@@ -108,7 +110,7 @@ class SkylineGeometry:
         """Return the geometry of a bare image-circle mask; its centroid (pixels) stands in for the principal point."""
         circle = np.asarray(circle).astype(bool, copy=False)
         if circle.ndim != 2 or not circle.any():
-            raise ValueError('image circle mask must be a non-empty 2-D array')
+            raise SkylineError('image circle mask must be a non-empty 2-D array')
         rows, cols = np.nonzero(circle)
         return cls(circle, (float(cols.mean()), float(rows.mean())))
 
@@ -156,11 +158,11 @@ class SkylineGeometry:
         """
         count = int(count)
         if count < 1:
-            raise ValueError(f'number of rays must be at least 1, got {count}')
+            raise SkylineError(f'number of rays must be at least 1, got {count}')
         if not step > 0:
-            raise ValueError(f'ray sample step must be positive, got {step}')
+            raise SkylineError(f'ray sample step must be positive, got {step}')
         if self.pixels_per_radian is None:
-            raise ValueError('rays need the camera model (its radial scale), not a bare image-circle mask')
+            raise SkylineError('rays need the camera model (its radial scale), not a bare image-circle mask')
         key = (count, float(step))
         if key not in self._rays:
             spacing = max(1.0, float(step) * self.pixels_per_radian)
@@ -176,7 +178,7 @@ class SkylineGeometry:
         """Return (and cache) the layout of `count` equal azimuth sectors."""
         count = int(count)
         if count < 1:
-            raise ValueError(f'number of sectors must be at least 1, got {count}')
+            raise SkylineError(f'number of sectors must be at least 1, got {count}')
         if count not in self._layouts:
             self._layouts[count] = _layout(self.azimuth(), count)
         return self._layouts[count]

@@ -19,6 +19,8 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 from .features import decode
 
 #: Relative weight floor of a trusted value at the ends of the range (the hat never reaches 0 for trusted values).
@@ -29,14 +31,14 @@ def _check_brackets(images: Sequence[np.ndarray], exposure_times: Sequence[float
     """Return the exposure times (s) as an array after checking them against the images; raise ValueError otherwise."""
     times = np.asarray(exposure_times, float)
     if len(images) == 0:
-        raise ValueError('need at least one bracket')
+        raise SkylineError('need at least one bracket')
     if times.shape != (len(images),):
-        raise ValueError(f'{len(images)} brackets but {times.size} exposure times')
+        raise SkylineError(f'{len(images)} brackets but {times.size} exposure times')
     if not np.all(np.isfinite(times) & (times > 0)):
-        raise ValueError(f'exposure times must be finite and positive, got {times}')
+        raise SkylineError(f'exposure times must be finite and positive, got {times}')
     shapes = {np.shape(image) for image in images}
     if len(shapes) != 1:
-        raise ValueError(f'brackets differ in shape: {sorted(shapes)}')
+        raise SkylineError(f'brackets differ in shape: {sorted(shapes)}')
     return times
 
 
@@ -57,7 +59,7 @@ def merge_brackets(
     if method == 'debevec':
         return _merge_debevec(images, times, encoding, black_level)
     if method != 'linear':
-        raise ValueError(f"unknown merge method {method!r}; expected 'linear' or 'debevec'")
+        raise SkylineError(f"unknown merge method {method!r}; expected 'linear' or 'debevec'")
     channels = [decode(image, encoding, black_level) for image in images]
     estimates = np.stack([c.linear / np.float32(t) for c, t in zip(channels, times)])
     trusted = np.stack([c.trusted for c in channels])
@@ -87,7 +89,7 @@ def _merge_debevec(images: Sequence[np.ndarray], times: np.ndarray, encoding: st
     """Return the float32 radiance of 8-bit brackets merged by OpenCV's MergeDebevec with a linear response."""
 
     if encoding != 'mono8' or black_level != 0:
-        raise ValueError("the 'debevec' merge takes mono8 brackets with zero black level")
+        raise SkylineError("the 'debevec' merge takes mono8 brackets with zero black level")
     stack = [np.ascontiguousarray(decode(image, encoding).linear.astype(np.uint8)) for image in images]
     response = np.arange(256, dtype=np.float32).reshape(256, 1)
     response[0] = 1.0  # log of the response must stay finite; OpenCV's weights ignore value 0 anyway

@@ -19,6 +19,7 @@ from skynav_core.images import ImageError, fill_image, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
+from skynav_skyline.errors import SkylineError
 
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, skyline_params
@@ -51,7 +52,7 @@ class SkylineNode(SkynavNode):
         """Build the segmentation settings from parameter values (ValueError for unusable ones)."""
         self.params = skyline_params({name: values[name] for name in PARAMETERS})
         if values['pair_tolerance_ms'] < 0:
-            raise ValueError('pair_tolerance_ms must not be negative')
+            raise SkylineError('pair_tolerance_ms must not be negative')
         self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6))
         self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
         self.segmenter = None  # rebuilt for the next frame

@@ -42,6 +42,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
 from .features import REFERENCE_PERCENTILE, Features, extract_features
 from .geometry import SectorLayout, SkylineGeometry
@@ -88,29 +90,29 @@ class SkylineParams:
     def __post_init__(self) -> None:
         """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
         if self.method not in METHODS:
-            raise ValueError(f'unknown skyline method {self.method!r}; expected one of {", ".join(METHODS)}')
+            raise SkylineError(f'unknown skyline method {self.method!r}; expected one of {", ".join(METHODS)}')
         if self.channels not in CHANNEL_MODES:
-            raise ValueError(f'unknown channel mode {self.channels!r}; expected one of {", ".join(CHANNEL_MODES)}')
+            raise SkylineError(f'unknown channel mode {self.channels!r}; expected one of {", ".join(CHANNEL_MODES)}')
         if self.channels == 'uv' and self.angle not in (None, 0, 0.0):
-            raise ValueError(f'UV-only means projection angle 0, got {self.angle}')
+            raise SkylineError(f'UV-only means projection angle 0, got {self.angle}')
         if self.angle is not None and not np.isfinite(self.angle):
-            raise ValueError(f'projection angle must be finite, got {self.angle}')
+            raise SkylineError(f'projection angle must be finite, got {self.angle}')
         if self.method == 'global' and self.threshold is None:
-            raise ValueError("method 'global' needs a learned threshold")
+            raise SkylineError("method 'global' needs a learned threshold")
         if self.threshold is not None and not np.isfinite(self.threshold):
-            raise ValueError(f'threshold must be finite, got {self.threshold}')
+            raise SkylineError(f'threshold must be finite, got {self.threshold}')
         if int(self.sectors) < 1 or int(self.bins) < 2:
-            raise ValueError(f'need at least 1 sector and 2 bins, got {self.sectors} and {self.bins}')
+            raise SkylineError(f'need at least 1 sector and 2 bins, got {self.sectors} and {self.bins}')
         if not 0 <= self.min_separability <= 1:
-            raise ValueError(f'min_separability must be in [0, 1], got {self.min_separability}')
+            raise SkylineError(f'min_separability must be in [0, 1], got {self.min_separability}')
         if not 0 < self.reference_percentile <= 100:
-            raise ValueError(f'reference percentile must be in (0, 100], got {self.reference_percentile}')
+            raise SkylineError(f'reference percentile must be in (0, 100], got {self.reference_percentile}')
         if not self.hole_margin >= 0:
-            raise ValueError(f'hole_margin must be at least 0 (0: off), got {self.hole_margin}')
+            raise SkylineError(f'hole_margin must be at least 0 (0: off), got {self.hole_margin}')
         if not self.ring_share > 0:
-            raise ValueError(f'ring_share must be above 0 (above 1: off), got {self.ring_share}')
+            raise SkylineError(f'ring_share must be above 0 (above 1: off), got {self.ring_share}')
         if not (self.ring_width_deg > 0 and math.isfinite(self.ring_width_deg)):
-            raise ValueError(f'ring_width_deg must be positive and finite, got {self.ring_width_deg}')
+            raise SkylineError(f'ring_width_deg must be positive and finite, got {self.ring_width_deg}')
         black = np.broadcast_to(np.asarray(self.black_level, float), (2,))
         object.__setattr__(self, 'black_level', (float(black[0]), float(black[1])))
 
@@ -232,10 +234,10 @@ def sector_thresholds(
     bimodal sector's class means must lie on either side of.
     """
     if method not in HISTOGRAM_METHODS:
-        raise ValueError(f'unknown histogram method {method!r}; expected one of {", ".join(HISTOGRAM_METHODS)}')
+        raise SkylineError(f'unknown histogram method {method!r}; expected one of {", ".join(HISTOGRAM_METHODS)}')
     values = contrast[trusted]
     if values.size == 0:
-        raise ValueError('no trusted pixel to threshold')
+        raise SkylineError('no trusted pixel to threshold')
     value_range = histogram_range(values) if value_range is None else value_range
     counts = sector_histograms(values, layout.index[trusted], layout.count, bins, value_range)
     own = HISTOGRAM_METHODS[method](counts, bin_edges(bins, value_range))
@@ -310,9 +312,9 @@ class SkylineSegmenter:
         """Return the normalised log features of an image pair (green ignored in 'uv' mode, its shape still checked)."""
         p = self.params
         if p.uses_green and green is None:
-            raise ValueError("channel mode 'uv-green' needs the green image")
+            raise SkylineError("channel mode 'uv-green' needs the green image")
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
-            raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
+            raise SkylineError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
         return extract_features(
             uv,
             green if p.uses_green else None,
@@ -338,7 +340,7 @@ class SkylineSegmenter:
         if image.ndim == 3 and image.shape[2] == 1:
             image = image[:, :, 0]
         if image.shape != self.geometry.shape:
-            raise ValueError(f'{encoding} image {image.shape} and image circle {self.geometry.shape} differ in shape')
+            raise SkylineError(f'{encoding} image {image.shape} and image circle {self.geometry.shape} differ in shape')
         return image[self.geometry.circle][None]
 
     def _scatter(self, row: np.ndarray, outside: float | int) -> np.ndarray:
@@ -378,9 +380,9 @@ class SkylineSegmenter:
         """
         p = self.params
         if p.uses_green and green is None:
-            raise ValueError("channel mode 'uv-green' needs the green image")
+            raise SkylineError("channel mode 'uv-green' needs the green image")
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
-            raise ValueError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
+            raise SkylineError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
         circle = self._row.circle
         stride = self._stride
         features = extract_features(
@@ -396,7 +398,7 @@ class SkylineSegmenter:
         contrast = project(features.x, features.y, p.projection_angle)
         trusted = features.trusted(circle, p.uses_green)
         if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
-            raise ValueError(
+            raise SkylineError(
                 f'fewer than {MIN_TRUSTED_PIXELS} trusted pixels inside the image circle '
                 '(image dark, saturated or invalid)'
             )

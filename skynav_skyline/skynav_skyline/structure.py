@@ -27,6 +27,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 #: Rays of the ground-ring step: one per degree of azimuth.
 RAY_COUNT = 360
 #: Off-axis angle (rad) between samples along a ray: one degree (but at least a pixel).
@@ -76,7 +78,7 @@ def outermost_band_end(ground: np.ndarray, inside: np.ndarray, width: int) -> tu
     """
     width = int(width)
     if width < 1:
-        raise ValueError(f'band width must be at least 1 sample, got {width}')
+        raise SkylineError(f'band width must be at least 1 sample, got {width}')
     inside = np.asarray(inside, bool)
     ground = np.asarray(ground, bool) & inside
     sky = inside & ~ground

@@ -16,6 +16,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from skynav_skyline.errors import SkylineError
+
 #: Histogram bins of the projected contrast used by the local methods.
 DEFAULT_BINS = 256
 #: Percentiles (%) of the values that span the histogram; values outside go to the end bins.
@@ -44,7 +46,7 @@ def histogram_range(values: np.ndarray) -> tuple[float, float]:
     """Return a robust (low, high) span (value unit) of `values` for a histogram; never empty."""
     values = np.asarray(values)
     if values.size == 0:
-        raise ValueError('cannot build a histogram of no values')
+        raise SkylineError('cannot build a histogram of no values')
     # The span only places the bins: percentiles of an evenly spread sample are as good and much cheaper.
     sample = values.ravel()[:: max(1, values.size // RANGE_SAMPLE)]
     low, high = (float(v) for v in _percentiles(sample, HISTOGRAM_RANGE_PERCENTILES))

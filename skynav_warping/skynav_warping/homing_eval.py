@@ -28,6 +28,7 @@ import numpy as np
 
 from skynav_compass import Compass, CompassView
 from skynav_core.evaluation import Column, text_table, unknown_methods
+from skynav_warping.errors import WarpingError
 from skynav_warping.evaluation import (
     DISTANCE_BINS,
     angular_errors,
@@ -48,7 +49,7 @@ EVAL_TILT_BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
 MIN_DISTANCE = 0.05  # m: views nearer the snapshot than this have no defined home direction and are left out
 
 
-class HomingEvalError(ValueError):
+class HomingEvalError(WarpingError):
     """Input the evaluation cannot use (no ground truth, no snapshot, an unknown method); one line of message."""
 
 

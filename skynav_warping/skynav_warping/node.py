@@ -34,6 +34,7 @@ from skynav_core.sh_input import usable_coefficients
 from skynav_core.snapshots import SnapshotChoice
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 from skynav_sh.product import message_sky_share, shows_skyline
+from skynav_warping.errors import WarpingError
 
 from .homing import estimate_home_vector
 from .parameters import PARAMETERS, TARGETS
@@ -69,11 +70,11 @@ class WarpingNode(SkynavNode):
     def configure(self, values: dict) -> None:
         """Open the map and set the search up (ValueError if unusable)."""
         if values['target'] not in TARGETS:
-            raise ValueError(f'target must be one of {", ".join(TARGETS)}')
+            raise WarpingError(f'target must be one of {", ".join(TARGETS)}')
         if values['lookahead'] < 0 or values['index'] < 0 or not 4 <= values['max_degree'] <= 32:
-            raise ValueError('lookahead and index must not be negative; max_degree must be within 4..32')
+            raise WarpingError('lookahead and index must not be negative; max_degree must be within 4..32')
         if not 0 < values['max_tilt_deg'] <= 180:
-            raise ValueError('max_tilt_deg must be more than 0 and at most 180 degrees')
+            raise WarpingError('max_tilt_deg must be more than 0 and at most 180 degrees')
         self.snapshots.configure(values['map'], values['target'], values['index'], values['lookahead'])
         self.values = values
         self.settings = WarpingSettings(

@@ -15,6 +15,7 @@ import numpy as np
 
 from skynav_core.camera import directions_from_angles
 from skynav_sh.fisheye import camera_image_values
+from skynav_warping.errors import WarpingError
 
 DEFAULT_ELEVATIONS = (np.radians(-10.0), np.radians(40.0))  # rad, lowest and highest elevation of the band
 
@@ -34,9 +35,9 @@ class PanoramaUnwrapper:
 
         low, high = float(elevations[0]), float(elevations[1])
         if not low < high:
-            raise ValueError('the elevation band needs low < high')
+            raise WarpingError('the elevation band needs low < high')
         if np.pi / 2 - low > camera.theta_max + 1e-9:
-            raise ValueError(
+            raise WarpingError(
                 f'elevation {np.degrees(low):.1f} deg lies outside the image circle '
                 f'(lowest seen: {np.degrees(np.pi / 2 - camera.theta_max):.1f} deg)'
             )

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from skynav_warping.errors import WarpingError
+
 
 @dataclass(frozen=True)
 class PlanarResult:
@@ -92,13 +94,13 @@ def warping_2d(
     c = horizon_profile(np.atleast_2d(current))
     n = s.shape[0]
     if c.shape[0] != n:
-        raise ValueError('snapshot and current images need the same number of columns')
+        raise WarpingError('snapshot and current images need the same number of columns')
     n_alpha = n if n_alpha is None else int(n_alpha)
     step = 2 * np.pi / n
     alphas = 2 * np.pi * np.arange(n_alpha) / n_alpha
     nu = np.asarray(ratios, dtype=float)
     if np.any((nu <= 0) | (nu >= 1)):
-        raise ValueError('distance ratios d / r must lie in (0, 1)')
+        raise WarpingError('distance ratios d / r must lie in (0, 1)')
     seen_at = step * np.arange(n)  # x': azimuth (snapshot frame) at which the current place sees the landmark
     # the snapshot's azimuth x of that landmark: x = x' - asin(nu sin(x' - alpha)); (alpha, nu, x')
     source = seen_at - np.arcsin(nu[None, :, None] * np.sin(seen_at - alphas[:, None, None]))

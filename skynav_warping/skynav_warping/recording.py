@@ -15,6 +15,7 @@ import numpy as np
 from skynav_core.bag import open_bag
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.views import recorded_frames
+from skynav_warping.errors import WarpingError
 
 MASK = '/ground_truth/mask'
 UV = '/camera/uv/image_raw'
@@ -41,10 +42,10 @@ def load_homing_grid(path: str) -> HomingGrid:
     with open_bag(path) as bag:
         recorded = recorded_frames(bag, [MASK, UV, GREEN])
     if recorded.camera is None:
-        raise ValueError(f'{path}: no {CAMERA_INFO_TOPIC} messages')
+        raise WarpingError(f'{path}: no {CAMERA_INFO_TOPIC} messages')
     stamps = sorted(s for s in recorded.poses if s in recorded.images[MASK])
     if len(stamps) < 2:
-        raise ValueError(f'{path}: fewer than two frames with ground-truth pose and mask')
+        raise WarpingError(f'{path}: fewer than two frames with ground-truth pose and mask')
     poses = np.stack([recorded.poses[s] for s in stamps])
 
     def stack(topic: str) -> np.ndarray | None:

@@ -21,6 +21,7 @@ import numpy as np
 
 from skynav_sh.basis import degree_from_size, n_coefficients
 from skynav_sh.transform import grid
+from skynav_warping.errors import WarpingError
 
 DEFAULT_RIM_TAPER = np.radians(10.0)  # rad
 
@@ -79,7 +80,7 @@ def view_from_fisheye(
 ) -> WarpView:
     """Return the terms of a fish-eye image or mask through a skynav_sh FisheyeTransform with fill 'zero'."""
     if transform.fill != 'zero':
-        raise ValueError(f"warping needs a FisheyeTransform with fill 'zero', not {transform.fill!r}")
+        raise WarpingError(f"warping needs a FisheyeTransform with fill 'zero', not {transform.fill!r}")
     # with the zero fill a cell's sample is (seen fraction) x (mean over its seen part)
     samples = transform.samples(image)
     fraction = transform.visibility

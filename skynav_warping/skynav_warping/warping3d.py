@@ -44,6 +44,7 @@ from skynav_core.rotations import rotation_angle, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_sh.rotation import quarter_turn_sparse, rotate, z_rotation_index
 from skynav_sh.translation import z_translation_blocks
+from skynav_warping.errors import WarpingError
 from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
@@ -152,7 +153,7 @@ class WarpingTables:
     def __init__(self, settings: WarpingSettings) -> None:
         """Precompute translation blocks at both degrees and the coarse grid's rotation factors."""
         if settings.ratios[0] != 0.0:
-            raise ValueError('ratios[0] must be 0 (the no-translation reference)')
+            raise WarpingError('ratios[0] must be 0 (the no-translation reference)')
         self.settings = settings
         self.ratios = np.asarray(settings.ratios, dtype=float)
         self.fine = DegreeTables(settings.degree, settings.ratios)
@@ -526,7 +527,7 @@ def warp_home_vector(
     tables = warping_tables(settings)
     L, Lc = settings.degree, settings.coarse_degree
     if min(current.degree, snapshot.degree) < L:
-        raise ValueError(f"views of degree {min(current.degree, snapshot.degree)} < the settings' degree {L}")
+        raise WarpingError(f"views of degree {min(current.degree, snapshot.degree)} < the settings' degree {L}")
     x, s = current.truncated(L).terms, snapshot.truncated(L).terms
     full = False if full_turn is None else bool(full_turn)
     nc = n_coefficients(Lc)
