@@ -16,7 +16,7 @@ PY_PACKAGE_FILES += tools/link_data_files.py
 MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) skynav_msgs/CMakeLists.txt \
              skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
 
-.PHONY: setup test demo lock clean
+.PHONY: setup test lint demo lock clean
 
 ## setup: virtualenv at .venv with ROS 2 Jazzy, skynav_msgs and the skynav packages
 setup: $(STAMPS)/packages
@@ -43,9 +43,15 @@ $(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
 	$(BIN)/python tools/link_data_files.py $(VENV) $(PY_PACKAGES)
 	@touch $@
 
-## test: every test, unit and replay, with pytest's summary
-test: setup
+## test: lint, format and type checks, then every test, unit and replay, with pytest's summary
+test: lint
 	$(BIN)/python -m pytest
+
+## lint: ruff's lint and format checks and mypy (configuration: ruff.toml, mypy.ini)
+lint: setup
+	$(BIN)/ruff check --quiet .
+	$(BIN)/ruff format --check --quiet .
+	$(BIN)/mypy
 
 ## demo: the node graph over bundled synthetic recordings, with a summary and plots in out/demo
 demo: setup
