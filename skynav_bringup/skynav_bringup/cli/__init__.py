@@ -88,8 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)
         return 2
-    from skynav_core.errors import SkynavError  # loaded after the parser: `skynav --help` stays light
+    from skynav_core.bag import set_skip_damaged  # loaded after the parser: `skynav --help` stays light
+    from skynav_core.errors import SkynavError
 
+    set_skip_damaged(getattr(args, 'skip_damaged', False))  # every call decides anew (tests call main repeatedly)
     try:
         return args.run(args) or 0
     except CliError as exc:

@@ -10,12 +10,15 @@ from __future__ import annotations
 import argparse
 from datetime import UTC, datetime
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'topics, types, counts and duration of a bag'
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav info`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file')
+    add_skip_damaged(parser)
 
 
 def _stamp(nanoseconds: int) -> str:

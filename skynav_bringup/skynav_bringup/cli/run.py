@@ -13,12 +13,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'run the node graph over a bag offline and record every output'
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav run`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file with the camera topics')
+    add_skip_damaged(parser)
     parser.add_argument('--out', required=True, metavar='OUT.mcap', help='recording of every output topic')
     parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--params', type=Path, metavar='FILE', help='ROS 2 parameter file (YAML)')
