@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from skynav_core.bag import BagWriter, open_bag
+    from skynav_core.cdr import rosbags_cdr
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
 
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         def record(topic: str, msgtype: str, log_time: int, data: bytes) -> None:
             if topic not in writer.topics:
                 writer.add_topic(topic, msgtype)
-            writer.write(topic, log_time, data)
+            writer.write(topic, log_time, rosbags_cdr(msgtype, data))  # as rosbags reads it (see skynav_core.cdr)
 
         try:
             with in_process(specs, ros_args, sink=record) as graph:
