@@ -11,15 +11,12 @@ fails the test.
 
 from __future__ import annotations
 
-import contextlib
-import io
 from functools import cache
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from skynav_bringup.cli import main
 from skynav_core.bag import BagWriter, open_bag
 from skynav_core.testing import BAGS, one_line_error
 
@@ -41,17 +38,6 @@ COMMANDS = [
 ]
 
 
-def call(arguments: list[str]) -> tuple[int, str, str]:
-    """Run the `skynav` main in this process; return (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main(arguments)
-        except SystemExit as exc:  # argparse
-            code = exc.code
-    return code, out.getvalue(), err.getvalue()
-
-
 def flip(source: Path, target: Path, seed: int) -> list[int]:
     """Write `source` to `target` with 1-3 bytes changed (offsets drawn with `seed`); return the offsets."""
     data = bytearray(source.read_bytes())
@@ -64,7 +50,7 @@ def flip(source: Path, target: Path, seed: int) -> list[int]:
 
 
 @pytest.fixture(scope='module')
-def workspace(tmp_path_factory):
+def workspace(tmp_path_factory, skynav_main):
     """Return a folder with uncompressed copies of the bags and a small map (built from the intact compass bag)."""
     root = tmp_path_factory.mktemp('fuzz')
     for source in (COMPASS, HOMING):
@@ -74,13 +60,13 @@ def workspace(tmp_path_factory):
                 writer.add_topic(topic.name, topic.msgtype, topic.offered_qos)
             for message in bag.messages():
                 writer.write(message.topic, message.log_time, message.data)
-    code, _, err = call(['map', 'build', str(COMPASS), '--out', str(root / 'compass.db')])
+    code, _, err = skynav_main(['map', 'build', str(COMPASS), '--out', str(root / 'compass.db')])
     assert code == 0, err
     return root
 
 
 @cache
-def reference(name: str, arguments: tuple[str, ...]) -> tuple[int, str]:
+def reference(call, arguments: tuple[str, ...]) -> tuple[int, str]:
     """Return (exit code, stdout) of a command on the intact bag: what an undamaged run must print."""
     code, out, _ = call(list(arguments))
     return code, out
@@ -92,7 +78,7 @@ def fill(arguments: list[str], bag: Path, out: Path, map_path: Path) -> list[str
 
 
 @pytest.mark.parametrize('compressed', [True, False], ids=['zstd', 'uncompressed'])
-def test_flipped_bytes_give_the_same_result_or_one_line(workspace, tmp_path, compressed):
+def test_flipped_bytes_give_the_same_result_or_one_line(workspace, tmp_path, compressed, skynav_main):
     outcomes = {'refused': 0, 'unchanged': 0}
     for seed in SEEDS:
         name, source, arguments = COMMANDS[seed % len(COMMANDS)]
@@ -101,13 +87,13 @@ def test_flipped_bytes_give_the_same_result_or_one_line(workspace, tmp_path, com
         broken.parent.mkdir()
         offsets = flip(intact, broken, seed)
         for command, args in ((name, arguments), ('info', ['info', '{bag}'])):
-            code, out, err = call(fill(args, broken, broken.parent, workspace / 'compass.db'))
+            code, out, err = skynav_main(fill(args, broken, broken.parent, workspace / 'compass.db'))
             where = f'seed {seed}, bytes {offsets} of {intact.name}, skynav {command}'
             assert 'Traceback' not in out + err, where
             if code == 0:
                 clean = tmp_path / f'clean{seed}'
                 clean.mkdir(exist_ok=True)
-                expected = reference(command, tuple(fill(args, intact, clean, workspace / 'compass.db')))
+                expected = reference(skynav_main, tuple(fill(args, intact, clean, workspace / 'compass.db')))
                 assert expected[0] == 0 and out.replace(str(broken), str(intact)) == expected[1], where
                 outcomes['unchanged'] += 1
             else:
