@@ -11,14 +11,16 @@ fails the test.
 
 from __future__ import annotations
 
+import re
 from functools import cache
 from pathlib import Path
 
+import mcap.reader
 import numpy as np
 import pytest
 
 from skynav_core.bag import BagWriter, open_bag
-from skynav_core.testing import BAGS, one_line_error
+from skynav_core.testing import BAGS, one_line_error, run_skynav
 
 COMPASS = BAGS / 'synthetic_garden_compass.mcap'
 HOMING = BAGS / 'synthetic_park_homing.mcap'
@@ -101,3 +103,21 @@ def test_flipped_bytes_give_the_same_result_or_one_line(workspace, tmp_path, com
                 outcomes['refused'] += 1
     # Every flip lands somewhere a checksum covers: each of them is refused, none read as if intact.
     assert outcomes['refused'] == 2 * len(SEEDS), outcomes
+
+
+def test_skip_damaged_reads_the_rest_and_says_how_many_it_left_out(tmp_path, skynav_main):
+    with COMPASS.open('rb') as stream:
+        chunk = mcap.reader.make_reader(stream).get_summary().chunk_indexes[1]
+    data = bytearray(COMPASS.read_bytes())
+    data[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0xFF
+    broken = tmp_path / COMPASS.name
+    broken.write_bytes(bytes(data))
+    code, _, err = skynav_main(['info', str(broken)])
+    assert code == 1 and one_line_error(err) and 'damaged chunk' in err, err
+    code, out, err = skynav_main(['info', '--skip-damaged', str(broken)])
+    skipped = int(re.search(r'skipping 1 damaged chunk \(checksum mismatch\): (\d+) messages', err).group(1))
+    assert code == 0 and f'Unreadable:        {skipped} messages in damaged chunks' in out, err
+    result = run_skynav('replay', '--skip-damaged', str(broken), '--rate', '0')
+    with open_bag(COMPASS) as bag:
+        total = bag.message_count
+    assert result.returncode == 0 and f'published {total - skipped} messages' in result.stderr, result.stderr
