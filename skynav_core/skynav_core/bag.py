@@ -143,7 +143,7 @@ def check_metadata(metadata: object, where: str) -> dict:
     if not isinstance(metadata, dict):
         raise BagError(f'{where}: its metadata is not a mapping')
     _check_fields(metadata, METADATA_FIELDS, '', where)
-    for name in metadata.get('relative_file_paths', []) + [f['path'] for f in metadata.get('files', [])]:
+    for name in metadata.get('relative_file_paths', []) + [f.get('path', '') for f in metadata.get('files', [])]:
         path = PurePosixPath(name)
         if path.is_absolute() or '..' in path.parts or '\\' in name:
             raise BagError(f'{where}: metadata names a storage file outside the bag: {name[:80]!r}')
@@ -182,7 +182,6 @@ class BagReader:
             raise BagError(f'{self.path}: not a bag (expected a rosbag2 directory, .mcap or .db3 file)')
         if self.path.is_file() and self.path.suffix == '.mcap':
             _check_mcap_file(self.path)
-        _ = self.metadata  # checked before rosbags reads it
         damaged: dict[Path, set[int]] = {}
         for file in self.files if self.storage == 'mcap' else []:
             try:
@@ -195,6 +194,7 @@ class BagReader:
                 damaged[file.resolve()] = {chunk.offset for chunk in check.damaged}
                 self.skipped += sum(chunk.messages for chunk in check.damaged)
                 warn(f'{file}: skipping {check.describe()}')
+        _ = self.metadata  # checked before rosbags reads it
         self._reader = Reader(self.path)
         try:
             self._reader.open()
@@ -362,7 +362,8 @@ class BagWriter:
         if self.partial.exists():
             raise BagError(
                 f'{self.partial}: an earlier recording to {self.path.name} did not finish and its '
-                'data is still there; move or delete it first'
+                f'data is still there (`skynav bag recover {self.partial} SAVED.mcap` saves its messages); '
+                'move or delete it first'
             )
         if not self.path.parent.is_dir():
             raise BagError(f'{self.path.parent}: no such directory')
