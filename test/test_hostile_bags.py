@@ -50,8 +50,8 @@ def directory_bag(root, name: str, change: dict):
     return folder
 
 
-def typed_bag(path, msgtype: str):
-    """Write a small MCAP file whose one topic claims the type `msgtype`."""
+def typed_bag(path, msgtype: str, data: bytes = b'\x00\x01\x00\x00\x02\x00\x00\x00a\x00'):
+    """Write a small MCAP file whose one topic claims the type `msgtype`, each message holding `data`."""
     with path.open('wb') as stream:
         writer = Writer(stream)
         writer.start(profile='ros2', library='crafted')
@@ -59,9 +59,7 @@ def typed_bag(path, msgtype: str):
             '/camera/uv/camera_info', 'cdr', writer.register_schema(msgtype, 'ros2msg', b'string data\n')
         )
         for t in range(3):
-            writer.add_message(
-                channel, log_time=10**9 + t, publish_time=10**9 + t, data=b'\x00\x01\x00\x00\x02\x00\x00\x00a\x00'
-            )
+            writer.add_message(channel, log_time=10**9 + t, publish_time=10**9 + t, data=data)
         writer.finish()
     return path
 
@@ -90,3 +88,11 @@ def test_crafted_type_names_are_refused_by_every_command(tmp_path, msgtype, skyn
     bag = typed_bag(tmp_path / 'typed.mcap', msgtype)
     for arguments in COMMANDS:
         assert_refused(skynav_main, arguments, bag, tmp_path, 'not a message type name')
+
+
+def test_messages_that_do_not_decode_are_one_line(tmp_path, skynav_main):
+    # A well-formed file (checksums right) whose camera info bytes are no CameraInfo: a crafted bag.
+    bag = typed_bag(
+        tmp_path / 'garbage.mcap', 'sensor_msgs/msg/CameraInfo', b'\x00\x01\x00\x00\xff\xff\xff\x7f' + bytes(20)
+    )
+    assert_refused(skynav_main, COMMANDS[3], bag, tmp_path, 'does not decode')
