@@ -6,6 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from mcap.records import Chunk, DataEnd, Footer
+from mcap.stream_reader import StreamReader
 from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import open_bag
@@ -54,6 +56,12 @@ def test_bundled_bag(path):
                 assert camera.field_of_view <= np.radians(220) + 1e-9
     frames = len(description['frames'])
     assert count == 5 * frames
+    with path.open('rb') as stream:  # every checksum is there, and the mcap library finds them right
+        records = list(StreamReader(stream, validate_crcs=True, emit_chunks=True).records)
+    chunks = [r for r in records if isinstance(r, Chunk)]
+    assert chunks and all(chunk.uncompressed_crc for chunk in chunks)
+    assert next(r for r in records if isinstance(r, DataEnd)).data_section_crc
+    assert next(r for r in records if isinstance(r, Footer)).summary_crc
     for topic, times in stamps.items():
         assert len(times) == frames and np.all(np.diff(times) > 0), topic  # strictly increasing
         assert times == stamps['/camera/uv/image_raw'], topic  # one stamp per exposure on every topic

@@ -12,24 +12,41 @@ when the writer closes.
 
 from __future__ import annotations
 
+import re
 import shutil
-from collections.abc import Iterable, Iterator
+import sys
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
-from typing import TYPE_CHECKING
+from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING, Any
+
+import mcap.reader
+import yaml
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin
 
 from .errors import SkynavError
-from .typestore import UnknownMessageType, ensure_type, typestore
+from .mcapfile import CheckedWriter, McapError, check_mcap
+from .typestore import BadMessageType, UnknownMessageType, ensure_type, split_type, typestore
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection, Qos
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
+# A recorded topic name: absolute, '/'-separated identifiers (hidden ones may start with '_').
+TOPIC_NAME = re.compile(r'(/[A-Za-z_][A-Za-z0-9_]*)+')
+# What a command's --skip-damaged sets: readers leave out damaged chunks (and say how many messages) instead of failing.
+_skip_damaged = False
 
 
 class BagError(SkynavError):
     """A recording that cannot be read or written; the message names the file and the problem."""
+
+
+def set_skip_damaged(skip: bool) -> None:
+    """Make readers opened from now on skip damaged chunks (counting their messages) instead of refusing the bag."""
+    global _skip_damaged  # noqa: PLW0603 - a command line's choice, for every bag the command opens
+    _skip_damaged = skip
 
 
 @dataclass(frozen=True)
@@ -62,16 +79,102 @@ def _check_mcap_file(path: Path) -> None:
     if head != MCAP_MAGIC:
         raise BagError(f'{path}: not an MCAP file (it does not start with the MCAP magic bytes)')
     if tail != MCAP_MAGIC:
-        raise BagError(f'{path}: truncated MCAP file (no footer; the recording was cut off before it was closed)')
+        raise BagError(
+            f'{path}: truncated MCAP file (no footer; the recording was cut off before it was closed); '
+            '`skynav bag recover` saves its complete messages'
+        )
+
+
+# rosbag2_bagfile_information: the type of each field skynav relies on (a dict: the same for its fields;
+# a list: the type of every item). Fields it does not name are left to rosbags.
+_TIME = {'nanoseconds_since_epoch': int}
+_DURATION = {'nanoseconds': int}
+METADATA_FIELDS: dict[str, Any] = {
+    'version': int,
+    'storage_identifier': str,
+    'relative_file_paths': [str],
+    'duration': _DURATION,
+    'starting_time': _TIME,
+    'message_count': int,
+    'topics_with_message_count': [
+        {
+            'message_count': int,
+            'topic_metadata': {'name': str, 'type': str, 'serialization_format': str, 'type_description_hash': str},
+        }
+    ],
+    'compression_format': str,
+    'compression_mode': str,
+    'files': [{'path': str, 'starting_time': _TIME, 'duration': _DURATION, 'message_count': int}],
+    'custom_data': {str: str},
+    'ros_distro': str,
+}
+
+
+def _check_fields(value: object, spec: Any, field: str, where: str) -> None:
+    """Raise BagError naming the field when `value` does not have the shape `spec` describes."""
+    problem = ''
+    if spec is int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            problem = 'a count'
+    elif spec is str:
+        if not isinstance(value, str):
+            problem = 'a text'
+    elif isinstance(spec, list):
+        if not isinstance(value, list):
+            problem = 'a list'
+        else:
+            for index, item in enumerate(value):
+                _check_fields(item, spec[0], f'{field}[{index}]', where)
+    elif str in spec:  # a mapping of texts to texts (custom_data); rosbag2 writes {} or leaves it out
+        if value is not None and (
+            not isinstance(value, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items())
+        ):
+            problem = 'a mapping of texts to texts'
+    elif not isinstance(value, dict):
+        problem = 'a mapping'
+    else:
+        for key, item_spec in spec.items():
+            if key in value:
+                _check_fields(value[key], item_spec, f'{field}.{key}' if field else key, where)
+    if problem:
+        raise BagError(f'{where}: metadata field {field} is {str(value)[:40]!r}, not {problem}')
+
+
+def check_metadata(metadata: object, where: str) -> dict:
+    """Return rosbag2 metadata (rosbag2_bagfile_information) after checking its fields; BagError when malformed."""
+    if not isinstance(metadata, dict):
+        raise BagError(f'{where}: its metadata is not a mapping')
+    _check_fields(metadata, METADATA_FIELDS, '', where)
+    for name in metadata.get('relative_file_paths', []) + [f.get('path', '') for f in metadata.get('files', [])]:
+        path = PurePosixPath(name)
+        if path.is_absolute() or '..' in path.parts or '\\' in name:
+            raise BagError(f'{where}: metadata names a storage file outside the bag: {name[:80]!r}')
+    return metadata
+
+
+def _load_yaml(text: str | bytes, where: str) -> object:
+    """Return a YAML document; BagError when it does not parse."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        problem = str(exc).splitlines()[0]
+        raise BagError(f'{where}: its metadata is not YAML ({problem})') from None
+
+
+def _warn(text: str) -> None:
+    """Print a warning of a command reading a bag (one line on stderr)."""
+    print(f'skynav: warning: {text}', file=sys.stderr)
 
 
 class BagReader:
     """A recording opened for reading; use as a context manager."""
 
-    def __init__(self, path: str | Path) -> None:
-        from rosbags.rosbag2 import Reader
+    def __init__(self, path: str | Path, skip_damaged: bool | None = None, warn: Callable[[str], None] = _warn) -> None:
+        """Open `path`; with `skip_damaged` (default: the command line's --skip-damaged) damaged chunks are left out."""
 
         self.path = Path(path)
+        self.skip_damaged = _skip_damaged if skip_damaged is None else skip_damaged
+        self.skipped = 0  # messages left out with the damaged chunks that held them
         if not self.path.exists():
             raise BagError(f'{self.path}: no such file or directory')
         if self.path.is_dir() and not (self.path / 'metadata.yaml').is_file():
@@ -80,16 +183,38 @@ class BagReader:
             raise BagError(f'{self.path}: not a bag (expected a rosbag2 directory, .mcap or .db3 file)')
         if self.path.is_file() and self.path.suffix == '.mcap':
             _check_mcap_file(self.path)
+        damaged: dict[Path, set[int]] = {}
+        for file in self.files if self.storage == 'mcap' else []:
+            try:
+                check = check_mcap(file)
+            except McapError as exc:
+                raise BagError(f'{file}: {exc}; `skynav bag recover` saves the messages of its intact chunks') from None
+            if check.damaged and not self.skip_damaged:
+                raise BagError(f'{file}: {check.describe()}; --skip-damaged reads the rest')
+            if check.damaged:
+                damaged[file.resolve()] = {chunk.offset for chunk in check.damaged}
+                self.skipped += sum(chunk.messages for chunk in check.damaged)
+                warn(f'{file}: skipping {check.describe()}')
+        _ = self.metadata  # checked before rosbags reads it
         self._reader = Reader(self.path)
         try:
             self._reader.open()
         except Exception as exc:  # rosbags raises several kinds for damaged files
-            raise BagError(f'{self.path}: cannot read bag: {exc}') from None
+            raise BagError(f'{self.path}: cannot read bag: {_one_line(exc)}') from None
+        for storage in getattr(self._reader.storage, 'storages', [self._reader.storage]):
+            if offsets := damaged.get(Path(storage.path).resolve()):
+                storage.chunks = [c for c in storage.chunks if c.chunk_start_offset not in offsets]
         self.topics: dict[str, Topic] = {}
         self._connections: dict[str, list[Connection]] = {}
         for name, info in self._reader.topics.items():
+            if not TOPIC_NAME.fullmatch(name):
+                raise BagError(f'{self.path}: not a topic name: {name[:80]!r}')
             if info.msgtype is None:
                 raise BagError(f'{self.path}: topic {name} carries more than one message type')
+            try:
+                split_type(info.msgtype)
+            except BadMessageType as exc:
+                raise BagError(f'{self.path}: topic {name}: {exc}') from None
             self._connections[name] = list(info.connections)
             qos = tuple(q for c in info.connections for q in c.ext.offered_qos_profiles)
             self.topics[name] = Topic(name, info.msgtype, info.msgcount, qos)
@@ -137,21 +262,27 @@ class BagReader:
         """Return the rosbag2 metadata (rosbag2_bagfile_information) of the recording, {} when it has none.
 
         rosbag2 directories keep it in metadata.yaml; a bare MCAP file carries it in its
-        'rosbag2' metadata record.
+        'rosbag2' metadata record. Its fields are checked (BagError when malformed).
         """
-        import yaml
-
         if self.path.is_dir():
-            text = (self.path / 'metadata.yaml').read_text()
-            return (yaml.safe_load(text) or {}).get('rosbag2_bagfile_information', {})
+            where = self.path / 'metadata.yaml'
+            document = _load_yaml(where.read_bytes(), str(where))
+            if not isinstance(document, dict) or not isinstance(document.get('rosbag2_bagfile_information'), dict):
+                raise BagError(f'{where}: not rosbag2 metadata (no rosbag2_bagfile_information mapping)')
+            return check_metadata(document['rosbag2_bagfile_information'], str(where))
         if self.path.suffix != '.mcap':
             return {}
-        import mcap.reader
 
-        with self.path.open('rb') as stream:
-            for record in mcap.reader.make_reader(stream).iter_metadata():
-                if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
-                    return yaml.safe_load(record.metadata['serialized_metadata']) or {}
+        try:
+            with self.path.open('rb') as stream:
+                for record in mcap.reader.make_reader(stream).iter_metadata():
+                    if record.name == 'rosbag2' and 'serialized_metadata' in record.metadata:
+                        document = _load_yaml(record.metadata['serialized_metadata'], str(self.path))
+                        return {} if document is None else check_metadata(document, str(self.path))
+        except BagError:
+            raise
+        except Exception as exc:  # the mcap library raises several kinds for damaged files
+            raise BagError(f'{self.path}: cannot read its metadata: {_one_line(exc)}') from None
         return {}
 
     @property
@@ -178,13 +309,19 @@ class BagReader:
             except StopIteration:
                 return
             except Exception as exc:  # damaged chunk, bad CRC, short read, decompression failure
-                raise BagError(f'{self.path}: corrupt data after {count} messages: {exc}') from None
+                raise BagError(f'{self.path}: corrupt data after {count} messages: {_one_line(exc)}') from None
             count += 1
             yield RawMessage(connection.topic, connection.msgtype, log_time, bytes(data))
 
     def deserialize(self, message: RawMessage) -> object:
-        """Return the message as a rosbags dataclass."""
-        return typestore().deserialize_cdr(message.data, message.msgtype)
+        """Return the message as a rosbags dataclass; BagError when its bytes do not decode as its type."""
+        try:
+            return typestore().deserialize_cdr(message.data, message.msgtype)
+        except Exception as exc:  # rosbags raises several kinds for bytes that do not fit the type
+            raise BagError(
+                f'{self.path}: a {message.msgtype} message on {message.topic} (logged at {message.log_time} ns) '
+                f'does not decode: {_one_line(exc)}'
+            ) from None
 
     def close(self) -> None:
         """Close the recording."""
@@ -198,9 +335,14 @@ class BagReader:
         self.close()
 
 
-def open_bag(path: str | Path) -> BagReader:
-    """Open a rosbag2 directory or a bare .mcap/.db3 file for reading."""
-    return BagReader(path)
+def _one_line(exc: BaseException) -> str:
+    """Return an exception's message on one line."""
+    return ' '.join(str(exc).split()) or type(exc).__name__
+
+
+def open_bag(path: str | Path, skip_damaged: bool | None = None) -> BagReader:
+    """Open a rosbag2 directory or a bare .mcap/.db3 file for reading (see BagReader for `skip_damaged`)."""
+    return BagReader(path, skip_damaged)
 
 
 class BagWriter:
@@ -211,7 +353,6 @@ class BagWriter:
     """
 
     def __init__(self, path: str | Path, *, compress: bool = True, overwrite: bool = False) -> None:
-        from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
         self.path = Path(path)
         self.partial = self.path.with_name(f'.{self.path.name}.partial')
@@ -220,14 +361,15 @@ class BagWriter:
         if self.partial.exists():
             raise BagError(
                 f'{self.partial}: an earlier recording to {self.path.name} did not finish and its '
-                'data is still there; move or delete it first'
+                f'data is still there (`skynav bag recover {self.partial} SAVED.mcap` saves its messages); '
+                'move or delete it first'
             )
         if not self.path.parent.is_dir():
             raise BagError(f'{self.path.parent}: no such directory')
         # rosbags names the storage file after the bag directory: STEM/STEM.mcap, the name that
         # the file (and the file list in its embedded metadata) keeps once moved into place.
         self._staged = self.partial / self.path.stem
-        self._writer = Writer(self._staged, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer = CheckedWriter(self._staged, version=9, storage_plugin=StoragePlugin.MCAP)
         if compress:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         try:
@@ -248,12 +390,14 @@ class BagWriter:
         """Store a text under `key` in the recording's metadata (rosbag2 custom_data)."""
         self._writer.set_custom_data(key, value)
 
-    def add_topic(self, topic: str, msgtype: str, offered_qos: Iterable[Qos] = ()) -> None:
-        """Declare a topic before writing to it; its message definition is embedded in the file."""
+    def add_topic(self, topic: str, msgtype: str, offered_qos: Iterable[Qos] = (), msgdef: str = '') -> None:
+        """Declare a topic before writing to it; its message definition (installed, or `msgdef`) is embedded."""
         if topic in self._connections:
             return
+        if not TOPIC_NAME.fullmatch(topic):
+            raise BagError(f'{self.path}: cannot record {topic[:80]!r}: not an absolute topic name')
         try:
-            msgtype = ensure_type(msgtype)
+            msgtype = ensure_type(msgtype, msgdef)
         except (UnknownMessageType, ValueError) as exc:
             raise BagError(f'{self.path}: cannot record {topic}: {exc}') from None
         self._connections[topic] = self._writer.add_connection(

@@ -7,6 +7,7 @@ CliError for a failure to report as one line.
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -52,3 +53,13 @@ def open_map(path: Path) -> MapStore:
         return MapStore.open(path)
     except MapError as exc:
         raise CliError(str(exc)) from None
+
+
+def add_skip_damaged(parser: argparse.ArgumentParser) -> None:
+    """Add --skip-damaged to a command that reads bags (the `skynav` command applies it to every bag it opens)."""
+    parser.add_argument(
+        '--skip-damaged',
+        action='store_true',
+        help='read past damaged chunks of a bag, leaving out their messages (and saying how many); '
+        'without it a damaged bag is refused',
+    )

@@ -21,7 +21,7 @@ from rclpy.context import Context
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 
-from .bag import BagReader, RawMessage
+from .bag import BagError, BagReader, RawMessage
 from .environment import apply_ros_environment
 from .node import DIAGNOSTICS_PERIOD, SkynavNode
 from .nodes import NodeSpec
@@ -94,7 +94,13 @@ class InProcessGraph:
         self._now = raw.log_time
         if self._next_diagnostics is None:
             self._next_diagnostics = raw.log_time + int(DIAGNOSTICS_PERIOD * 1e9)
-        message = deserialize_message(raw.data, message_class(raw.msgtype))
+        try:
+            message = deserialize_message(raw.data, message_class(raw.msgtype))
+        except RuntimeError as exc:  # rclpy's RMWError: bytes that are no message of their type (a crafted bag)
+            raise BagError(
+                f'a {raw.msgtype} message on {raw.topic} (logged at {raw.log_time} ns) does not decode: '
+                + ' '.join(str(exc).split(', at ')[0].split())
+            ) from None
         for callback in list(self._subscribers.get(raw.topic, ())):
             callback(message)
         if raw.log_time >= self._next_diagnostics:

@@ -11,6 +11,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from .bag import BagError, BagWriter
+from .cdr import rosbags_cdr
 from .qos import bag_qos, subscription_qos
 from .ros import message_class
 from .typestore import UnknownMessageType
@@ -41,6 +42,7 @@ class Recorder:
         self.received = 0
         self.warn = warn or (lambda text: node.get_logger().warning(text))
         self._subscriptions: dict[str, object] = {}
+        self._types: dict[str, str] = {}
         self._ignored: set[str] = set()
         self._timer = node.create_timer(DISCOVERY_PERIOD, self.discover)
         self.discover()
@@ -64,6 +66,7 @@ class Recorder:
             except (BagError, UnknownMessageType) as exc:
                 self._ignore(name, f'{name} not recorded: {exc}')
                 continue
+            self._types[name] = self.writer.topics[name]
             self._subscriptions[name] = self.node.create_subscription(
                 msg_class,
                 name,
@@ -77,7 +80,7 @@ class Recorder:
         self.warn(reason)
 
     def _on_message(self, topic: str, data: bytes) -> None:
-        self.writer.write(topic, time.time_ns(), data)
+        self.writer.write(topic, time.time_ns(), rosbags_cdr(self._types[topic], data))
         self.received += 1
 
     def drain(self, executor: SingleThreadedExecutor) -> None:

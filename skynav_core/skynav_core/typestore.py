@@ -10,6 +10,7 @@ ament prefix) or from the definition a bag carries.
 from __future__ import annotations
 
 import os
+import re
 from functools import cache
 from typing import TYPE_CHECKING
 
@@ -27,6 +28,14 @@ class UnknownMessageType(SkynavError, LookupError):
     """A message type whose definition is neither known nor installed."""
 
 
+class BadMessageType(SkynavError, ValueError):
+    """A message type name that is not package/msg/Name with plain identifiers (a damaged or crafted file)."""
+
+
+# One part of a type name: an identifier that starts with a letter (no leading dot, slash or underscore).
+TYPE_NAME_PART = re.compile(r'[A-Za-z][A-Za-z0-9_]*')
+
+
 @cache
 def typestore() -> Typestore:
     """Return the process-wide type store (ROS 2 Jazzy standard types, more added on demand)."""
@@ -35,12 +44,21 @@ def typestore() -> Typestore:
 
 
 def split_type(msgtype: str) -> tuple[str, str, str]:
-    """Split 'pkg/msg/Name' (or 'pkg/Name') into (package, 'msg', name); raise ValueError when malformed."""
-    parts = msgtype.split('/')
+    """Split 'pkg/msg/Name' (or 'pkg/Name') into (package, 'msg', name); raise BadMessageType when malformed.
+
+    Each part must be an identifier without '__': names like '../msg/X', '.evil/msg/X' or
+    'std_msgs/msg/__class__' never reach an import, a path or an attribute lookup.
+    """
+    parts = msgtype.split('/') if isinstance(msgtype, str) else []
     if len(parts) == 2:
         parts = [parts[0], 'msg', parts[1]]
-    if len(parts) != 3 or not all(parts) or parts[1] != 'msg':
-        raise ValueError(f'not a message type name: {msgtype!r} (expected package/msg/Name)')
+    if (
+        len(parts) != 3
+        or parts[1] != 'msg'
+        or not all(TYPE_NAME_PART.fullmatch(part) and '__' not in part for part in parts)
+    ):
+        shown = repr(msgtype)[:80]
+        raise BadMessageType(f'not a message type name: {shown} (expected package/msg/Name, each part an identifier)')
     return parts[0], parts[1], parts[2]
 
 

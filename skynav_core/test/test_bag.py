@@ -158,10 +158,11 @@ def test_corrupt_chunk_is_reported_when_reached(sample_bag, tmp_path):
     data[start : start + 24] = b'\xff' * 24
     broken = tmp_path / 'corrupt.mcap'
     broken.write_bytes(bytes(data))
-    with pytest.raises(BagError, match='corrupt data after') as info:
+    with pytest.raises(BagError, match='1 damaged chunk') as info:
         with open_bag(broken) as bag:
             list(bag.messages())
     assert '\n' not in str(info.value)
+    assert '/skyline/sh' in str(info.value) and 'logged 0.000-0.300 s into the recording' in str(info.value)
 
 
 @pytest.mark.parametrize(

@@ -88,8 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)
         return 2
-    from skynav_core.errors import SkynavError  # loaded after the parser: `skynav --help` stays light
+    from skynav_core.bag import set_skip_damaged  # loaded after the parser: `skynav --help` stays light
+    from skynav_core.errors import SkynavError
 
+    set_skip_damaged(getattr(args, 'skip_damaged', False))  # for this command only (tests call main repeatedly)
     try:
         return args.run(args) or 0
     except CliError as exc:
@@ -103,6 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # `skynav echo ... | head`: the reader left, which is fine
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    finally:
+        set_skip_damaged(False)
 
 
 def entry() -> None:

@@ -10,12 +10,15 @@ from __future__ import annotations
 import argparse
 from datetime import UTC, datetime
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'topics, types, counts and duration of a bag'
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav info`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file')
+    add_skip_damaged(parser)
 
 
 def _stamp(nanoseconds: int) -> str:
@@ -49,6 +52,8 @@ def describe(bag) -> str:
     if bag.message_count:
         lines += [f'Start:             {_stamp(bag.start_time)}', f'End:               {_stamp(bag.end_time)}']
     lines.append(f'Messages:          {bag.message_count}')
+    if getattr(bag, 'skipped', 0):  # --skip-damaged: what the damaged chunks held
+        lines.append(f'Unreadable:        {bag.skipped} messages in damaged chunks (skipped)')
     for i, topic in enumerate(sorted(bag.topics.values(), key=lambda t: t.name)):
         lines.append(
             ('Topic information: ' if i == 0 else ' ' * 19)

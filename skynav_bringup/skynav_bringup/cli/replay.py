@@ -11,12 +11,15 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'publish a bag on its topics with the recorded timing'
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav replay`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file')
+    add_skip_damaged(parser)
     parser.add_argument(
         '--rate',
         type=float,

@@ -13,12 +13,15 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'run the node graph over a bag offline and record every output'
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav run`."""
     parser.add_argument('bag', metavar='BAG', help='rosbag2 directory or .mcap file with the camera topics')
+    add_skip_damaged(parser)
     parser.add_argument('--out', required=True, metavar='OUT.mcap', help='recording of every output topic')
     parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--params', type=Path, metavar='FILE', help='ROS 2 parameter file (YAML)')
@@ -40,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from skynav_core.bag import BagWriter, open_bag
+    from skynav_core.cdr import rosbags_cdr
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
 
@@ -63,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         def record(topic: str, msgtype: str, log_time: int, data: bytes) -> None:
             if topic not in writer.topics:
                 writer.add_topic(topic, msgtype)
-            writer.write(topic, log_time, data)
+            writer.write(topic, log_time, rosbags_cdr(msgtype, data))  # as rosbags reads it (see skynav_core.cdr)
 
         try:
             with in_process(specs, ros_args, sink=record) as graph:

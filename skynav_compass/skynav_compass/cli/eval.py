@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
 
 from ..methods import DEFAULT_METHODS, NODE_METHODS
@@ -37,6 +38,7 @@ HELP = 'compass error against ground truth, per method, for pure rotations and m
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval compass`."""
     parser.add_argument('bag', metavar='BAG', help='recording with camera topics and /ground_truth/pose')
+    add_skip_damaged(parser)
     parser.add_argument(
         '--map',
         type=Path,

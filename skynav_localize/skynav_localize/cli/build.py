@@ -18,6 +18,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
+
 HELP = 'build a map from a teach drive'
 CAMERA_TOPICS = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
 
@@ -25,6 +27,7 @@ CAMERA_TOPICS = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav map build`."""
     parser.add_argument('bag', metavar='BAG', help='teach drive (camera topics; /ground_truth/pose if any)')
+    add_skip_damaged(parser)
     parser.add_argument('--out', required=True, type=Path, metavar='MAP.db', help='map file to write')
     parser.add_argument('--name', help='map name (default: the file name)')
     parser.add_argument('--min-travel', type=float, default=0.1, metavar='M', help='metres between snapshots (0.1)')

@@ -16,6 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
 
 HELP = 'precision-recall of localization methods against ground truth'
@@ -26,6 +27,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     from ..localizer import METHODS
 
     parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
+    add_skip_damaged(parser)
     parser.add_argument(
         '--map',
         required=True,

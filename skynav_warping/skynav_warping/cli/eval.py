@@ -26,6 +26,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
 
 from ..methods import METHODS
@@ -36,6 +37,7 @@ HELP = 'angular error of home vectors (3D-, 2D-, min-warping) against ground tru
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval homing`."""
     parser.add_argument('bag', metavar='BAG', help='homing grid recording with /ground_truth/pose')
+    add_skip_damaged(parser)
     parser.add_argument(
         '--map',
         type=Path,
