@@ -7,9 +7,15 @@
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
+from types import FrameType
+from typing import NoReturn
 
-from .ros import run_node
+
+def _stop_while_loading(signum: int, frame: FrameType | None) -> NoReturn:
+    """End the process quietly: a Ctrl-C or SIGINT that came before the node ran has nothing to clean up."""
+    raise SystemExit(0)
 
 
 def main() -> int:
@@ -18,7 +24,11 @@ def main() -> int:
         print('usage: python -m skynav_core.run_node MODULE:CLASS [--ros-args ...]', file=sys.stderr)
         return 2
     module_name, class_name = sys.argv[1].split(':', 1)
+    signal.signal(signal.SIGINT, _stop_while_loading)
+    from .ros import run_node  # noqa: PLC0415 (rclpy loads after the handler that makes an early Ctrl-C quiet)
+
     node_class = getattr(importlib.import_module(module_name), class_name)
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # from here run_node's own handling applies
     return run_node(node_class, args=sys.argv[1:])
 
 
