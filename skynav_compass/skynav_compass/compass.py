@@ -107,7 +107,7 @@ def grid_minima(costs: np.ndarray, count: int, pole_rows: tuple[int, ...] = ()) 
         candidate[row, :, 1:] = False
     candidates = np.flatnonzero(candidate)
     order = candidates[np.argsort(flat[candidates], kind='stable')][: max(count, 1) * 4]
-    return [tuple(int(i) for i in np.unravel_index(c, costs.shape)) for c in order]
+    return [(int(i), int(j), int(k)) for i, j, k in zip(*np.unravel_index(order, costs.shape))]
 
 
 class Compass:
@@ -263,10 +263,10 @@ class Compass:
         ]
         masks = current_masks(problem)
         first = verify(problem, np.stack([r.matrix for r in stepped]), masks)
-        chosen = np.lexsort(([r.cost for r in stepped], first.score))[: c.refined]
+        chosen = np.lexsort((np.array([r.cost for r in stepped]), first.score))[: c.refined]
         results = [refine(problem, stepped[k].matrix, radius=self.grid.step, max_tilt=c.max_tilt) for k in chosen]
         checked = verify(problem, np.stack([r.matrix for r in results]), masks)
-        order = np.lexsort(([r.cost for r in results], checked.score))
+        order = np.lexsort((np.array([r.cost for r in results]), checked.score))
         details.update(
             refine_iterations=sum(r.iterations for r in results),
             verified=checked.subset(order),

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -263,7 +264,7 @@ class CostProblem:
     snapshot: np.ndarray  # (q, L+1, 2L+1) padded snapshot-side functions a
     current: np.ndarray  # (r, L+1, 2L+1) padded current-side functions b (turned by R)
     channels: tuple[Channel, ...]
-    formula: Callable[[Sequence], object]
+    formula: Callable[[Sequence], Any]  # arrays in, arrays out; Jets in, a Jet out
     kind: str
     area_channel: int | None = None  # channel holding the overlap area (masked)
     min_area: float = 0.0  # sr; rotations whose overlap is smaller are rejected
@@ -292,6 +293,7 @@ class CostProblem:
         # a channel of zonal functions only (centred fish-eye visibilities) depends on beta alone:
         # sum_l a_l0 d^l_00(beta) b_l0, with d^l_00 = P_l(cos beta); the others go through the FFT
         L = self.max_degree
+        assert self.side is not None  # set by __post_init__
         zonal_s, zonal_c = self.side.zonal(), _is_zonal(self.current)
         zonal = [all(zonal_s[i] and zonal_c[j] for i, j, _ in channel) for channel in self.channels]
         general = [channel for channel, z in zip(self.channels, zonal) if not z]
@@ -328,6 +330,7 @@ class CostProblem:
         if self._current_by_degree is None:
             self._current_by_degree = np.ascontiguousarray(self.current.transpose(1, 0, 2))  # (L+1, r, 2L+1)
         turned = rotate_degree_major(self._current_by_degree, rotation)  # (..., L+1, r, 2L+1)
+        assert self.side is not None  # set by __post_init__
         flat = turned.reshape(rotation.shape[:-2] + (-1,))
         values = (flat @ self.side.channel_matrix(self.channels, derivatives)).reshape(
             rotation.shape[:-2] + (len(self.channels), -1)

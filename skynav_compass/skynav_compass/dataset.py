@@ -15,6 +15,7 @@ import numpy as np
 from skynav_compass.errors import CompassError
 from skynav_compass.evaluation import relative_tilt
 from skynav_core.bag import open_bag
+from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.rotations import as_quaternion, relative_rotation
 from skynav_core.views import recorded_frames
@@ -31,7 +32,7 @@ def true_rotation(snapshot_orientation: np.ndarray, current_orientations: np.nda
 class CompassSet:
     """Frames of one compass set: images (N, H, W) uint8, poses of camera_link in map, labels, camera."""
 
-    camera: object  # skynav_sh EquidistantCamera
+    camera: EquidistantCamera
     uv: np.ndarray  # (N, H, W)
     green: np.ndarray  # (N, H, W)
     masks: np.ndarray  # (N, H, W), 255 sky, 0 ground (ground truth)
@@ -79,9 +80,12 @@ def load_compass_set(path: str | Path) -> CompassSet:
         str(meta_frames[i].get('label', 'frame')) if i < len(meta_frames) else 'frame' for i in range(len(stamps))
     )
     poses = np.stack([recorded.poses[s] for s in stamps])
+    uv, green, masks = (np.stack([images[key][s] for s in stamps]) for key in IMAGE_TOPICS)
     return CompassSet(
         recorded.camera,
-        *(np.stack([images[key][s] for s in stamps]) for key in IMAGE_TOPICS),
+        uv,
+        green,
+        masks,
         poses[:, :3],
         poses[:, 3:],
         labels,

@@ -54,4 +54,5 @@ class CompassEstimate:
     @property
     def euler_zyz(self) -> tuple[float, float, float]:
         """Return (alpha, beta, gamma) in rad with R = Rz(alpha) Ry(beta) Rz(gamma); beta is the relative tilt."""
-        return zyz_angles(self.matrix)
+        alpha, beta, gamma = zyz_angles(self.matrix)  # floats for one rotation
+        return float(alpha), float(beta), float(gamma)

@@ -66,7 +66,7 @@ class ErrorStatistics:
         }
 
 
-def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD_DEG) -> ErrorStatistics:
+def error_statistics(errors: Sequence[float] | np.ndarray, threshold: float = ERROR_THRESHOLD_DEG) -> ErrorStatistics:
     """Return median, p90, p95, max and the share under `threshold` deg of angular errors (deg)."""
     e = np.asarray(errors, dtype=float)
     if e.size == 0:
@@ -83,16 +83,16 @@ def error_statistics(errors: Sequence[float], threshold: float = ERROR_THRESHOLD
     )
 
 
-def roc_auc(scores: Sequence[float], positive: Sequence[bool]) -> float:
+def roc_auc(scores: Sequence[float] | np.ndarray, positive: Sequence[bool] | np.ndarray) -> float:
     """Return the area under the ROC curve of scores (higher: more likely positive): the probability that a random
     positive scores above a random negative, ties counting half; NaN if either class is empty."""
 
-    scores, positive = np.asarray(scores, dtype=float), np.asarray(positive, dtype=bool)
-    n_positive, n_negative = int(positive.sum()), int((~positive).sum())
+    s, p = np.asarray(scores, dtype=float), np.asarray(positive, dtype=bool)
+    n_positive, n_negative = int(p.sum()), int((~p).sum())
     if n_positive == 0 or n_negative == 0:
         return float('nan')
-    ranks = rankdata(np.where(np.isnan(scores), -np.inf, scores))  # average ranks of ties (Mann-Whitney U)
-    return float((ranks[positive].sum() - n_positive * (n_positive + 1) / 2) / (n_positive * n_negative))
+    ranks = rankdata(np.where(np.isnan(s), -np.inf, s))  # average ranks of ties (Mann-Whitney U)
+    return float((ranks[p].sum() - n_positive * (n_positive + 1) / 2) / (n_positive * n_negative))
 
 
 @dataclass(frozen=True)

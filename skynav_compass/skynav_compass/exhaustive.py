@@ -145,6 +145,7 @@ class ExhaustiveCompass:
         step = 2 * np.pi / len(alphas)
         max_beta = np.pi if c.max_tilt is None else float(c.max_tilt)
         betas = np.linspace(0.0, max_beta, int(np.ceil(max_beta / step - 1e-9)) + 1)
+        assert problem.side is not None  # a CostProblem always has its snapshot's side
         turned = problem.side.memo.get(('exhaustive-coarse', len(alphas)))
         costs = grid_search_costs(problem, alphas, betas, alphas, turned)
         candidates = self._best(costs, alphas, betas, alphas, c.keep, 2 * step)

@@ -112,10 +112,10 @@ class FeatureCompass:
         self.config = config or FeatureConfig()
         c = self.config
         if c.detector == 'sift':
-            self._detector = cv2.SIFT_create(nfeatures=c.max_features)
+            self._detector: cv2.Feature2D = cv2.SIFT.create(nfeatures=c.max_features)
             self._norm = cv2.NORM_L2
         elif c.detector == 'orb':
-            self._detector = cv2.ORB_create(nfeatures=c.max_features)
+            self._detector = cv2.ORB.create(nfeatures=c.max_features)
             self._norm = cv2.NORM_HAMMING
         else:
             raise CompassError(f'unknown detector {c.detector!r} (expected sift or orb)')

@@ -291,7 +291,12 @@ def format_report(evaluation: RecordingEvaluation) -> str:
         'error: 3D rotation error against ground truth (deg); ms: CPU time per estimate'
         + (f' (snapshot prepared once for {", ".join(prepared)})' if prepared else ''),
     ]
-    columns = (Column('method', 26, align='<'), *STATISTICS_COLUMNS, Column('<2deg', 6), Column('ms', 8, '.2f'))
+    columns: tuple[Column, ...] = (
+        Column('method', 26, align='<'),
+        *STATISTICS_COLUMNS,
+        Column('<2deg', 6),
+        Column('ms', 8, '.2f'),
+    )
     for group in GROUPS:
         selection = e.groups[group]
         count = int(np.sum(selection))
@@ -313,7 +318,7 @@ def format_report(evaluation: RecordingEvaluation) -> str:
             f'{e.tilts[selection].max():.0f} deg, translation {e.translations[selection].min():.2f}-'
             f'{e.translations[selection].max():.2f} m'
         )
-        rows = []
+        rows: list[tuple[Any, ...]] = []  # one per method: its name, then the columns' values
         for result in e.results:
             s = e.statistics(result.method, group)
             rows.append(

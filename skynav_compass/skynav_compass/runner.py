@@ -117,7 +117,7 @@ def build_method(
     if entry.compass == 'yaw':
         return Method(name, view, YawCompass(L).estimate)
     if entry.compass == 'exhaustive':
-        compass = ExhaustiveCompass(L, ExhaustiveConfig(**entry.settings))
+        compass: ExhaustiveCompass | Compass = ExhaustiveCompass(L, ExhaustiveConfig(**entry.settings))
     elif entry.compass == 'fft-any-tilt':
         compass = Compass(L, any_tilt_config(**entry.settings))
     else:
@@ -142,7 +142,9 @@ def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None =
         )
     views = ImageViews(camera, max_degree)
     return [
-        build_method(entries[name], views, max_degree, camera, prepared=name.endswith(PREPARED), name=name)
+        build_method(
+            METHODS[name.removesuffix(PREPARED)], views, max_degree, camera, prepared=name.endswith(PREPARED), name=name
+        )
         for name in chosen
     ]
 

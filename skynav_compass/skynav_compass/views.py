@@ -41,7 +41,7 @@ def cap_visibility(max_degree: int, theta_max: float) -> np.ndarray:
 def _truncate(coefficients: np.ndarray, max_degree: int) -> np.ndarray:
     """Return coefficients cut (or zero-extended) to degree L."""
     coefficients = np.asarray(coefficients, dtype=float)
-    out = np.zeros(coefficients.shape[:-1] + (n_coefficients(max_degree),))
+    out: np.ndarray = np.zeros(coefficients.shape[:-1] + (n_coefficients(max_degree),))  # numpy's stubs: 0-d
     n = min(out.shape[-1], coefficients.shape[-1])
     out[..., :n] = coefficients[..., :n]
     return out

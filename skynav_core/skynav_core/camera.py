@@ -11,12 +11,15 @@ pixel centres. A model maps unit directions (..., 3) to pixel coordinates
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import Field, dataclass, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Self
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from sensor_msgs.msg import CameraInfo
 
 # Newton steps that refine the inverse of the distortion polynomial after a table look-up.
 _NEWTON_STEPS = 4
@@ -40,10 +43,15 @@ def angles_from_directions(directions: np.ndarray) -> tuple[np.ndarray, np.ndarr
 class _PixelCamera:
     """What the camera models share on top of their own projection: the pixel grid and a narrower field of view."""
 
+    __dataclass_fields__: ClassVar[dict[str, Field[Any]]]  # every model is a frozen dataclass
     width: int
     height: int
     fov_limit: float  # full field of view (rad) the model's theta_max is capped to
-    theta_max: float  # polar angle (rad) of the image circle's edge: directions up to it are seen
+
+    @property
+    def theta_max(self) -> float:
+        """Polar angle (rad) of the image circle's edge: directions up to it are seen (each model's own)."""
+        raise NotImplementedError
 
     @property
     def field_of_view(self) -> float:
@@ -128,7 +136,7 @@ class EquidistantCamera(_PixelCamera):
             self.cy / self.fy,
             (self.height - 1 - self.cy) / self.fy,
         )
-        return float(min(self.undistort(np.array(theta_d_max)), self.fov_limit / 2))
+        return min(float(self.undistort(np.array(theta_d_max))), self.fov_limit / 2)
 
     def project(self, directions: np.ndarray) -> np.ndarray:
         """Return pixel coordinates (..., 2) as (u, v) of directions (..., 3); theta past 90 degrees included."""
@@ -163,7 +171,7 @@ class EquidistantCamera(_PixelCamera):
         }
 
     @classmethod
-    def from_camera_info(cls, info: object) -> EquidistantCamera:
+    def from_camera_info(cls, info: CameraInfo) -> EquidistantCamera:
         """Return the camera of a CameraInfo message (rclpy or rosbags); raise ValueError if not equidistant."""
         if info.distortion_model != 'equidistant':
             raise ValueError(f'camera model {info.distortion_model!r} is not supported (expected equidistant)')
@@ -175,6 +183,7 @@ class EquidistantCamera(_PixelCamera):
             raise ValueError('camera info has non-finite or non-positive intrinsics')
         if int(info.width) <= 0 or int(info.height) <= 0:
             raise ValueError(f'camera info has no image size ({info.width}x{info.height})')
+        k1, k2, k3, k4 = (float(x) for x in d)
         return cls(
             int(info.width),
             int(info.height),
@@ -182,7 +191,7 @@ class EquidistantCamera(_PixelCamera):
             float(k[1, 1]),
             float(k[0, 2]),
             float(k[1, 2]),
-            tuple(float(x) for x in d),
+            (k1, k2, k3, k4),
         )
 
     @classmethod

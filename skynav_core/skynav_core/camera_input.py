@@ -8,11 +8,15 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .camera import EquidistantCamera
+
+if TYPE_CHECKING:
+    from sensor_msgs.msg import CameraInfo
 
 CAMERA_INFO_TOPIC = '/camera/uv/camera_info'
 HELD_INPUTS = 30  # inputs that wait for the first camera info; older ones are dropped beyond this
@@ -28,7 +32,7 @@ class CameraInput:
         self._held: deque = deque()
         self._capacity = capacity
 
-    def update(self, info: Any) -> bool:
+    def update(self, info: CameraInfo) -> bool:
         """Take a camera info message; return whether the camera model changed."""
         try:
             camera = EquidistantCamera.from_camera_info(info).with_fov_limit(self.fov_limit)
@@ -44,9 +48,7 @@ class CameraInput:
         """Narrow the field of view to `fov` (rad, full angle; 0 or less: the whole image circle)."""
         self.fov_limit = fov if fov > 0 else 2 * np.pi
         if self.camera is not None:
-            self.camera = EquidistantCamera(
-                *(getattr(self.camera, f) for f in ('width', 'height', 'fx', 'fy', 'cx', 'cy', 'k')), self.fov_limit
-            )
+            self.camera = replace(self.camera, fov_limit=self.fov_limit)
 
     def hold(self, item: Any) -> None:
         """Keep an input until a camera is known; beyond the capacity the oldest is dropped and counted."""
@@ -65,6 +67,7 @@ class CameraInput:
 
     def matches(self, shape: tuple[int, int]) -> bool:
         """Return whether an image of `shape` (height, width) fits the camera; reject it otherwise."""
+        assert self.camera is not None  # callers hold their inputs until a camera is known
         if (self.camera.height, self.camera.width) != tuple(shape):
             self.reject(
                 'camera_info_mismatch',

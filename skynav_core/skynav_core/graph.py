@@ -61,7 +61,10 @@ class InProcessGraph:
         self._next_diagnostics: int | None = None
         self.outputs: list[Output] = []
         self.keep_outputs = False
-        self.nodes: list[SkynavNode] = [node_class(spec)(router=self, context=context) for spec in specs]
+        self.nodes: list[SkynavNode] = [
+            node_class(spec)(router=self, context=context)  # type: ignore[call-arg]  # a concrete node names itself
+            for spec in specs
+        ]
 
     # --- the Router protocol ------------------------------------------------------------------
 

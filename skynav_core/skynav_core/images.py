@@ -6,11 +6,21 @@ Works with rclpy and rosbags message objects alike (only their fields are used).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .errors import SkynavError
 
-DTYPES = {'mono8': np.dtype(np.uint8), 'mono16': np.dtype(np.uint16), '32FC1': np.dtype(np.float32)}
+if TYPE_CHECKING:
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import Header
+
+DTYPES: dict[str, np.dtype] = {
+    'mono8': np.dtype(np.uint8),
+    'mono16': np.dtype(np.uint16),
+    '32FC1': np.dtype(np.float32),
+}
 
 
 class ImageError(SkynavError, ValueError):
@@ -21,7 +31,7 @@ class ImageError(SkynavError, ValueError):
         self.reason = reason
 
 
-def image_to_array(message: object, encodings: tuple[str, ...] = tuple(DTYPES)) -> np.ndarray:
+def image_to_array(message: Image, encodings: tuple[str, ...] = tuple(DTYPES)) -> np.ndarray:
     """Return the pixels (height, width) of a single-channel Image message in its encoding's dtype."""
     encoding = message.encoding
     if encoding not in encodings:
@@ -40,7 +50,7 @@ def image_to_array(message: object, encodings: tuple[str, ...] = tuple(DTYPES)) 
     return pixels.astype(dtype, copy=False).reshape(height, width)
 
 
-def fill_image(message: object, pixels: np.ndarray, encoding: str) -> object:
+def fill_image(message: Image, pixels: np.ndarray, encoding: str) -> Image:
     """Fill an (empty) Image message with single-channel pixels in `encoding`; return it."""
     pixels = np.ascontiguousarray(pixels, DTYPES[encoding])
     message.height, message.width = pixels.shape
@@ -51,6 +61,6 @@ def fill_image(message: object, pixels: np.ndarray, encoding: str) -> object:
     return message
 
 
-def stamp_ns(header: object) -> int:
+def stamp_ns(header: Header) -> int:
     """Return a header's stamp in nanoseconds since the epoch."""
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)

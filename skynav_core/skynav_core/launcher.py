@@ -69,6 +69,7 @@ class Launcher:
             self.say(f'{spec.name}: started (pid {process.pid}, {spec.entry})')
 
     def _relay(self, name: str, process: subprocess.Popen) -> None:
+        assert process.stdout is not None  # started with stdout=PIPE
         for line in process.stdout:
             with self._lock:
                 self.out.write(f'[{name}] {line}' if line.endswith('\n') else f'[{name}] {line}\n')

@@ -11,6 +11,8 @@ policy any publisher of the topic offers.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from enum import Enum
+from typing import TypeVar
 
 from rclpy.duration import Duration
 from rclpy.qos import (
@@ -31,6 +33,8 @@ from rosbags.interfaces import (
 
 # How rosbag2 writes an infinite duration (RMW_DURATION_INFINITE) into bag metadata.
 INFINITE = QosTime(2147483647, 4294967295)
+
+PolicyT = TypeVar('PolicyT', bound=Enum)  # a rosbags QoS policy enum
 
 
 def replay_qos(offered: Sequence[Qos], depth: int) -> QoSProfile:
@@ -71,8 +75,8 @@ def _bag_time(duration: Duration) -> QosTime:
 def bag_qos(profile: QoSProfile) -> Qos:
     """Return an rclpy QoS profile as the offered-QoS entry of bag metadata."""
 
-    def convert(enum: type, policy: object) -> object:
-        return enum.__members__.get(getattr(policy, 'name', ''), enum.UNKNOWN)
+    def convert(enum: type[PolicyT], policy: object) -> PolicyT:
+        return enum.__members__.get(getattr(policy, 'name', ''), enum['UNKNOWN'])
 
     return Qos(
         history=convert(QosHistory, profile.history),

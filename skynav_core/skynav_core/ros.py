@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 import signal
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from types import FrameType
 
@@ -44,7 +44,7 @@ class StopRequest:
     def __init__(self) -> None:
         self.requested = False
         self.count = 0
-        self._previous: dict[int, object] = {}
+        self._previous: dict[int, Callable[[int, FrameType | None], object] | int | None] = {}
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
         self.requested = True
@@ -60,7 +60,7 @@ class StopRequest:
 
 
 @contextmanager
-def tool_node(name: str, args: Sequence[str] | None = None) -> Iterator[tuple[Node, SingleThreadedExecutor]]:
+def tool_node(name: str, args: list[str] | None = None) -> Iterator[tuple[Node, SingleThreadedExecutor]]:
     """Yield a node and its executor in a context of their own; signals are left to the caller.
 
     The node has no /rosout logger and no parameter services, so a recorder of
@@ -91,7 +91,7 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
     return True
 
 
-def run_node(node_factory: Callable[[], Node], args: Sequence[str] | None = None) -> int:
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
     apply_ros_environment()
     rclpy.init(args=args)

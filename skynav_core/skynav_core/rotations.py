@@ -74,7 +74,7 @@ def yaw_matrix(angle) -> np.ndarray:
     return out
 
 
-def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray] | tuple[float, float, float]:
     """Return the ZYZ angles (alpha, beta, gamma) in rad of rotations, exact near gimbal lock; gamma in [-pi, pi).
 
     alpha comes from the third column, and gamma from the well-conditioned sum (beta <= pi/2) or difference

@@ -11,7 +11,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 import yaml
@@ -91,7 +91,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
     T = store.types
     rng = np.random.default_rng(7)
     start = 1_763_780_400 * 10**9
-    out = []
+    out: list[tuple[str, str, int, object]] = []
     for i in range(frames):
         t = start + i * 100_000_000
         stamp = T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9)
@@ -234,11 +234,14 @@ def write_featureless_recording(
     if kind not in FEATURELESS_KINDS:
         raise ValueError(f'unknown kind {kind!r}; expected one of {", ".join(FEATURELESS_KINDS)}')
     store = typestore()
-    poses, kept = {}, []
+    poses: dict[int, tuple[float, float, float, float]] = {}  # camera_link orientation in map by stamp (ns)
+    kept: list[int] = []  # stamps (ns) of the frames kept
     with open_bag(BAGS / source) as bag:
         description = yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {}
         description.update(featureless=kind, frames=description.get('frames', [])[:frames])
-        messages = [(raw.topic, raw.msgtype, raw.log_time, bag.deserialize(raw)) for raw in bag.messages()]
+        messages: list[tuple[str, str, int, Any]] = [
+            (raw.topic, raw.msgtype, raw.log_time, bag.deserialize(raw)) for raw in bag.messages()
+        ]
     info = next(message for topic, _, _, message in messages if topic == '/camera/uv/camera_info')
     camera = EquidistantCamera.from_camera_info(info)
     directions, circle = camera.pixel_directions(), camera.image_circle()

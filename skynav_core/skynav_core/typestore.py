@@ -97,9 +97,9 @@ def ensure_type(msgtype: str, msgdef: str = '', store: Typestore | None = None) 
         types = get_types_from_msg(text, name)
         store.register(types)
         for _, fields in types.values():
-            for _, (kind, detail) in fields:
-                while kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-                    kind, detail = detail[0]
-                if kind == Nodetype.NAME and detail not in store.fielddefs:
-                    pending.append(detail)
+            for _, desc in fields:
+                if desc[0] in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+                    desc = desc[1][0]  # an array's or sequence's element: a base type or a name, never nested
+                if desc[0] == Nodetype.NAME and desc[1] not in store.fielddefs:
+                    pending.append(desc[1])
     return msgtype

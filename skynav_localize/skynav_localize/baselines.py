@@ -83,7 +83,7 @@ def orb_descriptors(image: np.ndarray, circle: np.ndarray | None = None, n_featu
     """Return the ORB descriptors (n, 32) uint8 of a UV image, features inside the image circle (bool mask) only."""
 
     image8 = as_uint8(image, None if circle is None else np.asarray(circle, dtype=bool))
-    orb = cv2.ORB_create(nfeatures=int(n_features))
+    orb = cv2.ORB.create(nfeatures=int(n_features))
     _, descriptors = orb.detectAndCompute(image8, orb_mask(circle, image8.shape))
     return np.zeros((0, 32), np.uint8) if descriptors is None else descriptors
 

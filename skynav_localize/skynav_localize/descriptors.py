@@ -143,6 +143,7 @@ class DescriptorIndex:
         if queries.ndim != 2 or queries.shape[1] != self.dimension:
             raise LocalizeError(f'queries must be (Q, {self.dimension}), got shape {queries.shape}')
         if self.metric == 'euclidean':
+            assert self._squared_norms is not None  # kept for the euclidean metric
             squared = self._squared_norms[None, :] - 2.0 * (queries @ self.matrix.T)
             squared += np.einsum('qd,qd->q', queries, queries)[:, None]
             return np.sqrt(np.maximum(squared, 0.0, out=squared), out=squared).astype(float, copy=False)

@@ -267,6 +267,7 @@ class Localizer:
             size = tuple(self.settings.get('raw_uv_size', baselines.RAW_UV_SIZE))
             return baselines.raw_uv_descriptor(uv, size, int(self.settings.get('raw_uv_patch', baselines.RAW_UV_PATCH)))
         features = int(self.settings.get('orb_features', baselines.ORB_FEATURES))
+        assert self.vocabulary is not None  # loaded or trained along with the map's bow-orb descriptors
         return self.vocabulary.vector(baselines.orb_descriptors(uv, self.circle, features))
 
     def describe_all(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None) -> np.ndarray:
@@ -299,7 +300,7 @@ class Localizer:
         (one distance row each, LOOK_ALIKE_CHUNK rows at a time).
         """
         exclusion = self.acceptance.exclusion
-        if self._local_step is None:
+        if self._local_step is None or self._look_alike is None:  # both unknown until first asked for
             matrix = self.index.matrix
             self._local_step = local_steps(descriptor_distance(matrix[:-1], matrix[1:], self.method.metric), exclusion)
             self._look_alike = np.full(len(self.index), np.nan)
@@ -359,7 +360,10 @@ class Localizer:
         if len(self.index) == 0:
             return Match.empty()
         distances = self.index.distances(self.describe(coefficients, uv))
-        sequences = None if self._buffer is None else tuple(row[None, :] for row in self._buffer.push(distances))
+        sequences = None
+        if self._buffer is not None:
+            sequence_distances, choice = self._buffer.push(distances)
+            sequences = (sequence_distances[None, :], choice[None, :])
         best, best_distance, score, view_score, values = self._matches(distances[None, :], sequences)
         indices, candidate_values = best_candidates(values[0], self.candidates)
         blank = coefficients is not None and bool(self.featureless(coefficients, field_of_view, fill))
@@ -375,7 +379,7 @@ class Localizer:
 
     def _matches(
         self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray] | None
-    ) -> tuple[np.ndarray, ...]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
         """Return (best index, distance, score, view score or None, candidate values) of distance rows (Q, N), given
         the rows' (sequence distances, choice values) for sequence methods."""
         exclusion = self.acceptance.exclusion
@@ -399,7 +403,9 @@ class Localizer:
         """Return the matches of a whole query sequence in one go (as query() would give them from a reset)."""
         featureless = None if coefficients is None else self.featureless(coefficients, field_of_view, fill)
         if len(self.index) == 0:
-            queries = len(coefficients if self.method.source == 'sh' else uvs)
+            given = coefficients if self.method.source == 'sh' else uvs
+            assert given is not None  # callers pass the input of the method's source
+            queries = len(given)
             return self.match_descriptors(np.zeros((queries, self.index.dimension)))
         blank_snapshots = None if field_of_view is None else self.featureless_snapshots(field_of_view, fill)
         return self.match_descriptors(self.describe_all(coefficients, uvs), featureless, blank_snapshots)

@@ -9,6 +9,7 @@ Y_lm = sqrt(2) N_l|m| P_l^|m|(cos theta) sin(|m| phi) (m < 0); theta from +z, ph
 from __future__ import annotations
 
 from functools import cache
+from typing import overload
 
 import numpy as np
 
@@ -29,6 +30,18 @@ def degree_from_size(size: int) -> int:
     if degree < 0 or n_coefficients(degree) != size:
         raise ShError(f'{size} is not a number of SH coefficients (L+1)^2')
     return degree
+
+
+@overload
+def lm_index(degree: int, order: int) -> int: ...
+
+
+@overload
+def lm_index(degree: np.ndarray, order: np.ndarray | int) -> np.ndarray: ...
+
+
+@overload
+def lm_index(degree: int, order: np.ndarray) -> np.ndarray: ...
 
 
 def lm_index(degree: np.ndarray | int, order: np.ndarray | int) -> np.ndarray | int:

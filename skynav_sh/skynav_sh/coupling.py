@@ -90,8 +90,7 @@ def real_gaunt(degree_1: int, degree_2: int, degree_3: int, ordered: bool = Fals
     weighted = legendre * w[:, None, None]
     parts: list[tuple[np.ndarray, ...]] = []
     for l1, l2, l3 in triples:
-        m1, m2 = np.meshgrid(np.arange(-l1, l1 + 1), np.arange(-l2, l2 + 1), indexing='ij')
-        m1, m2 = m1.ravel(), m2.ravel()
+        m1, m2 = (m.ravel() for m in np.meshgrid(np.arange(-l1, l1 + 1), np.arange(-l2, l2 + 1), indexing='ij'))
         # the phi integral needs |m3| = |m1| + |m2| or ||m1| - |m2||, and m3 sin-type iff exactly one of m1, m2 is
         sign = np.where(((m1 < 0).astype(int) + (m2 < 0)) % 2 == 1, -1, 1)
         smaller = np.minimum(np.abs(m1), np.abs(m2))

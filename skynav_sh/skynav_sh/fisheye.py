@@ -126,7 +126,8 @@ class FisheyeTransform:
         k = self.supersampling
         g = self.grid
         if self.sampling == 'point':
-            return np.broadcast_arrays(g.theta[:, None], g.phi[None, :])
+            theta, phi = np.broadcast_arrays(g.theta[:, None], g.phi[None, :])
+            return theta, phi
         upper, lower = self._cell_tops()
         if self.fill != 'mirror':
             lower = np.where(upper > np.cos(self.theta_max), np.maximum(lower, np.cos(self.theta_max)), lower)
@@ -134,7 +135,8 @@ class FisheyeTransform:
         cos_theta = upper[:, None] - fractions[None, :] * (upper - lower)[:, None]  # (n_theta, k)
         phi = g.phi[:, None] + (fractions[None, :] - 0.5) * g.phi_step  # (n_phi, k)
         theta = np.arccos(np.clip(cos_theta, -1.0, 1.0)).reshape(-1)
-        return np.broadcast_arrays(theta[:, None], phi.reshape(-1)[None, :])
+        theta, phi = np.broadcast_arrays(theta[:, None], phi.reshape(-1)[None, :])
+        return theta, phi
 
     @property
     def visibility(self) -> np.ndarray:

@@ -79,16 +79,18 @@ class ShNode(SkynavNode):
         """Publish the coefficients of one mask."""
         if not self.camera_input.matches(mask.shape):
             return
+        camera = self.camera_input.camera
+        assert camera is not None  # masks wait until a camera is known
         if self.transform is None:
             s = self.settings
-            self.transform = FisheyeTransform(self.camera_input.camera, s['max_degree'], s['fill'], s['supersampling'])
+            self.transform = FisheyeTransform(camera, s['max_degree'], s['fill'], s['supersampling'])
         with self.processing(stamp):
             coefficients = self.transform.coefficients(mask)
             message = ShCoefficients(
                 max_degree=self.transform.max_degree,
                 coefficients=coefficients.tolist(),
                 fill=self.transform.fill,
-                field_of_view=float(self.camera_input.camera.field_of_view),
+                field_of_view=float(camera.field_of_view),
             )
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             message.header.frame_id = 'camera_link'

@@ -260,7 +260,7 @@ def wigner_d(rotation: RotationLike, max_degree: int) -> list[np.ndarray]:
     """Return the real Wigner-D matrices [D_0, ..., D_L] of R: rotate(c, R)[l] = D_l @ c[l]."""
     alpha, beta, gamma = zyz_angles(rotation)
     turns = quarter_turn(max_degree)
-    za, zb, zg = (z_rotation_blocks(max_degree, angle) for angle in (alpha, beta, gamma))
+    za, zb, zg = (z_rotation_blocks(max_degree, float(angle)) for angle in (alpha, beta, gamma))  # one rotation
     return [za[l] @ turns[l] @ zb[l] @ turns[l].T @ zg[l] for l in range(int(max_degree) + 1)]
 
 

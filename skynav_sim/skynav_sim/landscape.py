@@ -32,6 +32,7 @@ import shutil
 import subprocess
 import tarfile
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,7 +132,7 @@ def _run(command: list[str], folder: str) -> int:
         return 127
 
 
-def srgb_to_linear(values: np.ndarray) -> np.ndarray:
+def srgb_to_linear(values: np.ndarray | Sequence[float]) -> np.ndarray:
     """Return linear intensities (0-1) of sRGB-encoded values (0-1)."""
     values = np.asarray(values, np.float32)
     return np.where(values <= 0.04045, values / 12.92, ((values + 0.055) / 1.055) ** 2.4).astype(np.float32)
@@ -225,9 +226,9 @@ def _image(path: Path) -> np.ndarray:
 
 def _old_style(name: str, folder: Path, section: configparser.SectionProxy) -> Landscape:
     """Return an 'old_style' landscape: side textures around the horizon, a ground texture below."""
-    textures = {f'tex{k}': _image(folder / section[f'tex{k}']) for k in range(section.getint('nbsidetex'))}
+    textures = {f'tex{k}': _image(folder / section[f'tex{k}']) for k in range(int(section['nbsidetex']))}
     sides = []
-    for k in range(section.getint('nbside')):
+    for k in range(int(section['nbside'])):
         texture, x0, y0, x1, y1 = section[f'side{k}'].split(':')
         image = textures[texture]
         rows, columns = image.shape[:2]
@@ -239,9 +240,9 @@ def _old_style(name: str, folder: Path, section: configparser.SectionProxy) -> L
         sides.append(crop)
     height = max(side.shape[0] for side in sides)
     sides = [cv2.resize(side, (side.shape[1], height), interpolation=cv2.INTER_AREA) for side in sides]
-    panorama = _rotate_columns(np.concatenate(sides, axis=1), np.radians(section.getfloat('decor_angle_rotatez')))
-    bottom = np.radians(section.getfloat('decor_angle_shift'))
-    top = bottom + np.radians(section.getfloat('decor_alt_angle'))
+    panorama = _rotate_columns(np.concatenate(sides, axis=1), np.radians(float(section['decor_angle_rotatez'])))
+    bottom = np.radians(float(section['decor_angle_shift']))
+    top = bottom + np.radians(float(section['decor_alt_angle']))
     ground = _image(folder / section['groundtex'])[..., :3]
     return Landscape(
         name,
@@ -250,8 +251,8 @@ def _old_style(name: str, folder: Path, section: configparser.SectionProxy) -> L
         float(bottom),
         section.get('tan_mode', 'false').strip().lower() == 'true',
         np.ascontiguousarray(ground),
-        float(np.radians(section.getfloat('ground_angle_shift'))),
-        float(np.radians(section.getfloat('ground_angle_rotatez'))),
+        float(np.radians(float(section['ground_angle_shift']))),
+        float(np.radians(float(section['ground_angle_rotatez']))),
     )
 
 

@@ -58,9 +58,9 @@ def draw_world(figure, axis, world: World, extent: float) -> None:
     for f in world.footprints:
         colour = KIND_COLOURS.get(f.kind, 'k')
         if f.canopy:
-            axis.add_patch(Circle(f.center, f.canopy, color=colour, alpha=0.35))
+            axis.add_patch(Circle(tuple(f.center), f.canopy, color=colour, alpha=0.35))
         if f.disc:
-            axis.add_patch(Circle(f.center, f.half_sizes[0], color=colour))
+            axis.add_patch(Circle(tuple(f.center), f.half_sizes[0], color=colour))
         else:
             corner = f.center - Rotation.from_euler('z', f.yaw).apply([*f.half_sizes, 0])[:2]
             axis.add_patch(
@@ -95,11 +95,12 @@ def draw(
         forward = as_matrix(frame.quaternion)[:, 0]  # camera_link x (the robot's forward) in map
         top.annotate(
             '',
-            frame.position[:2] + 0.8 * forward[:2],
-            frame.position[:2],
+            tuple(frame.position[:2] + 0.8 * forward[:2]),
+            tuple(frame.position[:2]),
             arrowprops={'arrowstyle': '->', 'color': '#d32f2f', 'linewidth': 1.5},
         )
-        top.text(*(frame.position[:2] + [0.3, 0.3]), str(frame.index), color='#d32f2f', fontsize=9)
+        label_x, label_y = frame.position[:2] + [0.3, 0.3]
+        top.text(label_x, label_y, str(frame.index), color='#d32f2f', fontsize=9)
     top.set_xlim(-extent, extent)
     top.set_ylim(-extent, extent)
     top.set_aspect('equal')

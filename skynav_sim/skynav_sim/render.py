@@ -222,8 +222,8 @@ def trace(world: World, origin: np.ndarray, directions: np.ndarray) -> tuple[np.
     # The terrain, only for rays below its horizon and only up to the object each ray already hit.
     rays = np.flatnonzero(world.terrain.may_hit(origin, directions, MAX_DISTANCE))
     if rays.size:
-        start = world.terrain.first_contact(origin, directions[rays])
-        t = world.terrain.intersect(origin, directions[rays], np.minimum(distance[rays], MAX_DISTANCE), start)
+        contact = world.terrain.first_contact(origin, directions[rays])
+        t = world.terrain.intersect(origin, directions[rays], np.minimum(distance[rays], MAX_DISTANCE), contact)
         closer = t < distance[rays]
         distance[rays[closer]] = t[closer]
         primitive[rays[closer]] = -1
@@ -239,7 +239,7 @@ def _boundary(label: np.ndarray) -> np.ndarray:
         for du in (-1, 0, 1)
     ]
     stack = np.stack(neighbours)
-    return stack.any(axis=0) & ~stack.all(axis=0)
+    return np.any(stack, axis=0) & ~np.all(stack, axis=0)
 
 
 class ShadowMap:

@@ -123,6 +123,7 @@ def _arc_length_spline(
     """Return a spline through `points` parametrised by (approximate) arc length, and that length; `ends`: the
     directions it starts and ends in (natural ends when None)."""
     chord = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    bc_type: str | tuple[tuple[int, np.ndarray], ...]  # scipy's name of the ends, or each end's first derivative
     if ends is None:
         bc_type = 'natural'
     else:
@@ -268,7 +269,7 @@ def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) 
     home = snapshot_place(world, params)
     frames = [
         Frame(
-            camera_pose(world.terrain, *home, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt)),
+            camera_pose(world.terrain, home[0], home[1], rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt)),
             params.hours,
             params.cloud_cover,
             'snapshot',
@@ -280,14 +281,14 @@ def _homing(world: World, params: ScenarioParameters, rng: np.random.Generator) 
             p = home + np.array([dx, dy])
             if (dx == 0 and dy == 0) or not world.is_free(*p):
                 continue
-            pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt))
+            pose = camera_pose(world.terrain, p[0], p[1], rng.uniform(0, 2 * np.pi), bump(rng, params.bump_tilt))
             frames.append(Frame(pose, params.hours, params.cloud_cover, 'grid'))
     return frames
 
 
 def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator) -> list[Frame]:
     place = snapshot_place(world, params)
-    reference = camera_pose(world.terrain, *place, rng.uniform(0, 2 * np.pi))
+    reference = camera_pose(world.terrain, place[0], place[1], rng.uniform(0, 2 * np.pi))
     reference_hours = params.hours if params.reference_hours is None else params.reference_hours
     frames = [Frame(reference, reference_hours, params.cloud_cover, 'reference')]
     for _ in range(params.count):
@@ -306,7 +307,7 @@ def _compass(world: World, params: ScenarioParameters, rng: np.random.Generator)
             p = place + distance * np.array([np.cos(direction), np.sin(direction)])
             if world.is_free(*p):
                 break
-        pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+        pose = camera_pose(world.terrain, p[0], p[1], rng.uniform(0, 2 * np.pi))
         frames.append(Frame(pose, params.hours, params.cloud_cover, 'translation'))
     return frames
 
@@ -317,7 +318,7 @@ def _skyline(world: World, params: ScenarioParameters, rng: np.random.Generator)
         for clouds in (0.0, 0.6):
             for _ in range(params.count):
                 p = _free_point(world, rng, YARD_RADIUS)
-                pose = camera_pose(world.terrain, *p, rng.uniform(0, 2 * np.pi))
+                pose = camera_pose(world.terrain, p[0], p[1], rng.uniform(0, 2 * np.pi))
                 frames.append(Frame(pose, hours, clouds, name))
     return frames
 

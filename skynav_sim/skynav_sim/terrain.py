@@ -47,7 +47,7 @@ class Terrain:
         # Pyramid for marching: each level holds, per block of `width` cells, the highest terrain in
         # that block and its eight neighbours, i.e. everywhere within one block width of any point in it.
         # Stored as (reach in m, log2 of the width, blocks per side, flat ceilings), coarsest first.
-        self._levels = []
+        self._levels: list[tuple[float, int, int, np.ndarray]] = []
         for width in PYRAMID_WIDTHS:
             size = -(-self.n // width)
             padded = np.full((size * width, size * width), -np.inf)

@@ -125,7 +125,9 @@ def _training_pixels(
     features: Sequence[Features], truths: Sequence[np.ndarray], circles: Sequence[np.ndarray], uses_green: bool
 ):
     """Return pooled x, y, sky labels of threshold-decided pixels, rule-decided correct count, circle total."""
-    xs, ys, labels = [], [], []
+    xs: list[np.ndarray] = []
+    ys: list[np.ndarray] = []
+    labels: list[np.ndarray] = []
     fixed_correct = total = 0
     for feature, truth, circle in zip(features, truths, circles, strict=True):
         circle = np.asarray(circle, bool)
@@ -137,7 +139,9 @@ def _training_pixels(
         fixed_correct += int(np.count_nonzero(feature.sky_by_rule(circle)[fixed] == sky[fixed]))
         total += int(np.count_nonzero(circle))
         xs.append(feature.x[decided])
-        ys.append(feature.y[decided] if uses_green else None)
+        if uses_green:
+            assert feature.y is not None  # decoded along with the green channel
+            ys.append(feature.y[decided])
         labels.append(sky[decided])
     x = np.concatenate(xs)
     y = np.concatenate(ys) if uses_green else None

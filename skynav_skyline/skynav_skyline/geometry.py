@@ -12,10 +12,14 @@ at a fixed spacing; a pixel belongs to the ray of its sector.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from skynav_skyline.errors import SkylineError
+
+if TYPE_CHECKING:
+    from skynav_core.camera import EquidistantCamera
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,7 @@ class SkylineGeometry:
         return self.circle.shape
 
     @classmethod
-    def from_camera(cls, camera: object) -> SkylineGeometry:
+    def from_camera(cls, camera: EquidistantCamera) -> SkylineGeometry:
         """Return the geometry of a camera model with `image_circle()`, `cx`, `cy`, `theta_max` and `project`.
 
         The radial scale is the image circle's radius over its off-axis angle (pixels per radian).

@@ -8,6 +8,7 @@ One definition for the node, `skynav skyline train` (which writes them) and `sky
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from skynav_core.parameters import Parameter, read_parameter_file
 from skynav_core.parameters import defaults as table_defaults
@@ -60,12 +61,12 @@ NODE_PARAMETERS = {
 }
 
 
-def defaults() -> dict[str, object]:
+def defaults() -> dict[str, Any]:
     """Return the segmentation's parameter defaults by name."""
     return table_defaults(PARAMETERS)
 
 
-def skyline_params(values: dict[str, object]) -> SkylineParams:
+def skyline_params(values: dict[str, Any]) -> SkylineParams:
     """Return the segmentation settings of parameter values (defaults for missing ones); ValueError if unusable."""
     merged = {**defaults(), **values}
     channels = str(merged['channels'])
@@ -86,6 +87,6 @@ def skyline_params(values: dict[str, object]) -> SkylineParams:
     )
 
 
-def load_parameter_file(path: str) -> dict[str, object]:
+def load_parameter_file(path: str) -> dict[str, Any]:
     """Return the segmentation parameters a ROS 2 parameter file sets for the skyline node (its section or '/**')."""
     return read_parameter_file(path, 'skyline', PARAMETERS)

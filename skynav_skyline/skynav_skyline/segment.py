@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, overload
 
 import numpy as np
 
@@ -49,6 +50,9 @@ from .features import REFERENCE_PERCENTILE, Features, extract_features
 from .geometry import SectorLayout, SkylineGeometry
 from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
 from .threshold import DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index, histogram_range
+
+if TYPE_CHECKING:
+    from skynav_core.camera import EquidistantCamera
 
 #: Segmentation methods.
 METHODS: tuple[str, ...] = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')
@@ -264,7 +268,7 @@ def above_sector_thresholds(contrast: np.ndarray, layout: SectorLayout, threshol
 class SkylineSegmenter:
     """Sky/ground segmentation for one camera geometry; build once, call per frame."""
 
-    def __init__(self, geometry: SkylineGeometry | np.ndarray | object, params: SkylineParams | None = None):
+    def __init__(self, geometry: SkylineGeometry | np.ndarray | EquidistantCamera, params: SkylineParams | None = None):
         """Keep the geometry (a SkylineGeometry, a camera model, or a bool image-circle mask) and the settings."""
         if isinstance(geometry, SkylineGeometry):
             self.geometry = geometry
@@ -332,6 +336,12 @@ class SkylineSegmenter:
             return thresholds
         return np.clip(thresholds, p.threshold - p.max_deviation, p.threshold + p.max_deviation)
 
+    @overload
+    def _pack(self, image: np.ndarray, encoding: str | None) -> np.ndarray: ...
+
+    @overload
+    def _pack(self, image: None, encoding: str | None) -> None: ...
+
     def _pack(self, image: np.ndarray | None, encoding: str | None) -> np.ndarray | None:
         """Return the image-circle pixels of an image as one row, after checking its shape."""
         if image is None:
@@ -356,6 +366,7 @@ class SkylineSegmenter:
         row = self._run_row(uv, green, encoding_uv, encoding_green)
         threshold = row.threshold
         if row.sectors is not None:
+            assert isinstance(row.threshold, np.ndarray)  # the sector methods' row holds one threshold per sector
             threshold = self._scatter(self._row.sectors(self.params.sectors).interpolate(row.threshold), np.nan)
         return Segmentation(
             self._scatter(row.mask, GROUND),
@@ -404,6 +415,7 @@ class SkylineSegmenter:
             )
         image_split = sectors = None
         if p.method == 'global':
+            assert p.threshold is not None  # SkylineParams gives 'global' a threshold
             threshold: np.ndarray | float = float(p.threshold)
         else:
             sample = (slice(None), slice(None, None, stride))  # the statistics' pixels of the row
@@ -434,6 +446,7 @@ class SkylineSegmenter:
         if sectors is None:
             above = contrast > threshold
         else:
+            assert isinstance(threshold, np.ndarray)  # one per sector
             above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
         sky = features.sky_by_rule(circle) | (decided & above)
         if p.fills_holes or p.cuts_rings:
@@ -498,7 +511,7 @@ def segment(
     green: np.ndarray | None,
     encoding_uv: str,
     encoding_green: str | None,
-    circle: SkylineGeometry | np.ndarray | object,
+    circle: SkylineGeometry | np.ndarray | EquidistantCamera,
     params: SkylineParams | None = None,
     **changes,
 ) -> np.ndarray:

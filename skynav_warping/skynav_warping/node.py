@@ -111,7 +111,10 @@ class WarpingNode(SkynavNode):
         if not shows_skyline(message_sky_share(np.asarray(message.coefficients, np.float64), fov, message.fill)):
             return False
         index = self.snapshots.choose(count=False)
-        return index is None or bool(shows_skyline(message_sky_share(self.snapshots.store.coefficients()[index], fov)))
+        if index is None:
+            return True
+        assert self.snapshots.store is not None  # choose() found the snapshot in it
+        return bool(shows_skyline(message_sky_share(self.snapshots.store.coefficients()[index], fov)))
 
     def home(self, message: ShCoefficients, compass: CompassEstimate | None) -> None:
         """Publish the home vector of one view."""

@@ -52,11 +52,13 @@ def load_homing_grid(path: str) -> HomingGrid:
         images = recorded.images[topic]
         return np.stack([images[s] for s in stamps]) if all(s in images for s in stamps) else None
 
+    masks = stack(MASK)
+    assert masks is not None  # every stamp kept has a mask
     return HomingGrid(
         camera=recorded.camera,
         positions=poses[:, :3],
         quaternions=poses[:, 3:],
-        masks=stack(MASK),
+        masks=masks,
         uv=stack(UV),
         green=stack(GREEN),
         labels=tuple(recorded.labels()[: len(stamps)]),

@@ -425,7 +425,11 @@ def refine(
         active = [h for h in hypotheses if not h.done]
         if not active:
             break
-        directions, warps, turns, pairs, moves = [], [], [], [], []
+        directions: list[np.ndarray] = []  # warp directions in the current camera_link
+        warps: list[tuple[int, int]] = []  # (index into directions, ratio index)
+        turns: list[tuple[int, np.ndarray]] = []  # (index into directions, rotation)
+        pairs: list[tuple[int, int]] = []  # (index into warps, index into turns) of every cost to evaluate
+        moves: list[tuple[Hypothesis, np.ndarray, int, np.ndarray]] = []  # (hypothesis, direction, ratio, rotation)
         for h in active:
             centre = len(directions)
             directions.append(h.direction)
@@ -538,7 +542,7 @@ def warp_home_vector(
         if not starts or rotation_angle(aligned, starts[0]) > settings.yaw_window:
             starts.append(aligned)
     hypotheses: list[Hypothesis] = []
-    reference = None
+    reference: Hypothesis | None = None
     evaluations = 0
     for r0 in starts:
         found, still_best, spent = _coarse_hypotheses(tables, x[:, :nc], s[:, :nc], r0, full)
@@ -546,6 +550,7 @@ def warp_home_vector(
         evaluations += spent
         if reference is None or still_best.cost < reference.cost:
             reference = still_best
+    assert reference is not None  # starts holds at least one rotation
     # the best coarse hypotheses of every start go on (each start's at least two steps apart); the race of the
     # local search soon leaves the best one
     everyone = hypotheses + [reference]
@@ -602,6 +607,7 @@ def warp_home_vector(
     best = min(hypotheses, key=lambda h: h.cost) if hypotheses else reference
     if reference.cost <= best.cost:  # no step explains the views better than a pure rotation
         best = Hypothesis(best.direction, 0, reference.rotation, reference.cost, 0.0, start=reference.start)
+    assert best.start is not None  # every hypothesis carries the start rotation of its coarse search
     usable = np.isfinite(best.cost) and np.isfinite(reference.cost) and reference.cost > 0  # views overlap
     confidence = float(np.clip(1.0 - best.cost / reference.cost, 0.0, 1.0)) if usable else 0.0
     confident = bool(confidence >= settings.confidence_threshold and best.ratio > 0)

@@ -115,6 +115,7 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
         for raw in bag.messages(['/skyline/mask']):
             message = bag.deserialize(raw)
             masks[stamp_ns(message.header)] = image_to_array(message)
+    assert camera is not None  # the synthetic recording carries camera info
     circle = camera.image_circle()
     stamps = sorted(inputs)
     rates = [
@@ -281,19 +282,21 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
         f'\ncompass (/compass/orientation) against the matched snapshot: {len(compass)} estimates; '
         f'3D rotation error {percentiles(rotation_errors)}'
     )
-    direction_errors, distances, residuals = [], [], []
+    direction_error_list, distance_list, residual_list = [], [], []
     for vector in homing:
         position, current = poses[stamp_ns(vector.header)]
         offset = snapshots[vector.snapshot_index, :3] - position
         truth = home_direction(snapshots[vector.snapshot_index, :3], position, current)  # in the current camera_link
         direction = np.array([vector.direction.x, vector.direction.y, vector.direction.z])
-        direction_errors.append(np.degrees(np.arccos(np.clip(direction @ truth, -1.0, 1.0))))
-        distances.append(np.linalg.norm(offset))
-        residuals.append(vector.residual)
+        direction_error_list.append(np.degrees(np.arccos(np.clip(direction @ truth, -1.0, 1.0))))
+        distance_list.append(np.linalg.norm(offset))
+        residual_list.append(vector.residual)
     if not homing:
         print('home vectors (/homing/home_vector): none')
         return
-    direction_errors, distances, residuals = np.array(direction_errors), np.array(distances), np.array(residuals)
+    direction_errors = np.array(direction_error_list)
+    distances = np.array(distance_list)
+    residuals = np.array(residual_list)
     far = distances >= HOMING_NEAR
     print(
         f'home vectors (/homing/home_vector) to the snapshot ahead: {len(homing)} vectors, '

@@ -28,7 +28,7 @@ def _stamp(nanoseconds: int) -> str:
     return f'{date}.{rest:09d} ({seconds}.{rest:09d})'
 
 
-def _size(size: int) -> str:
+def _size(size: float) -> str:
     """Return a size in bytes with a binary unit."""
     for unit in ('B', 'KiB', 'MiB', 'GiB'):
         if size < 1024 or unit == 'GiB':

@@ -76,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
     if not recording.views:
         raise CliError(f'{args.bag}: the nodes produced no SH coefficients (see the messages above)')
     degree = recording.views[0].max_degree
-    circle = recording.camera.image_circle()
+    camera = recording.camera
+    assert camera is not None  # the nodes made views, so the recording has camera info
+    circle = camera.image_circle()
     selector = SnapshotSelector(args.min_travel, args.min_change)
 
     def snapshots():
@@ -93,8 +95,8 @@ def run(args: argparse.Namespace) -> int:
     def finish(store) -> None:
         left_out.extend(finish_baselines(store))
 
-    camera_info = {name: getattr(recording.camera, name) for name in ('width', 'height', 'fx', 'fy', 'cx', 'cy')}
-    camera_info['k'] = list(recording.camera.k)
+    camera_info = {name: getattr(camera, name) for name in ('width', 'height', 'fx', 'fy', 'cx', 'cy')}
+    camera_info['k'] = list(camera.k)
     try:
         store = build_map(
             args.out,

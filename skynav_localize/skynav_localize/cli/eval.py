@@ -98,8 +98,9 @@ def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: P
     if not views:
         raise CliError(f'{bag}: no ground-truth poses to evaluate against')
     coefficients = np.stack([v.coefficients[: (store.max_degree + 1) ** 2] for v in views])
-    uvs = np.stack([v.uv for v in views]) if needs_images else None
-    positions = np.stack([v.pose[:3] for v in views])
+    uvs = np.stack([np.asarray(v.uv) for v in views]) if needs_images else None  # the images the views came from
+    positions = np.stack([v.pose[:3] for v in views if v.pose is not None])  # all of them
+    assert recording.camera is not None  # the nodes made views, so the recording has camera info
     circle = recording.camera.image_circle()
     results, all_matches = [], {}
     for name in methods:
