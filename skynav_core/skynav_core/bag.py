@@ -12,6 +12,7 @@ when the writer closes.
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import sys
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import mcap.reader
 import yaml
+from rosbags.interfaces import ConnectionExtRosbag2
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin
 
 from .errors import SkynavError
@@ -216,7 +218,12 @@ class BagReader:
             except BadMessageType as exc:
                 raise BagError(f'{self.path}: topic {name}: {exc}') from None
             self._connections[name] = list(info.connections)
-            qos = tuple(q for c in info.connections for q in c.ext.offered_qos_profiles)
+            qos = tuple(
+                q
+                for c in info.connections
+                if isinstance(c.ext, ConnectionExtRosbag2)
+                for q in c.ext.offered_qos_profiles
+            )
             self.topics[name] = Topic(name, info.msgtype, info.msgcount, qos)
             if info.msgdef.data:
                 try:
@@ -313,7 +320,7 @@ class BagReader:
             count += 1
             yield RawMessage(connection.topic, connection.msgtype, log_time, bytes(data))
 
-    def deserialize(self, message: RawMessage) -> object:
+    def deserialize(self, message: RawMessage) -> Any:
         """Return the message as a rosbags dataclass; BagError when its bytes do not decode as its type."""
         try:
             return typestore().deserialize_cdr(message.data, message.msgtype)
@@ -352,7 +359,7 @@ class BagWriter:
     directory. Nothing appears at the path until :meth:`close`.
     """
 
-    def __init__(self, path: str | Path, *, compress: bool = True, overwrite: bool = False) -> None:
+    def __init__(self, path: str | os.PathLike, *, compress: bool = True, overwrite: bool = False) -> None:
 
         self.path = Path(path)
         self.partial = self.path.with_name(f'.{self.path.name}.partial')
@@ -405,7 +412,7 @@ class BagWriter:
         )
         self.counts[topic] = 0
 
-    def write(self, topic: str, log_time: int, data: bytes) -> None:
+    def write(self, topic: str, log_time: int, data: bytes | memoryview) -> None:
         """Append one serialized message logged at `log_time` (ns since the epoch)."""
         self._writer.write(self._connections[topic], log_time, data)
         self.counts[topic] += 1

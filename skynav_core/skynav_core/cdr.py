@@ -12,7 +12,7 @@ rosbags. Recordings store what rosbags reads; rclpy reads either form.
 from __future__ import annotations
 
 from functools import cache
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from rclpy.serialization import deserialize_message
@@ -51,7 +51,7 @@ def has_eight_byte_sequence(msgtype: str) -> bool:
         if kind == Nodetype.NAME and has_eight_byte_sequence(detail):
             return True
         if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-            (element, name), _ = detail
+            (element, name), _ = cast('tuple[tuple[Nodetype, Any], int]', detail)  # an array's: ((kind, name), size)
             if kind == Nodetype.SEQUENCE and element == Nodetype.BASE and name[0] in EIGHT_BYTE_TYPES:
                 return True
             if element == Nodetype.NAME and has_eight_byte_sequence(name):

@@ -542,7 +542,7 @@ class MapStore:
             pass  # another reader holds the WAL: it stays beside the file and SQLite replays it on the next open
         finally:
             self._db.close()
-            self._db = None
+            self._db = None  # type: ignore[assignment]  # a closed store: the methods check for None first
 
     def __enter__(self) -> MapStore:
         return self

@@ -18,7 +18,7 @@ import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from backports import zstd
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -48,7 +48,7 @@ MAX_RECORD = 1 << 32
 # killed with -9 loses at most the pending chunk.
 CHUNK_PERIOD = 10**9
 # zstd frames carry a checksum of their content (a 4-byte XXH64 digest), checked when they are unpacked.
-ZSTD_OPTIONS = {zstd.CompressionParameter.checksum_flag: 1}
+ZSTD_OPTIONS: dict[int, int] = {zstd.CompressionParameter.checksum_flag: 1}
 
 
 class McapError(SkynavError):
@@ -297,7 +297,7 @@ def _patch_checksums(path: Path) -> None:
 class CheckedMcapWriter(McapWriter):
     """rosbags' MCAP storage writer with every checksum filled in (rosbags leaves them at 0)."""
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         if self.compression == 'zstd':
             self.compressor = lambda data: zstd.compress(data, options=ZSTD_OPTIONS)
