@@ -22,7 +22,7 @@ from skynav_sh.spectra import (
     coefficient_distance,
     illumination_invariant,
 )
-from skynav_sh.transform import grid
+from skynav_sh.transform import grid, synthesis_at
 
 quaternions = st.tuples(*(st.floats(-1, 1, allow_nan=False) for _ in range(4))).map(np.array)
 
@@ -41,6 +41,41 @@ def degree_parts(coefficients: np.ndarray, degree: int) -> np.ndarray:
         part[l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
         parts.append(g.synthesis(part))
     return g, np.array(parts)
+
+
+def sphere_integral(samples_of, rings: int = 400) -> float:
+    """Midpoint rule in theta and phi (rings x 2 rings cells) of samples_of(directions) times solid angle (sr).
+
+    Independent of the Gauss-Legendre grid of the transform: exact in azimuth for band-limited functions, and
+    second order in theta (relative error ~1e-6 here).
+    """
+    theta = (np.arange(rings) + 0.5) * np.pi / rings
+    phi = (np.arange(2 * rings) + 0.5) * np.pi / rings
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    directions = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1)
+    cell = (np.pi / rings) ** 2  # dtheta dphi; the solid angle of a cell is sin(theta) dtheta dphi
+    return float(np.sum(samples_of(directions) * st) * cell)
+
+
+def test_amplitude_spectrum_is_the_root_of_each_degree_part_s_squared_integral():
+    # Parseval on the sphere: A_l^2 = integral of f_l^2 over the sphere (sr), f_l the degree-l part of f
+    degree = 6
+    coefficients = np.random.default_rng(17).standard_normal(n_coefficients(degree))
+    expected = []
+    for l in range(degree + 1):
+        part = np.zeros_like(coefficients)
+        part[l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
+        expected.append(np.sqrt(sphere_integral(lambda d, part=part: synthesis_at(part, d) ** 2)))
+    np.testing.assert_allclose(amplitude_spectrum(coefficients), expected, rtol=1e-5)
+
+
+def test_amplitude_spectrum_of_known_functions():
+    # f = 3 + 2 z: the constant's A_0^2 = 9 * 4 pi, z's A_1^2 = 4 * integral of z^2 = 4 * 4 pi / 3
+    g = grid(4)
+    z = g.directions()[..., 2]
+    spectrum = amplitude_spectrum(g.analysis(3.0 + 2.0 * z))
+    np.testing.assert_allclose(spectrum[:2], [3 * np.sqrt(4 * np.pi), 2 * np.sqrt(4 * np.pi / 3)], rtol=1e-12)
+    np.testing.assert_allclose(spectrum[2:], 0.0, atol=1e-12)
 
 
 @settings(max_examples=40, deadline=None, database=None)
