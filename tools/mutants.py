@@ -67,6 +67,14 @@ MUTATIONS = (
         "the hole filling's 'clearly ground' test takes each sector's threshold from its neighbour",
     ),
     Mutation(
+        'localize-forgets-sequence',
+        'skynav_localize/skynav_localize/node.py',
+        'if self.localizer is not None and self.last_stamp >= 0 and stamp - self.last_stamp > SEQUENCE_GAP_NS:',
+        'if self.localizer is not None:',
+        ('skynav_localize/test/test_node.py',),
+        'the live localize node resets its sequence history every frame',
+    ),
+    Mutation(
         'amplitude-normalisation',
         'skynav_sh/skynav_sh/spectra.py',
         'return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1))',
