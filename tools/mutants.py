@@ -75,6 +75,14 @@ MUTATIONS = (
         'the live localize node resets its sequence history every frame',
     ),
     Mutation(
+        'warping-compass-inverted',
+        'skynav_warping/skynav_warping/node.py',
+        'rotation = np.array([q.x, q.y, q.z, q.w])',
+        'rotation = np.array([-q.x, -q.y, -q.z, q.w])',
+        ('skynav_warping/test/test_node.py',),
+        'the warping node inverts the compass rotation it starts from',
+    ),
+    Mutation(
         'amplitude-normalisation',
         'skynav_sh/skynav_sh/spectra.py',
         'return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1))',
