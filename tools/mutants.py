@@ -83,6 +83,16 @@ MUTATIONS = (
         'the warping node inverts the compass rotation it starts from',
     ),
     Mutation(
+        'eval-ranked-by-distance',
+        'skynav_localize/skynav_localize/cli/eval.py',
+        """                matches.index,
+                matches.score,""",
+        """                matches.index,
+                matches.distance,""",
+        ('skynav_localize/test/test_cli.py',),
+        '`skynav eval localization` ranks its precision-recall curve by the distance, not the acceptance score',
+    ),
+    Mutation(
         'amplitude-normalisation',
         'skynav_sh/skynav_sh/spectra.py',
         'return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1))',

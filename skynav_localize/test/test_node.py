@@ -4,7 +4,6 @@
 from pathlib import Path
 
 import numpy as np
-import pytest
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
@@ -18,14 +17,6 @@ from skynav_localize.evaluation import correct_matches
 
 BAGS = Path(__file__).parents[2] / 'bags'
 SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
-
-
-@pytest.fixture(scope='module')
-def garden_map(tmp_path_factory):
-    path = tmp_path_factory.mktemp('maps') / 'garden.db'
-    result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
-    assert result.returncode == 0, result.stderr
-    return path
 
 
 def feed(graph, views, start=0):
