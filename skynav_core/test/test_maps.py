@@ -354,6 +354,7 @@ def test_corrupt_descriptor_is_caught_when_read(tmp_path):
     data = bytearray(path.read_bytes())
     blob = (np.arange(DEGREE, dtype=float) + 1).astype('<f8').tobytes()
     at = data.find(blob)
+    assert at > 0
     data[at : at + 8] = np.float64(-7.0).tobytes()
     path.write_bytes(bytes(data))
     store = MapStore.open(path)

@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """The localize node in the in-process graph: matches on the route, none accepted off it, unusable maps."""
 
+import sqlite3
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
@@ -143,7 +145,12 @@ def test_map_info_refuses_foreign_and_corrupt_files(tmp_path, garden_map):
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
     corrupt = tmp_path / 'corrupt.db'
     data = bytearray(garden_map.read_bytes())
-    data[len(data) // 2 : len(data) // 2 + 4096] = bytes(4096)
+    # zeros over the root page of the snapshots table, wherever the layout put it (not a guessed offset that may
+    # hold free space)
+    with closing(sqlite3.connect(f'{garden_map.as_uri()}?mode=ro', uri=True)) as db:
+        page_size = db.execute('PRAGMA page_size').fetchone()[0]
+        root = db.execute("SELECT rootpage FROM sqlite_master WHERE name = 'snapshots'").fetchone()[0]
+    data[(root - 1) * page_size : root * page_size] = bytes(page_size)
     corrupt.write_bytes(bytes(data))
     for path in (foreign, corrupt, tmp_path / 'missing.db'):
         result = run_skynav('map', 'info', str(path))
