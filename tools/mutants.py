@@ -5,7 +5,8 @@ Each mutation is an exact source patch (a string that must occur once in one fil
 tests that should catch it. For each, the file is patched in place, those tests run (pytest, in a subprocess), and
 the original bytes and modification time are written back whatever happens (Ctrl-C and SIGTERM included); the
 script refuses to start when a file it patches has uncommitted changes, so `git checkout -- FILE` is always a safe
-way back too. Bytecode of a mutant is never cached (PYTHONDONTWRITEBYTECODE).
+way back too. Bytecode of a mutant is never cached (PYTHONDONTWRITEBYTECODE). First the tests run once without any
+mutation and must pass, so that a failure under a mutation is the mutation's doing.
 
     .venv/bin/python tools/mutants.py             # every mutation; prints a table, exits 1 if any survives
     .venv/bin/python tools/mutants.py --list      # the mutations and their tests
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+SHOWN_TESTS = 2  # failed tests named per mutation in the table
 
 
 @dataclass(frozen=True)
@@ -203,6 +205,9 @@ def main() -> int:
     parser.add_argument('names', nargs='*', help='mutations to run (default: all)')
     parser.add_argument('--list', action='store_true', help='list the mutations and their tests, run nothing')
     parser.add_argument('--timeout', type=float, default=900.0, help='seconds per mutation (default 900)')
+    parser.add_argument(
+        '--no-baseline', action='store_true', help='skip the first run of the tests without a mutation (must pass)'
+    )
     args = parser.parse_args()
     known = {m.name: m for m in MUTATIONS}
     if unknown := [n for n in args.names if n not in known]:
@@ -216,6 +221,12 @@ def main() -> int:
         print(f'mutants: commit your changes to {", ".join(changed)} first', file=sys.stderr)
         return 1
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM unwinds like Ctrl-C: files are restored
+    if not args.no_baseline:  # a failure counts as a kill only if the same tests pass without the mutation
+        tests = tuple(dict.fromkeys(test for m in chosen for test in m.tests))
+        code, output = run_tests(tests, args.timeout)
+        if code != 0:
+            print(f'mutants: the tests fail without any mutation: {", ".join(failed_tests(output))}', file=sys.stderr)
+            return 1
     rows = []
     for m in chosen:
         killed, failed, seconds, last = apply_and_test(m, args.timeout)
@@ -224,7 +235,9 @@ def main() -> int:
     width = max(len(r[0]) for r in rows)
     print(f'{"mutation":<{width}}  killed  seconds  failed tests')
     for name, killed, failed, seconds in rows:
-        print(f'{name:<{width}}  {"yes" if killed else "NO":<6}  {seconds:7.0f}  {", ".join(failed) or "-"}')
+        shown = [test.rsplit('/', 1)[-1] for test in failed[:SHOWN_TESTS]]
+        more = f' (+{len(failed) - SHOWN_TESTS} more)' if len(failed) > SHOWN_TESTS else ''
+        print(f'{name:<{width}}  {"yes" if killed else "NO":<6}  {seconds:7.0f}  {", ".join(shown) or "-"}{more}')
     survivors = sum(not r[1] for r in rows)
     print(f'{len(rows) - survivors} of {len(rows)} mutations killed')
     return 1 if survivors else 0
