@@ -43,30 +43,34 @@ def degree_parts(coefficients: np.ndarray, degree: int) -> np.ndarray:
     return g, np.array(parts)
 
 
-def sphere_integral(samples_of, rings: int = 400) -> float:
-    """Midpoint rule in theta and phi (rings x 2 rings cells) of samples_of(directions) times solid angle (sr).
+def sphere_integral(samples: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Midpoint rule over the sphere of samples (..., rings, 2 rings) at ring angles theta (rad): value x sr."""
+    cell = (np.pi / theta.size) ** 2  # dtheta dphi; the solid angle of a cell is sin(theta) dtheta dphi
+    return np.sum(samples * np.sin(theta)[:, None], axis=(-2, -1)) * cell
+
+
+def midpoint_directions(rings: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return the ring angles theta (rings,) and the unit directions (rings, 2 rings, 3) of a midpoint grid.
 
     Independent of the Gauss-Legendre grid of the transform: exact in azimuth for band-limited functions, and
-    second order in theta (relative error ~1e-6 here).
+    second order in theta (relative error 2e-5 at 150 rings here).
     """
     theta = (np.arange(rings) + 0.5) * np.pi / rings
     phi = (np.arange(2 * rings) + 0.5) * np.pi / rings
     st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    directions = np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1)
-    cell = (np.pi / rings) ** 2  # dtheta dphi; the solid angle of a cell is sin(theta) dtheta dphi
-    return float(np.sum(samples_of(directions) * st) * cell)
+    return theta, np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1)
 
 
 def test_amplitude_spectrum_is_the_root_of_each_degree_part_s_squared_integral():
     # Parseval on the sphere: A_l^2 = integral of f_l^2 over the sphere (sr), f_l the degree-l part of f
     degree = 6
     coefficients = np.random.default_rng(17).standard_normal(n_coefficients(degree))
-    expected = []
+    parts = np.zeros((degree + 1, coefficients.size))
     for l in range(degree + 1):
-        part = np.zeros_like(coefficients)
-        part[l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
-        expected.append(np.sqrt(sphere_integral(lambda d, part=part: synthesis_at(part, d) ** 2)))
-    np.testing.assert_allclose(amplitude_spectrum(coefficients), expected, rtol=1e-5)
+        parts[l, l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
+    theta, directions = midpoint_directions(150)
+    expected = np.sqrt(sphere_integral(synthesis_at(parts, directions) ** 2, theta))
+    np.testing.assert_allclose(amplitude_spectrum(coefficients), expected, rtol=5e-5)
 
 
 def test_amplitude_spectrum_of_known_functions():
