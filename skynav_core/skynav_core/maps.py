@@ -248,7 +248,7 @@ class MapStore:
             store._check_schema()
             if check != 'none':
                 pragma = 'quick_check' if check == 'quick' else 'integrity_check'
-                result = [row[0] for row in db.execute(f'PRAGMA {pragma}(3)')]
+                result = [line for row in db.execute(f'PRAGMA {pragma}(3)') for line in row[0].splitlines()]
                 if result != ['ok']:
                     raise MapError(f'{path}: corrupt map file (SQLite {pragma}: {"; ".join(result)})')
             store._load_snapshots()

@@ -214,6 +214,26 @@ def test_build_is_atomic(tmp_path):
         MapStore.build(path, 'built', DEGREE, snapshots)
 
 
+def test_a_failed_write_leaves_nothing_behind_and_the_next_write_works(tmp_path):
+    path = tmp_path / 'm.db'
+    write_map(path, count=3)
+    with sqlite3.connect(path) as db:  # a stray row (e.g. another writer's) that snapshot 3's descriptor will hit
+        db.execute("INSERT INTO descriptors VALUES (3, 'amplitude', '<f8', '[4]', x'00', 0)")
+    db.close()
+    store = MapStore.open(path, writable=True)
+    with pytest.raises(MapError, match='cannot write snapshot 3'):
+        store.add_snapshot(coefficients_of(99), 99, pose_of(99), {'amplitude': np.zeros(DEGREE)})
+    assert len(store) == 3
+    with sqlite3.connect(path) as db:  # the snapshot row written before the descriptor failed was rolled back
+        assert db.execute('SELECT count(*) FROM snapshots').fetchone()[0] == 3
+    db.close()
+    assert store.add_snapshot(coefficients_of(3), 1_000_000_003, pose_of(3)) == 3
+    store.close()
+    with MapStore.open(path) as store:
+        assert len(store) == 4 and store.stamps()[3] == 1_000_000_003
+        np.testing.assert_array_equal(store.coefficients()[3], coefficients_of(3))
+
+
 def test_bad_input_is_refused(tmp_path):
     store = MapStore.create(tmp_path / 'm.db', 'm', DEGREE)
     with pytest.raises(ValueError, match='expected 25 coefficients'):
@@ -334,6 +354,7 @@ def test_corrupt_descriptor_is_caught_when_read(tmp_path):
     data = bytearray(path.read_bytes())
     blob = (np.arange(DEGREE, dtype=float) + 1).astype('<f8').tobytes()
     at = data.find(blob)
+    assert at > 0
     data[at : at + 8] = np.float64(-7.0).tobytes()
     path.write_bytes(bytes(data))
     store = MapStore.open(path)

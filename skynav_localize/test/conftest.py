@@ -108,3 +108,14 @@ def featureless_recording(tmp_path):
         return write_featureless_recording(tmp_path / f'synthetic_featureless_{kind}.mcap', kind, frames)
 
     return write
+
+
+@pytest.fixture(scope='session')
+def garden_map(tmp_path_factory):
+    """The map of the bundled garden teach drive, as `skynav map build` writes it."""
+    from skynav_core.testing import run_skynav
+
+    path = tmp_path_factory.mktemp('maps') / 'garden.db'
+    result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
+    assert result.returncode == 0, result.stderr
+    return path

@@ -1,29 +1,24 @@
 # SPDX-License-Identifier: Apache-2.0
 """The localize node in the in-process graph: matches on the route, none accepted off it, unusable maps."""
 
+import sqlite3
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
-import pytest
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
 from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
+from skynav_core.maps import MapStore
 from skynav_core.nodes import NodeSpec
 from skynav_core.testing import run_skynav
 from skynav_core.views import recording_views
+from skynav_localize.evaluation import correct_matches
 
 BAGS = Path(__file__).parents[2] / 'bags'
 SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
-
-
-@pytest.fixture(scope='module')
-def garden_map(tmp_path_factory):
-    path = tmp_path_factory.mktemp('maps') / 'garden.db'
-    result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
-    assert result.returncode == 0, result.stderr
-    return path
 
 
 def feed(graph, views, start=0):
@@ -56,7 +51,6 @@ def test_on_route_views_are_accepted_and_off_route_views_are_not(garden_map):
 def test_off_the_route_the_node_accepts_nothing(garden_map):
     # the bundled detour drive leaves the garden route for a loop up to 4.3 m away and comes back: every accepted
     # match must be within 1 m of the view's true place, and nine in ten views on the route must be accepted
-    from skynav_core.maps import MapStore
     from skynav_localize.evaluation import evaluate
 
     views = recording_views(BAGS / 'synthetic_garden_detour.mcap', images=False).views
@@ -113,9 +107,17 @@ def test_self_similarity_bound_is_a_parameter(garden_map):
         refused = node.set_parameters([Parameter('max_self_similarity', value=-0.1)])[0]
         assert not refused.successful and 'max_self_similarity' in refused.reason
         assert node.set_parameters([Parameter('max_self_similarity', value=0.0)])[0].successful
-        strict = [m.accepted for m in feed(graph, views, start=2 * 10**18)]
+        matches = feed(graph, views, start=2 * 10**18)
+    strict = [m.accepted for m in matches]
     assert all(default[:10]) and not any(strict[:9])
     assert set(np.flatnonzero(strict)) < set(np.flatnonzero(default))
+    # the sequences do vouch (16 of the 32 views the default accepts), each for the view's true place: a node that
+    # forgot its views between frames would accept none
+    with MapStore.open(garden_map) as store:
+        correct = correct_matches(
+            np.array([m.index for m in matches]), np.stack([v.pose[:3] for v in views]), store.positions(), 1.0
+        )
+    assert np.count_nonzero(strict) >= 12 and correct[strict].all()
 
 
 def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
@@ -143,7 +145,12 @@ def test_map_info_refuses_foreign_and_corrupt_files(tmp_path, garden_map):
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()
     corrupt = tmp_path / 'corrupt.db'
     data = bytearray(garden_map.read_bytes())
-    data[len(data) // 2 : len(data) // 2 + 4096] = bytes(4096)
+    # zeros over the root page of the snapshots table, wherever the layout put it (not a guessed offset that may
+    # hold free space)
+    with closing(sqlite3.connect(f'{garden_map.as_uri()}?mode=ro', uri=True)) as db:
+        page_size = db.execute('PRAGMA page_size').fetchone()[0]
+        root = db.execute("SELECT rootpage FROM sqlite_master WHERE name = 'snapshots'").fetchone()[0]
+    data[(root - 1) * page_size : root * page_size] = bytes(page_size)
     corrupt.write_bytes(bytes(data))
     for path in (foreign, corrupt, tmp_path / 'missing.db'):
         result = run_skynav('map', 'info', str(path))

@@ -22,7 +22,7 @@ from skynav_sh.spectra import (
     coefficient_distance,
     illumination_invariant,
 )
-from skynav_sh.transform import grid
+from skynav_sh.transform import grid, synthesis_at
 
 quaternions = st.tuples(*(st.floats(-1, 1, allow_nan=False) for _ in range(4))).map(np.array)
 
@@ -41,6 +41,45 @@ def degree_parts(coefficients: np.ndarray, degree: int) -> np.ndarray:
         part[l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
         parts.append(g.synthesis(part))
     return g, np.array(parts)
+
+
+def sphere_integral(samples: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Midpoint rule over the sphere of samples (..., rings, 2 rings) at ring angles theta (rad): value x sr."""
+    cell = (np.pi / theta.size) ** 2  # dtheta dphi; the solid angle of a cell is sin(theta) dtheta dphi
+    return np.sum(samples * np.sin(theta)[:, None], axis=(-2, -1)) * cell
+
+
+def midpoint_directions(rings: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return the ring angles theta (rings,) and the unit directions (rings, 2 rings, 3) of a midpoint grid.
+
+    Independent of the Gauss-Legendre grid of the transform: exact in azimuth for band-limited functions, and
+    second order in theta (relative error 2e-5 at 150 rings here).
+    """
+    theta = (np.arange(rings) + 0.5) * np.pi / rings
+    phi = (np.arange(2 * rings) + 0.5) * np.pi / rings
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    return theta, np.stack(np.broadcast_arrays(st * np.cos(phi), st * np.sin(phi), ct), axis=-1)
+
+
+def test_amplitude_spectrum_is_the_root_of_each_degree_part_s_squared_integral():
+    # Parseval on the sphere: A_l^2 = integral of f_l^2 over the sphere (sr), f_l the degree-l part of f
+    degree = 6
+    coefficients = np.random.default_rng(17).standard_normal(n_coefficients(degree))
+    parts = np.zeros((degree + 1, coefficients.size))
+    for l in range(degree + 1):
+        parts[l, l * l : (l + 1) ** 2] = coefficients[l * l : (l + 1) ** 2]
+    theta, directions = midpoint_directions(150)
+    expected = np.sqrt(sphere_integral(synthesis_at(parts, directions) ** 2, theta))
+    np.testing.assert_allclose(amplitude_spectrum(coefficients), expected, rtol=5e-5)
+
+
+def test_amplitude_spectrum_of_known_functions():
+    # f = 3 + 2 z: the constant's A_0^2 = 9 * 4 pi, z's A_1^2 = 4 * integral of z^2 = 4 * 4 pi / 3
+    g = grid(4)
+    z = g.directions()[..., 2]
+    spectrum = amplitude_spectrum(g.analysis(3.0 + 2.0 * z))
+    np.testing.assert_allclose(spectrum[:2], [3 * np.sqrt(4 * np.pi), 2 * np.sqrt(4 * np.pi / 3)], rtol=1e-12)
+    np.testing.assert_allclose(spectrum[2:], 0.0, atol=1e-12)
 
 
 @settings(max_examples=40, deadline=None, database=None)

@@ -9,6 +9,7 @@ from the route. The bounds are the project's target (90 % homing success) and, f
 that the robot stays on the taught route to within a mower's cutting width.
 """
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -116,3 +117,21 @@ def test_home_command_refuses_bad_input_in_one_line(extra, tmp_path):
     assert result.returncode == 2, result.stderr
     assert one_line_error(result.stderr), result.stderr
     assert not (tmp_path / 'home.db').exists()  # refused before anything was rendered
+
+
+def test_home_command_homes_and_reports_it(tmp_path):
+    # small and short: two starts 1-2.5 m away, a 160x120 camera; the figures are the command's own report
+    result = run_skynav(
+        'sim', 'home', '--starts', '2', '--min-distance', '1', '--max-distance', '2.5', '--max-steps', '15',
+        '--size', '160x120', '--out', str(tmp_path),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    rows = [line.split() for line in result.stdout.splitlines() if re.match(r'\s+\d+\s+\d', line)]
+    assert [row[0] for row in rows] == ['0', '1'] and all(row[-1] == 'home' for row in rows)
+    assert all(1.0 <= float(row[1]) <= 2.5 and float(row[2]) <= 0.3 for row in rows)  # start, end distance (m)
+    assert '2 of 2 runs (100 %) ended within 0.3 m of home' in result.stdout
+    assert (tmp_path / 'homing_paths.png').stat().st_size > 0
+    from skynav_core.maps import MapStore
+
+    with MapStore.open(tmp_path / 'home.db') as store:
+        assert len(store) == 1

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -66,6 +67,38 @@ def test_enclosed_ground_near_the_threshold_becomes_sky_and_clear_ground_stays(v
     assert not _segment(camera, uv, hole_margin=2.0)[crown].any()
     assert _segment(camera, uv, hole_margin=2.5)[crown & circle].all()
     assert _segment(camera, uv, hole_margin=math.inf)[(crown | beside | dim) & circle].all()
+
+
+@pytest.mark.parametrize('sectors', [8, 16])
+def test_enclosed_ground_is_measured_against_its_own_sector_s_threshold(sectors):
+    # Light 7x brighter on one side: the thresholds of the UV-only sector method follow it, lowest at the sector
+    # centre `darkest`. There a dim patch enclosed by sky lies half the margin below its own threshold: ground,
+    # but not clearly ground, so it is filled. At 8 sectors the neighbours' thresholds lie higher by more than half
+    # the margin (0.32, 0.35): measured against theirs the patch would be clearly ground and stay ground.
+    camera = EquidistantCamera.for_field_of_view(320, 240, math.radians(190))
+    theta, azimuth = angles_from_directions(camera.pixel_directions())
+    elevation = np.pi / 2 - theta
+    circle = camera.image_circle()
+    darkest = -np.pi + np.pi / sectors  # the centre of sector 0
+    light = np.exp(1.5 * np.cos(azimuth - darkest - np.pi))
+    texture = np.exp(0.3 * np.random.default_rng(3).standard_normal(elevation.shape))  # spreads the histograms
+    uv = np.where(elevation > math.radians(15), SKY, DARK) * light * texture
+    params = SkylineParams(method='sector-otsu', channels='uv', sectors=sectors, hole_margin=0.5)
+    segmenter = SkylineSegmenter(SkylineGeometry.from_camera(camera), params)
+    before = segmenter.run(uv.astype(np.float32), None, '32FC1')
+    sky = (before.mask == 255) & circle
+    offset = before.contrast[sky] - np.log(uv[sky])  # contrast = log UV + the normalisation's offset
+    assert np.ptp(offset) < 1e-4 and before.sectors.bimodal.all()
+    patch = _blob(elevation, azimuth, (math.radians(50), darkest), math.radians(4)) & circle
+    after = before
+    for _ in range(2):  # the patch moves its sector's threshold a little: placed again against the moved one
+        uv = np.where(patch, np.exp(after.threshold - 0.5 * params.hole_margin - offset[0]), uv)
+        after = segmenter.run(uv.astype(np.float32), None, '32FC1')
+    below = after.threshold[patch] - after.contrast[patch]  # how far each patch pixel lies below its threshold
+    assert np.all((below > 0.3 * params.hole_margin) & (below < 0.7 * params.hole_margin))  # the patch is as meant
+    assert (after.mask[patch] == 255).all()
+    plain = SkylineSegmenter(SkylineGeometry.from_camera(camera), replace(params, hole_margin=0.0))
+    assert not (plain.segment(uv.astype(np.float32), None, '32FC1')[patch] == 255).any()  # ground by its threshold
 
 
 def _ringed(elevation: np.ndarray, azimuth: np.ndarray, ringed: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,247 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Put realistic bugs into the code one at a time and show that each one fails a test (mutation testing by hand).
+
+Each mutation is an exact source patch (a string that must occur once in one file, and its replacement) with the
+tests that should catch it. For each, the file is patched in place, those tests run (pytest, in a subprocess), and
+the original bytes and modification time are written back whatever happens (Ctrl-C and SIGTERM included); the
+script refuses to start when a file it patches has uncommitted changes, so `git checkout -- FILE` is always a safe
+way back too. Bytecode of a mutant is never cached (PYTHONDONTWRITEBYTECODE). First the tests run once without any
+mutation and must pass, so that a failure under a mutation is the mutation's doing.
+
+    .venv/bin/python tools/mutants.py             # every mutation; prints a table, exits 1 if any survives
+    .venv/bin/python tools/mutants.py --list      # the mutations and their tests
+    .venv/bin/python tools/mutants.py NAME ...    # only these
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SHOWN_TESTS = 2  # failed tests named per mutation in the table
+
+
+@dataclass(frozen=True)
+class Mutation:
+    """One bug: replace `old` (occurring exactly once in `path`) by `new`; `tests` should then fail."""
+
+    name: str
+    path: str  # relative to the repository root
+    old: str
+    new: str
+    tests: tuple[str, ...]  # pytest node ids or paths, relative to the repository root
+    what: str  # the bug, in a few words
+
+
+MUTATIONS = (
+    Mutation(
+        'map-commit-on-failure',
+        'skynav_core/skynav_core/maps.py',
+        """            except BaseException:
+                self._db.execute('ROLLBACK')""",
+        """            except BaseException:
+                self._db.execute('COMMIT')""",
+        ('skynav_core/test/test_maps.py',),
+        "MapStore's transaction commits a failed write instead of rolling it back",
+    ),
+    Mutation(
+        'sector-fallback-from-neighbour',
+        'skynav_skyline/skynav_skyline/segment.py',
+        'thresholds = np.interp(np.arange(count), good, own.threshold[good], period=count)',
+        'thresholds = np.interp(np.arange(count), good, own.threshold[(good + 1) % count], period=count)',
+        ('skynav_skyline/test/test_segment.py',),
+        "each bimodal sector's threshold taken from the next sector's split",
+    ),
+    Mutation(
+        'sector-threshold-from-neighbour',
+        'skynav_skyline/skynav_skyline/segment.py',
+        'contrast, self._row.sectors(self.params.sectors), np.asarray(threshold) - margin',
+        'contrast, self._row.sectors(self.params.sectors), np.roll(threshold, 1) - margin',
+        ('skynav_skyline/test/test_structure.py', 'skynav_skyline/test/test_segment.py'),
+        "the hole filling's 'clearly ground' test takes each sector's threshold from its neighbour",
+    ),
+    Mutation(
+        'localize-forgets-sequence',
+        'skynav_localize/skynav_localize/node.py',
+        'if self.localizer is not None and self.last_stamp >= 0 and stamp - self.last_stamp > SEQUENCE_GAP_NS:',
+        'if self.localizer is not None:',
+        ('skynav_localize/test/test_node.py',),
+        'the live localize node resets its sequence history every frame',
+    ),
+    Mutation(
+        'warping-compass-inverted',
+        'skynav_warping/skynav_warping/node.py',
+        'rotation = np.array([q.x, q.y, q.z, q.w])',
+        'rotation = np.array([-q.x, -q.y, -q.z, q.w])',
+        ('skynav_warping/test/test_node.py',),
+        'the warping node inverts the compass rotation it starts from',
+    ),
+    Mutation(
+        'eval-ranked-by-distance',
+        'skynav_localize/skynav_localize/cli/eval.py',
+        """                matches.index,
+                matches.score,""",
+        """                matches.index,
+                matches.distance,""",
+        ('skynav_localize/test/test_cli.py',),
+        '`skynav eval localization` ranks its precision-recall curve by the distance, not the acceptance score',
+    ),
+    Mutation(
+        'train-swaps-thresholds',
+        'skynav_skyline/skynav_skyline/cli/train.py',
+        "'threshold_uv': round(float(models['uv'].threshold), 5),",
+        "'threshold_uv': round(float(models['uv-green'].threshold), 5),",
+        ('skynav_skyline/test/test_cli.py',),
+        '`skynav skyline train` writes the UV/green threshold as the UV-only one',
+    ),
+    Mutation(
+        'pairing-swaps-channels',
+        'skynav_core/skynav_core/pairing.py',
+        'return (pair_stamp, item, partner) if channel == self.channels[0] else (pair_stamp, partner, item)',
+        'return (pair_stamp, item, partner) if channel != self.channels[0] else (pair_stamp, partner, item)',
+        ('skynav_skyline/test/test_node.py',),
+        'a pair completed by its second channel comes out with the channels swapped (UV as green)',
+    ),
+    Mutation(
+        'unaccepted-match-chooses-snapshot',
+        'skynav_core/skynav_core/snapshots.py',
+        'if match.accepted and match.index >= 0:',
+        'if match.index >= 0:',
+        ('skynav_warping/test/test_node.py::test_target_next_aims_lookahead_snapshots_beyond_the_match',),
+        'the compass and warping nodes take the snapshot of a match the localizer did not accept',
+    ),
+    Mutation(
+        'lookahead-off-by-one',
+        'skynav_core/skynav_core/snapshots.py',
+        'return min(self.match.index + self.lookahead, n_snapshots - 1)',
+        'return min(self.match.index + self.lookahead - 1, n_snapshots - 1)',
+        ('skynav_warping/test/test_node.py::test_target_next_aims_lookahead_snapshots_beyond_the_match',),
+        "target 'next' homes to the snapshot one before `lookahead` beyond the match",
+    ),
+    Mutation(
+        'stamp-in-microseconds',
+        'skynav_core/skynav_core/images.py',
+        'return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)',
+        'return int(header.stamp.sec) * 1_000_000 + int(header.stamp.nanosec)',
+        ('skynav_skyline/test/test_node.py', 'skynav_warping/test/test_node.py'),
+        'header stamps read with seconds as a million nanoseconds',
+    ),
+    Mutation(
+        'map-error-over-lines',
+        'skynav_core/skynav_core/maps.py',
+        "result = [line for row in db.execute(f'PRAGMA {pragma}(3)') for line in row[0].splitlines()]",
+        "result = [row[0] for row in db.execute(f'PRAGMA {pragma}(3)')]",
+        ('skynav_localize/test/test_node.py::test_map_info_refuses_foreign_and_corrupt_files',),
+        "a damaged map's error keeps SQLite's line breaks: more than the one line a user should get",
+    ),
+    Mutation(
+        'amplitude-normalisation',
+        'skynav_sh/skynav_sh/spectra.py',
+        'return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1))',
+        'return np.sqrt(np.add.reduceat(np.square(coefficients), starts, axis=-1) / (2 * np.arange(degree + 1) + 1))',
+        ('skynav_sh/test/test_spectra.py',),
+        'the amplitude spectrum averaged over m instead of summed',
+    ),
+)
+
+
+def dirty(paths: list[str]) -> list[str]:
+    """Return those of the paths (relative to the root) that differ from git's HEAD."""
+    result = subprocess.run(
+        ['git', 'status', '--porcelain', '--', *paths], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    return [line[3:] for line in result.stdout.splitlines()]
+
+
+def failed_tests(output: str) -> list[str]:
+    """Return the node ids pytest's short summary lists as failed or in error."""
+    return sorted({m.group(2) for m in re.finditer(r'^(FAILED|ERROR) (\S+)', output, re.MULTILINE)})
+
+
+def run_tests(tests: tuple[str, ...], timeout: float) -> tuple[int, str]:
+    """Run pytest on the tests (quietly, in a subprocess); return its exit code and output."""
+    environment = dict(os.environ, PYTHONDONTWRITEBYTECODE='1')
+    command = [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-rfE', '--no-header', *tests]
+    try:
+        result = subprocess.run(command, cwd=ROOT, env=environment, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return -1, 'timed out'
+    return result.returncode, result.stdout + result.stderr
+
+
+def apply_and_test(mutation: Mutation, timeout: float) -> tuple[bool, list[str], float, str]:
+    """Patch the file, run the tests, restore the file; return (killed, failed tests, seconds, pytest's last line)."""
+    path = ROOT / mutation.path
+    original = path.read_bytes()
+    status = path.stat()
+    text = original.decode()
+    if text.count(mutation.old) != 1:
+        raise SystemExit(
+            f'{mutation.name}: the patch must occur exactly once in {mutation.path} (found {text.count(mutation.old)})'
+        )
+    start = time.monotonic()
+    try:
+        path.write_text(text.replace(mutation.old, mutation.new))
+        code, output = run_tests(mutation.tests, timeout)
+    finally:
+        path.write_bytes(original)
+        os.utime(path, ns=(status.st_atime_ns, status.st_mtime_ns))
+    lines = output.strip().splitlines()
+    # pytest exits 1 when tests failed; 2-5 (interrupted, internal error, usage, no tests) prove nothing
+    return code == 1, failed_tests(output), time.monotonic() - start, lines[-1] if lines else ''
+
+
+def main() -> int:
+    """Run the chosen mutations (default: all) and print the table; exit 1 if any mutation survives."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('names', nargs='*', help='mutations to run (default: all)')
+    parser.add_argument('--list', action='store_true', help='list the mutations and their tests, run nothing')
+    parser.add_argument('--timeout', type=float, default=900.0, help='seconds per mutation (default 900)')
+    parser.add_argument(
+        '--no-baseline', action='store_true', help='skip the first run of the tests without a mutation (must pass)'
+    )
+    args = parser.parse_args()
+    known = {m.name: m for m in MUTATIONS}
+    if unknown := [n for n in args.names if n not in known]:
+        parser.error(f'unknown mutation(s) {", ".join(unknown)}; known: {", ".join(known)}')
+    chosen = [known[n] for n in args.names] if args.names else list(MUTATIONS)
+    if args.list:
+        for m in chosen:
+            print(f'{m.name}: {m.what}\n    {m.path}\n    tests: {" ".join(m.tests)}')
+        return 0
+    if changed := dirty(sorted({m.path for m in chosen})):
+        print(f'mutants: commit your changes to {", ".join(changed)} first', file=sys.stderr)
+        return 1
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # SIGTERM unwinds like Ctrl-C: files are restored
+    if not args.no_baseline:  # a failure counts as a kill only if the same tests pass without the mutation
+        tests = tuple(dict.fromkeys(test for m in chosen for test in m.tests))
+        code, output = run_tests(tests, args.timeout)
+        if code != 0:
+            print(f'mutants: the tests fail without any mutation: {", ".join(failed_tests(output))}', file=sys.stderr)
+            return 1
+    rows = []
+    for m in chosen:
+        killed, failed, seconds, last = apply_and_test(m, args.timeout)
+        rows.append((m.name, killed, failed, seconds))
+        print(f'{m.name}: {"killed" if killed else "SURVIVED"} in {seconds:.0f} s ({last})', file=sys.stderr)
+    width = max(len(r[0]) for r in rows)
+    print(f'{"mutation":<{width}}  killed  seconds  failed tests')
+    for name, killed, failed, seconds in rows:
+        shown = [test.rsplit('/', 1)[-1] for test in failed[:SHOWN_TESTS]]
+        more = f' (+{len(failed) - SHOWN_TESTS} more)' if len(failed) > SHOWN_TESTS else ''
+        print(f'{name:<{width}}  {"yes" if killed else "NO":<6}  {seconds:7.0f}  {", ".join(shown) or "-"}{more}')
+    survivors = sum(not r[1] for r in rows)
+    print(f'{len(rows) - survivors} of {len(rows)} mutations killed')
+    return 1 if survivors else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
