@@ -4,10 +4,10 @@ localize node: the rclpy glue around a RouteTeacher (teaching, the logic).
 
 A goal runs until it is canceled (the usual end, with success), until the odometry says `max_length` m were
 driven (success), or until no usable view arrived for `teach_input_timeout` s (NO_INPUT; the map keeps what was
-stored). The localize node hands it every view it takes; /odom is subscribed here. When the goal ends the map is
-closed into one file and the nodes switch to it: the localize node itself and those of `teach_map_nodes` (their
-`map` parameter is set through their parameter services), before the result is sent. One goal at a time: a second
-one ends at once with BUSY.
+stored). Its first feedback (0 snapshots) says teaching has begun. The localize node hands it every view it
+takes; /odom is subscribed here. When the goal ends the map is closed into one file and the nodes switch to it:
+the localize node itself and those of `teach_map_nodes` (their `map` parameter is set through their parameter
+services), before the result is sent. One goal at a time: a second one ends at once with BUSY.
 """
 
 from __future__ import annotations
@@ -163,6 +163,7 @@ class TeachServer:
         log = self.node.get_logger()
         log.info(f'teaching {teacher.path}: a snapshot every {spacing:g} m')
         self.active = ActiveGoal(goal_handle, teacher, Future(), self.node.get_clock().now().nanoseconds)
+        goal_handle.publish_feedback(Teach.Feedback(snapshots=0, route_length=0.0))  # teaching has begun
         outcome = await self.active.done
         self.active = None
         error = outcome if isinstance(outcome, TeachError) else None

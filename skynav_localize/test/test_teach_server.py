@@ -153,7 +153,7 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     travelled = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(drive.poses[:, :3], axis=0), axis=1))])
     assert result.snapshots >= travelled[-1] / 0.4
     assert result.route_length == pytest.approx(operator.feedback[-1].route_length)
-    assert [f.snapshots for f in operator.feedback] == list(range(1, result.snapshots + 1))
+    assert [f.snapshots for f in operator.feedback] == list(range(result.snapshots + 1))  # 0: teaching began
     with MapStore.open(path) as store:
         assert len(store) == result.snapshots and store.name == 'taught'
         kept = np.searchsorted(drive.stamps, store.stamps())
@@ -226,10 +226,10 @@ def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, 
         operator = Operator(ros_context)
         operator.send(map_path=str(path), spacing=0.1)
         operator.drive(drive, range(30), period=0.05)
-        wait(lambda: len(operator.feedback) >= 10, what='ten snapshots')
+        wait(lambda: len(operator.feedback) >= 11, what='ten snapshots')
         process.send_signal(signal.SIGKILL)
         process.wait(timeout=TIMEOUT)
-        committed = len(operator.feedback)  # each feedback follows its snapshot's commit
+        committed = operator.feedback[-1].snapshots  # each feedback follows its snapshot's commit
     finally:
         if process.poll() is None:
             process.kill()
