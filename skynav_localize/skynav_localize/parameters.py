@@ -42,7 +42,7 @@ PARAMETERS = {
     'teach_odometry_tolerance': Parameter(
         DEFAULT_ODOMETRY_TOLERANCE_NS * 1e-9, 'Teach goals: s between a view and the /odom sample paired with it'
     ),
-    'teach_input_timeout': Parameter(5.0, 'Teach goals: s without a usable view before the goal ends with NO_INPUT'),
+    'teach_input_timeout': Parameter(10.0, 'Teach goals: s without a usable view before the goal ends with NO_INPUT'),
     'teach_map_nodes': Parameter(
         ['compass', 'warping'], 'nodes whose `map` parameter is set to a map taught here when its goal ends'
     ),

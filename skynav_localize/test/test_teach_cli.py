@@ -32,7 +32,9 @@ def test_teach_over_a_replayed_drive_makes_a_map_like_map_build(tmp_path):
     built = tmp_path / 'built.db'
     assert run_skynav('map', 'build', str(TEACH), '--out', str(built)).returncode == 0
     taught = tmp_path / 'taught.db'
-    launch = start_skynav('launch', '--nodes', 'skyline', 'sh', 'localize')
+    params = tmp_path / 'params.yaml'  # no NO_INPUT while a loaded machine starts the replay
+    params.write_text('localize:\n  ros__parameters:\n    teach_input_timeout: 60.0\n')
+    launch = start_skynav('launch', '--nodes', 'skyline', 'sh', 'localize', '--params', str(params))
     try:
         # warm the graph up (its first frames are slow) on a drive recorded earlier than the teach drive
         replay(BAGS / 'synthetic_garden_skyline.mcap', 0)
