@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The contract's actions (docs/interfaces.md, "Driving: teach, follow, home"): built, named codes, round-trip."""
 
+import signal
 import threading
 import time
 
@@ -135,3 +136,76 @@ def test_a_goal_round_trips_through_an_action_server(ros_context):
         server.destroy()
         client.destroy()
         spinner.join(timeout=5)
+
+
+@pytest.mark.parametrize('name', sorted(CONTRACT))
+def test_the_typestore_knows_the_action_messages_with_rosidls_hashes(name):
+    """Bags can hold an action's topics: rosbags' definitions of its parts hash as rosidl's (installed JSON)."""
+    import json
+
+    from skynav_core.environment import share_directory
+    from skynav_core.typestore import ensure_type, typestore
+
+    rosidl = json.loads((share_directory('skynav_msgs') / 'action' / f'{name}.json').read_text())
+    hashes = {entry['type_name']: entry['hash_string'] for entry in rosidl['type_hashes']}
+    for part in ('Goal', 'Result', 'Feedback', 'FeedbackMessage'):
+        msgtype = ensure_type(f'skynav_msgs/action/{name}_{part}')
+        assert typestore().hash_rihs01(msgtype) == hashes[msgtype], msgtype
+
+
+def test_a_feedback_message_crosses_rclpy_and_rosbags():
+    from rclpy.serialization import serialize_message
+
+    from skynav_core.ros import message_class
+    from skynav_core.typestore import ensure_type, typestore
+
+    feedback_type = message_class('skynav_msgs/action/FollowRoute_FeedbackMessage')
+    message = feedback_type()
+    message.goal_id.uuid = list(range(16))
+    message.feedback.matched_index, message.feedback.state, message.feedback.progress = 7, 'following', 0.25
+    decoded = typestore().deserialize_cdr(
+        serialize_message(message), ensure_type('skynav_msgs/action/FollowRoute_FeedbackMessage')
+    )
+    assert list(decoded.goal_id.uuid) == list(range(16))
+    assert (decoded.feedback.matched_index, decoded.feedback.state, decoded.feedback.progress) == (7, 'following', 0.25)
+
+
+def test_an_actions_feedback_is_echoed_and_not_recorded(tmp_path, ros_context):
+    """`skynav echo` prints an action's feedback; `skynav record` leaves it out in one line (rosbags embeds
+    definitions of pkg/msg/ types only)."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from skynav_core.bag import open_bag
+    from skynav_core.ros import message_class
+    from skynav_core.testing import start_skynav, wait_text
+
+    topic = '/skynav/teach/_action/feedback'
+    feedback_type = message_class('skynav_msgs/action/Teach_FeedbackMessage')
+    node = Node('teach_feedback_source', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    publisher = node.create_publisher(feedback_type, topic, 10)
+    out = tmp_path / 'feedback.mcap'
+    recorder = start_skynav('record', str(out), '--all')
+    wait_text(recorder, 'recording')
+    echo = start_skynav('echo', topic, '--once', '--wait', '30')
+    deadline = time.monotonic() + 30
+    while publisher.get_subscription_count() < 1 and time.monotonic() < deadline:  # echo's (the recorder has none)
+        executor.spin_once(timeout_sec=0.05)
+    deadline = time.monotonic() + 30
+    message = feedback_type()
+    message.feedback.snapshots, message.feedback.route_length = 12, 1.5
+    while echo.poll() is None and time.monotonic() < deadline:
+        publisher.publish(message)
+        time.sleep(0.1)
+    printed, _ = echo.communicate(timeout=30)
+    assert echo.returncode == 0 and 'snapshots: 12' in printed and 'route_length: 1.5' in printed, printed
+    recorder.send_signal(signal.SIGINT)
+    _, err = recorder.communicate(timeout=30)
+    assert recorder.returncode == 0, err
+    assert f'{topic} not recorded' in err and 'Traceback' not in err
+    with open_bag(out) as bag:
+        assert topic not in bag.topics
+    executor.shutdown()
+    node.destroy_node()

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import SkynavError
-from .typestore import UnknownMessageType, ensure_type, typestore
+from .typestore import UnknownMessageType, ensure_type, split_type, typestore
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection, Qos
@@ -256,6 +256,8 @@ class BagWriter:
             msgtype = ensure_type(msgtype)
         except (UnknownMessageType, ValueError) as exc:
             raise BagError(f'{self.path}: cannot record {topic}: {exc}') from None
+        if split_type(msgtype)[1] != 'msg':  # rosbags embeds definitions of pkg/msg/ types only
+            raise BagError(f'{self.path}: cannot record {topic}: a bag holds no definition of {msgtype} (an action)')
         self._connections[topic] = self._writer.add_connection(
             topic, msgtype, typestore=typestore(), offered_qos_profiles=list(offered_qos)
         )
