@@ -114,6 +114,7 @@ class Operator:
 
     def close(self):
         self.executor.shutdown()
+        self.thread.join(timeout=TIMEOUT)
         self.client.destroy()
         self.node.destroy_node()
 
@@ -131,8 +132,10 @@ def graph(ros_context):
     operator = Operator(ros_context)
     yield dict(zip(('localize', 'compass', 'warping'), nodes, strict=True)), operator
     operator.close()
-    for (executor, _), node in zip(spinners, nodes, strict=True):
+    for executor, thread in spinners:  # every callback finished before any node goes
         executor.shutdown()
+        thread.join(timeout=TIMEOUT)
+    for node in nodes:
         node.destroy_node()
 
 
@@ -175,6 +178,14 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     operator.drive(drive, [40], odometry=False, shift=10**10)  # on a second drive, 10 s later
     wait(lambda: matches, what='a match')
     assert matches[-1].map_name == 'taught' and matches[-1].index >= 0
+    # taught again into the same file, which every node has open: they all load the new map
+    handle = operator.send(map_path=str(path), spacing=0.5, overwrite=True)
+    operator.drive(drive, range(10), shift=2 * 10**10)
+    wait(lambda: nodes['localize'].last_stamp == drive.stamps[9] + 2 * 10**10, what='the second drive taken')
+    status, again = operator.cancel(handle)
+    assert status == GoalStatus.STATUS_CANCELED and 1 < again.snapshots < result.snapshots
+    assert len(nodes['localize'].store) == again.snapshots
+    assert all(len(nodes[name].snapshots.store) == again.snapshots for name in ('compass', 'warping'))
 
 
 def test_max_length_ends_the_goal_with_success(graph, garden, tmp_path):
