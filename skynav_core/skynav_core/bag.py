@@ -407,6 +407,8 @@ class BagWriter:
             msgtype = ensure_type(msgtype, msgdef)
         except (UnknownMessageType, ValueError) as exc:
             raise BagError(f'{self.path}: cannot record {topic}: {exc}') from None
+        if split_type(msgtype)[1] != 'msg':  # rosbags embeds definitions of pkg/msg/ types only
+            raise BagError(f'{self.path}: cannot record {topic}: a bag holds no definition of {msgtype} (an action)')
         self._connections[topic] = self._writer.add_connection(
             topic, msgtype, typestore=typestore(), offered_qos_profiles=list(offered_qos)
         )

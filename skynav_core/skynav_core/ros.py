@@ -21,16 +21,20 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from .environment import apply_ros_environment
-from .typestore import UnknownMessageType, split_type
+from .typestore import UnknownMessageType, action_part, split_type
 
 
 def message_class(msgtype: str) -> type:
-    """Return the rclpy message class of 'pkg/msg/Name'; raise UnknownMessageType when not installed."""
+    """Return the rclpy message class of 'pkg/msg/Name' (or of an action's 'pkg/action/Name_Part'); raise
+    UnknownMessageType when not installed."""
     package, kind, name = split_type(msgtype)
     try:
         module = importlib.import_module(f'{package}.{kind}')
+        if kind == 'action':
+            action, part = action_part(name)
+            return getattr(getattr(module, action).Impl if part == 'FeedbackMessage' else getattr(module, action), part)
         return getattr(module, name)
-    except (ImportError, AttributeError):
+    except (ImportError, AttributeError, ValueError):
         raise UnknownMessageType(
             f'message type {package}/{kind}/{name} is not installed (no Python module {package}.{kind})'
         ) from None

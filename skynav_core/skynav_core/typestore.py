@@ -4,7 +4,10 @@
 The store starts with every standard Jazzy type that rosbags knows. Any other
 type (skynav_msgs, a user's own package) is loaded on first use from the
 ``.msg`` file its package installed (``share/<pkg>/msg/<Name>.msg`` under an
-ament prefix) or from the definition a bag carries.
+ament prefix) or from the definition a bag carries. The messages of an action
+that travel on topics (``pkg/action/<Name>_FeedbackMessage`` on
+``<action>/_action/feedback``, with its ``_Goal``, ``_Result`` and ``_Feedback``
+parts) are made from the installed ``share/<pkg>/action/<Name>.action``.
 """
 
 from __future__ import annotations
@@ -22,6 +25,12 @@ from .errors import SkynavError
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
+
+
+KINDS = ('msg', 'action')  # the interface kinds whose messages travel on topics
+ACTION_PARTS = ('Goal', 'Result', 'Feedback')  # the sections of an .action file, in order
+#: The message an action server publishes on <action>/_action/feedback (as rosidl generates it).
+FEEDBACK_MESSAGE = 'unique_identifier_msgs/UUID goal_id\n{package}/action/{action}_Feedback feedback\n'
 
 
 class UnknownMessageType(SkynavError, LookupError):
@@ -44,7 +53,7 @@ def typestore() -> Typestore:
 
 
 def split_type(msgtype: str) -> tuple[str, str, str]:
-    """Split 'pkg/msg/Name' (or 'pkg/Name') into (package, 'msg', name); raise BadMessageType when malformed.
+    """Split 'pkg/msg/Name' ('pkg/Name', 'pkg/action/Name_Part') into (package, kind, name); BadMessageType if not.
 
     Each part must be an identifier without '__': names like '../msg/X', '.evil/msg/X' or
     'std_msgs/msg/__class__' never reach an import, a path or an attribute lookup.
@@ -54,12 +63,22 @@ def split_type(msgtype: str) -> tuple[str, str, str]:
         parts = [parts[0], 'msg', parts[1]]
     if (
         len(parts) != 3
-        or parts[1] != 'msg'
+        or parts[1] not in KINDS
         or not all(TYPE_NAME_PART.fullmatch(part) and '__' not in part for part in parts)
     ):
         shown = repr(msgtype)[:80]
         raise BadMessageType(f'not a message type name: {shown} (expected package/msg/Name, each part an identifier)')
     return parts[0], parts[1], parts[2]
+
+
+def action_part(name: str) -> tuple[str, str]:
+    """Split an action message's name 'Teach_FeedbackMessage' into ('Teach', 'FeedbackMessage'); ValueError if none."""
+    action, _, part = name.rpartition('_')
+    if not action or part not in (*ACTION_PARTS, 'FeedbackMessage'):
+        raise ValueError(
+            f'not a message of an action: {name!r} (expected Name_Goal, _Result, _Feedback, _FeedbackMessage)'
+        )
+    return action, part
 
 
 def normalise_type(msgtype: str) -> str:
@@ -68,8 +87,17 @@ def normalise_type(msgtype: str) -> str:
 
 
 def find_msg_file(msgtype: str) -> str | None:
-    """Return the text of the installed .msg file of `msgtype`, or None when no ament prefix has it."""
+    """Return the installed .msg text of `msgtype` (an action's part: from its .action file); None if not installed."""
     package, kind, name = split_type(msgtype)
+    if kind == 'action':
+        action, part = action_part(name)
+        if part == 'FeedbackMessage':
+            return FEEDBACK_MESSAGE.format(package=package, action=action)
+        for prefix in ament_prefixes(os.environ):
+            path = prefix / 'share' / package / 'action' / f'{action}.action'
+            if path.is_file():
+                return re.split(r'^---[ \t]*$', path.read_text(), flags=re.M)[ACTION_PARTS.index(part)]
+        return None
     for prefix in ament_prefixes(os.environ):
         path = prefix / 'share' / package / kind / f'{name}.msg'
         if path.is_file():

@@ -7,7 +7,9 @@ within --tolerance metres of the query's true position (ground truth of both). P
 recall at 100 % precision, the area under the precision-recall curve and recall@1, and saves the
 precision-recall curves and the matches along the route as plots in --plots. The baselines need
 their descriptors in the map (`skynav map build --baselines`); on a map without them their rows
-are left out, which one line says.
+are left out, which one line says. A map taught live (`skynav teach`) holds no ground truth (no node reads
+it): --map-poses names the recording of its teach drive, whose /ground_truth/pose at each snapshot's
+stamp places the snapshots.
 """
 
 from __future__ import annotations
@@ -35,6 +37,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar='MAP.db',
         help='map of the teach drive (built with --baselines to compare with the baselines)',
     )
+    parser.add_argument(
+        '--map-poses',
+        type=Path,
+        metavar='BAG',
+        help="for a map without ground truth (taught live): the teach drive's recording, with /ground_truth/pose",
+    )
     add_methods_argument(parser, list(METHODS))
     parser.add_argument(
         '--tolerance',
@@ -60,8 +68,15 @@ def run(args: argparse.Namespace) -> int:
     check_recordings(args.bags)
     ros_args = graph_arguments(args.params, None)
     with open_map(args.map) as store:
-        if not store.has_poses:
-            raise CliError(f'{args.map}: the map has no ground-truth poses; evaluation needs them')
+        if store.has_poses:
+            snapshots = store.positions()
+        elif args.map_poses is not None:
+            snapshots = positions_at(args.map_poses, store.stamps())
+        else:
+            raise CliError(
+                f'{args.map}: the map has no ground-truth poses; evaluation needs them '
+                "(for a map taught live, pass its teach drive's recording with --map-poses)"
+            )
         try:
             lacking = {name: missing_descriptors(store, name) for name in args.methods}
         except MapError as exc:
@@ -77,12 +92,40 @@ def run(args: argparse.Namespace) -> int:
             )
         plots_folder(args.plots)
         for bag in args.bags:
-            evaluate_bag(bag, store, methods, args.tolerance, args.plots, ros_args)
+            evaluate_bag(bag, store, snapshots, methods, args.tolerance, args.plots, ros_args)
     return 0
 
 
-def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: Path, ros_args: list[str]) -> None:
-    """Match every view of one repeat drive against the map with each method; print the table, save the plots."""
+def positions_at(bag: Path, stamps):
+    """Return the ground-truth positions (N, 3) of camera_link in map at the given stamps (ns) of a recording."""
+    import numpy as np
+
+    from skynav_core.bag import open_bag
+    from skynav_core.cli import CliError
+    from skynav_core.images import stamp_ns
+
+    truth = {}
+    with open_bag(bag) as recording:
+        for raw in recording.messages(['/ground_truth/pose']):
+            message = recording.deserialize(raw)
+            p = message.pose.position
+            truth[stamp_ns(message.header)] = (p.x, p.y, p.z)
+    missing = [int(stamp) for stamp in stamps if int(stamp) not in truth]
+    if missing:
+        raise CliError(
+            f'{bag}: no /ground_truth/pose stamped {missing[0]} ({len(missing)} of the {len(stamps)} snapshots lack '
+            'one): is it the recording the map was taught from?'
+        )
+    return np.array([truth[int(stamp)] for stamp in stamps], dtype=float).reshape(-1, 3)
+
+
+def evaluate_bag(
+    bag: str, store, snapshots, methods: list[str], tolerance: float, plots: Path, ros_args: list[str]
+) -> None:
+    """Match every view of one repeat drive against the map with each method; print the table, save the plots.
+
+    snapshots: the true positions (N, 3) of the map's snapshots (m).
+    """
     import numpy as np
 
     from skynav_core.cli import CliError
@@ -118,7 +161,7 @@ def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: P
                 matches.index,
                 matches.score,
                 positions,
-                store.positions(),
+                snapshots,
                 tolerance,
                 accepted=matches.accepted,
             )
@@ -135,10 +178,10 @@ def evaluate_bag(bag: str, store, methods: list[str], tolerance: float, plots: P
     shown = 'amplitude-seq' if 'amplitude-seq' in all_matches else methods[0]
     matches = all_matches[shown]
     plot_matches_along_route(
-        store.positions(),
+        snapshots,
         positions,
         matches.index,
-        correct_matches(matches.index, positions, store.positions(), tolerance),
+        correct_matches(matches.index, positions, snapshots, tolerance),
         matches.accepted,
         f'{title}: {shown}',
         recording.synthetic,
