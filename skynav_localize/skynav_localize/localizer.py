@@ -204,7 +204,10 @@ class Localizer:
         self.sequence = sequence or SequenceParams()
         self.candidates = int(candidates)
         self.circle = circle
-        self.settings = stored_settings(store.meta)
+        try:
+            self.settings = stored_settings(store.meta)
+        except ValueError as exc:
+            raise MapError(f'{store.path}: damaged map ({exc})') from None
         self.vocabulary: baselines.BowVocabulary | None = None
         self._featureless_snapshots: dict[tuple[float | None, str], np.ndarray] = {}
         self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)
