@@ -4,11 +4,12 @@
 Schema (version SCHEMA_VERSION; `PRAGMA application_id` = APPLICATION_ID marks the file as a skynav map):
 
     meta(key TEXT PRIMARY KEY, value TEXT)       format='skynav-map', schema_version, name, max_degree, created_utc,
-                                                 created_from, and any caller metadata (text)
+                                                 created_from, meta_checksum (CRC-32 of the other rows, see
+                                                 _meta_crc), and any caller metadata (text)
     snapshots(idx INTEGER PRIMARY KEY,           0-based, in recording order, contiguous
               stamp_ns INTEGER,                  stamp of the frame the snapshot was made from (ns since the epoch)
               coefficients BLOB,                 (L+1)^2 little-endian float64, real SH of the skyline mask
-              checksum INTEGER,                  CRC-32 of the coefficient bytes
+              checksum INTEGER,                  CRC-32 of the coefficients, stamp and pose (see _row_crc)
               x, y, z, qx, qy, qz, qw REAL)      ground-truth pose of camera_link in map (m, quaternion), or all NULL
     descriptors(snapshot_idx, name, dtype, shape, data BLOB, checksum)   per-snapshot arrays (e.g. the baselines'
                                                                          'raw_uv', 'orb'); created with the first
@@ -21,8 +22,14 @@ artifacts exist only in maps that hold more (the baselines' descriptors of `skyn
 Pages are PAGE_SIZE bytes: three snapshot rows of degree 16 (about 2.4 kB each) fill one page, where 4 kB pages
 would hold one each.
 
-Versions: 1 (all four tables always, 4 kB pages; still read) and 2 (descriptors and artifacts optional, meta
-without rowid, PAGE_SIZE pages). A map of a newer version is refused in one line.
+Versions: 1 (all four tables always, 4 kB pages; still read), 2 (descriptors and artifacts optional, meta
+without rowid, PAGE_SIZE pages; still read) and 3 (a snapshot's checksum covers its stamp and pose too, not only
+its coefficients; meta_checksum covers the meta table). A map of a newer version is refused in one line.
+
+Checking: opening reads the meta table and every snapshot's stamp, coefficients and pose (what every reader uses)
+and checks their checksums; the header is checked against named bounds (MAX_DEGREE, STORED_DTYPES, ...) before
+anything is allocated from it. A descriptor or artifact is checked (checksum, dtype, shape) when it is read, so a
+damaged one that a reader never uses never matters.
 
 Writing: the file is in WAL mode and every snapshot is one transaction, so a process killed while building leaves
 a readable map holding every committed snapshot. close() checkpoints and returns the file to rollback-journal mode
@@ -36,6 +43,7 @@ import json
 import math
 import os
 import sqlite3
+import struct
 import threading
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -50,13 +58,15 @@ import numpy as np
 
 from .errors import SkynavError
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+FIRST_CHECKED_VERSION = 3  # the first schema version whose checksums cover stamps, poses and the meta table
 PAGE_SIZE = 8192  # bytes per SQLite page of a new map
 MAP_FORMAT = 'skynav-map'
 APPLICATION_ID = 0x736B6E76  # 'sknv'
 SQLITE_MAGIC = b'SQLite format 3\x00'
 POSE_COLUMNS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
-RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from')
+META_CHECKSUM = 'meta_checksum'  # meta key of the meta table's own CRC-32 (schema 3 on)
+RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from', META_CHECKSUM)
 CHECKS = ('none', 'quick', 'full')
 
 # Bounds a map's header is checked against before anything is allocated from it (a crafted map must not make a
@@ -135,6 +145,22 @@ class Snapshot:
 def _crc(data: bytes) -> int:
     """Return the CRC-32 of a byte string (stored next to every BLOB)."""
     return zlib.crc32(data) & 0xFFFFFFFF
+
+
+def _row_crc(coefficients: bytes, stamp_ns: int, pose: tuple, version: int) -> int:
+    """Return the checksum of a snapshot row: CRC-32 of its coefficient bytes, then (schema 3 on) of its stamp as
+    little-endian int64 and its pose as 7 little-endian float64 (nothing when it has none)."""
+    if version < FIRST_CHECKED_VERSION:
+        return _crc(coefficients)
+    # + 0.0: SQLite stores -0.0 as 0, so the sign of a zero must not count
+    pose_bytes = b'' if pose[0] is None else (np.asarray(pose, dtype='<f8') + 0.0).tobytes()
+    return _crc(coefficients + struct.pack('<q', stamp_ns) + pose_bytes)
+
+
+def _meta_crc(meta: Mapping[str, str]) -> int:
+    """Return the CRC-32 of a meta table (every row but META_CHECKSUM, sorted by key, as JSON)."""
+    rows = sorted((key, value) for key, value in meta.items() if key != META_CHECKSUM)
+    return _crc(json.dumps(rows).encode())
 
 
 def _pack(array: np.ndarray) -> tuple[str, str, bytes, int]:
@@ -245,6 +271,7 @@ class MapStore:
             if key in RESERVED_META:
                 raise MapError(f'{path}: metadata key {key!r} is reserved')
             meta[str(key)] = value if isinstance(value, str) else json.dumps(value)
+        meta[META_CHECKSUM] = str(_meta_crc(meta))
         if path.exists() or Path(f'{path}-wal').exists():
             if not overwrite:
                 raise MapError(f'{path}: exists already; choose another name or pass overwrite')
@@ -412,6 +439,8 @@ class MapStore:
             raise MapError(f'{self.path}: damaged map (max_degree {meta.get("max_degree", "")[:40]!r})') from None
         if degree > MAX_DEGREE:
             raise MapError(f'{self.path}: damaged map (max_degree {degree} is above the {MAX_DEGREE} skynav reads)')
+        if version >= FIRST_CHECKED_VERSION and meta.get(META_CHECKSUM) != str(_meta_crc(meta)):
+            raise MapError(f'{self.path}: corrupt map (checksum of the meta table does not match)')
         self._meta = meta
 
     def _load_snapshots(self) -> None:
@@ -450,10 +479,10 @@ class MapStore:
                 f'{self.path}: damaged map (snapshot {index} has {len(blob) if isinstance(blob, bytes) else 0} '
                 f'bytes of coefficients, expected {8 * size} for degree {self.max_degree})'
             )
-        if _crc(blob) != checksum:
-            raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
         if pose != [None] * 7 and not all(isinstance(v, float | int) and math.isfinite(v) for v in pose):
             raise MapError(f'{self.path}: damaged map (snapshot {index}: the pose is not 7 finite numbers)')
+        if _row_crc(blob, stamp, tuple(pose), self.schema_version) != checksum:
+            raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
 
     # --- writing -------------------------------------------------------------------------------------------------
 
@@ -488,6 +517,7 @@ class MapStore:
                 raise ValueError(f'{self.path}: a pose is 7 finite numbers (x, y, z, qx, qy, qz, qw)')
             pose_values = tuple(float(v) for v in pose_array)
         blob = coefficients.astype('<f8').tobytes()
+        version = self.schema_version
         packed = [(str(name), *_pack(array)) for name, array in (descriptors or {}).items()]
         with self._lock:
             index = len(self)
@@ -495,7 +525,7 @@ class MapStore:
                 with self._transaction():
                     self._db.execute(
                         'INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
-                        (index, int(stamp_ns), blob, _crc(blob), *pose_values),
+                        (index, int(stamp_ns), blob, _row_crc(blob, int(stamp_ns), pose_values, version), *pose_values),
                     )
                     if packed:
                         self._create_table('descriptors')
@@ -565,12 +595,17 @@ class MapStore:
         if key in RESERVED_META:
             raise MapError(f'{self.path}: metadata key {key!r} is reserved')
         text = value if isinstance(value, str) else json.dumps(value)
+        meta = {**self._meta, str(key): text}
+        rows = [(str(key), text)]
+        if self.schema_version >= FIRST_CHECKED_VERSION:
+            meta[META_CHECKSUM] = str(_meta_crc(meta))
+            rows.append((META_CHECKSUM, meta[META_CHECKSUM]))
         try:
             with self._transaction():
-                self._db.execute('INSERT OR REPLACE INTO meta VALUES (?, ?)', (str(key), text))
+                self._db.executemany('INSERT OR REPLACE INTO meta VALUES (?, ?)', rows)
         except sqlite3.Error as exc:
             raise MapError(f'{self.path}: cannot write metadata {key!r}: {exc}') from None
-        self._meta[str(key)] = text
+        self._meta = meta
 
     def _has_table(self, table: str) -> bool:
         """Return whether the file holds table `table` (the optional tables appear with their first rows)."""
@@ -634,6 +669,11 @@ class MapStore:
     def name(self) -> str:
         """Return the map's name."""
         return self._meta.get('name', '')
+
+    @property
+    def schema_version(self) -> int:
+        """Return the schema version the file was written with (module docstring, 'Versions')."""
+        return int(self._meta['schema_version'])
 
     @property
     def max_degree(self) -> int:
