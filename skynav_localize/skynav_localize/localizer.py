@@ -206,8 +206,10 @@ class Localizer:
         self.circle = circle
         try:
             self.settings = stored_settings(store.meta)
-        except ValueError as exc:
-            raise MapError(f'{store.path}: damaged map ({exc})') from None
+        except ValueError as exc:  # skynav's methods only ask whether stored SH descriptors are current: not then
+            if self.method.baseline:
+                raise MapError(f'{store.path}: damaged map ({exc})') from None
+            self.settings = {}
         self.vocabulary: baselines.BowVocabulary | None = None
         self._featureless_snapshots: dict[tuple[float | None, str], np.ndarray] = {}
         self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)
