@@ -4,11 +4,12 @@
 Schema (version SCHEMA_VERSION; `PRAGMA application_id` = APPLICATION_ID marks the file as a skynav map):
 
     meta(key TEXT PRIMARY KEY, value TEXT)       format='skynav-map', schema_version, name, max_degree, created_utc,
-                                                 created_from, and any caller metadata (text)
+                                                 created_from, meta_checksum (CRC-32 of the other rows, see
+                                                 _meta_crc), and any caller metadata (text)
     snapshots(idx INTEGER PRIMARY KEY,           0-based, in recording order, contiguous
               stamp_ns INTEGER,                  stamp of the frame the snapshot was made from (ns since the epoch)
               coefficients BLOB,                 (L+1)^2 little-endian float64, real SH of the skyline mask
-              checksum INTEGER,                  CRC-32 of the coefficient bytes
+              checksum INTEGER,                  CRC-32 of the coefficients, stamp and pose (see _row_crc)
               x, y, z, qx, qy, qz, qw REAL)      ground-truth pose of camera_link in map (m, quaternion), or all NULL
     descriptors(snapshot_idx, name, dtype, shape, data BLOB, checksum)   per-snapshot arrays (e.g. the baselines'
                                                                          'raw_uv', 'orb'); created with the first
@@ -21,8 +22,14 @@ artifacts exist only in maps that hold more (the baselines' descriptors of `skyn
 Pages are PAGE_SIZE bytes: three snapshot rows of degree 16 (about 2.4 kB each) fill one page, where 4 kB pages
 would hold one each.
 
-Versions: 1 (all four tables always, 4 kB pages; still read) and 2 (descriptors and artifacts optional, meta
-without rowid, PAGE_SIZE pages). A map of a newer version is refused in one line.
+Versions: 1 (all four tables always, 4 kB pages; still read), 2 (descriptors and artifacts optional, meta
+without rowid, PAGE_SIZE pages; still read) and 3 (a snapshot's checksum covers its stamp and pose too, not only
+its coefficients; meta_checksum covers the meta table). A map of a newer version is refused in one line.
+
+Checking: opening reads the meta table and every snapshot's stamp, coefficients and pose (what every reader uses)
+and checks their checksums; the header is checked against named bounds (MAX_DEGREE, STORED_DTYPES, ...) before
+anything is allocated from it. A descriptor or artifact is checked (checksum, dtype, shape) when it is read, so a
+damaged one that a reader never uses never matters.
 
 Writing: the file is in WAL mode and every snapshot is one transaction, so a process killed while building leaves
 a readable map holding every committed snapshot. close() checkpoints and returns the file to rollback-journal mode
@@ -33,8 +40,10 @@ renames it into place at the end. Reading opens the file read-only and checks it
 from __future__ import annotations
 
 import json
+import math
 import os
 import sqlite3
+import struct
 import threading
 import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -49,14 +58,25 @@ import numpy as np
 
 from .errors import SkynavError
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+FIRST_CHECKED_VERSION = 3  # the first schema version whose checksums cover stamps, poses and the meta table
 PAGE_SIZE = 8192  # bytes per SQLite page of a new map
 MAP_FORMAT = 'skynav-map'
 APPLICATION_ID = 0x736B6E76  # 'sknv'
 SQLITE_MAGIC = b'SQLite format 3\x00'
 POSE_COLUMNS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
-RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from')
+META_CHECKSUM = 'meta_checksum'  # meta key of the meta table's own CRC-32 (schema 3 on)
+RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from', META_CHECKSUM)
 CHECKS = ('none', 'quick', 'full')
+
+# Bounds a map's header is checked against before anything is allocated from it (a crafted map must not make a
+# reader allocate what its numbers claim).
+MAX_DEGREE = 64  # highest SH degree of a map: the nodes work up to 64; (64 + 1)^2 coefficients = 33.8 kB a snapshot
+MAX_DESCRIPTOR_DIMENSIONS = 4  # axes of a stored array (the descriptors are vectors, ORB (K, 32) matrices)
+MAX_SHAPE_TEXT = 64  # characters of a stored array's shape ('500,32'): 4 axes of up to 15 digits with commas
+#: The dtypes a stored array may have: plain little-endian numbers as _pack writes them (never objects, strings,
+#: structures or big-endian data, which a crafted map could declare).
+STORED_DTYPES = frozenset(('|b1', '|i1', '|u1', '<i2', '<u2', '<f2', '<i4', '<u4', '<f4', '<i8', '<u8', '<f8'))
 
 _SCHEMA = """
 CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL) WITHOUT ROWID;
@@ -100,6 +120,13 @@ _OPTIONAL_COLUMNS = {
 }
 
 
+def _count(text: str) -> int:
+    """Return the non-negative integer a meta value holds; ValueError for anything else ('lots', '-1', '3.5')."""
+    if not (text.isascii() and text.isdigit()) or len(text) > 20:
+        raise ValueError(f'{text[:40]!r} is not a count')
+    return int(text)
+
+
 class MapError(SkynavError):
     """A map file that cannot be opened, read or written; the message names the file and what is wrong."""
 
@@ -120,6 +147,22 @@ def _crc(data: bytes) -> int:
     return zlib.crc32(data) & 0xFFFFFFFF
 
 
+def _row_crc(coefficients: bytes, stamp_ns: int, pose: tuple, version: int) -> int:
+    """Return the checksum of a snapshot row: CRC-32 of its coefficient bytes, then (schema 3 on) of its stamp as
+    little-endian int64 and its pose as 7 little-endian float64 (nothing when it has none)."""
+    if version < FIRST_CHECKED_VERSION:
+        return _crc(coefficients)
+    # + 0.0: SQLite stores -0.0 as 0, so the sign of a zero must not count
+    pose_bytes = b'' if pose[0] is None else (np.asarray(pose, dtype='<f8') + 0.0).tobytes()
+    return _crc(coefficients + struct.pack('<q', stamp_ns) + pose_bytes)
+
+
+def _meta_crc(meta: Mapping[str, str]) -> int:
+    """Return the CRC-32 of a meta table (every row but META_CHECKSUM, sorted by key, as JSON)."""
+    rows = sorted((key, value) for key, value in meta.items() if key != META_CHECKSUM)
+    return _crc(json.dumps(rows).encode())
+
+
 def _pack(array: np.ndarray) -> tuple[str, str, bytes, int]:
     """Return (dtype, shape, little-endian bytes, CRC-32) of an array for a BLOB column."""
     array = np.asarray(array)
@@ -130,11 +173,52 @@ def _pack(array: np.ndarray) -> tuple[str, str, bytes, int]:
     return little.dtype.str, ','.join(str(n) for n in array.shape), data, _crc(data)
 
 
-def _unpack(dtype: str, shape: str, data: bytes) -> np.ndarray:
-    """Return the array stored as (dtype, shape, bytes); ValueError if they do not fit together."""
-    dims = tuple(int(n) for n in shape.split(',')) if shape else ()
-    array = np.frombuffer(data, dtype=np.dtype(dtype))
-    return array.reshape(dims)
+def _unpack(dtype: object, shape: object, data: object) -> np.ndarray:
+    """Return the array stored as (dtype, shape, bytes); ValueError unless they are sane and fit together.
+
+    Everything is checked before numpy sees it: the dtype is one of STORED_DTYPES, the shape at most
+    MAX_DESCRIPTOR_DIMENSIONS non-negative sizes whose product times the item size is the number of bytes.
+    """
+    if dtype not in STORED_DTYPES:
+        raise ValueError(f'dtype {dtype!r} is not one of the stored number types')
+    if not isinstance(shape, str) or len(shape) > MAX_SHAPE_TEXT:
+        raise ValueError(f'shape {str(shape)[:MAX_SHAPE_TEXT]!r} is not a list of sizes')
+    if not isinstance(data, bytes):
+        raise ValueError(f'data is {type(data).__name__}, not bytes')
+    texts = shape.split(',') if shape else []
+    if len(texts) > MAX_DESCRIPTOR_DIMENSIONS or not all(text.isascii() and text.isdigit() for text in texts):
+        raise ValueError(f'shape {shape!r} is not up to {MAX_DESCRIPTOR_DIMENSIONS} non-negative sizes')
+    dims = tuple(int(text) for text in texts)
+    item = np.dtype(dtype)
+    if math.prod(dims) * item.itemsize != len(data):
+        raise ValueError(f'shape {shape!r} of {dtype} needs {math.prod(dims) * item.itemsize} bytes, has {len(data)}')
+    return np.frombuffer(data, dtype=item).reshape(dims)
+
+
+class CheckedDescriptors(Mapping):
+    """One snapshot's descriptors by name, each checked (checksum, dtype, shape) only when it is looked up.
+
+    A damaged descriptor the caller never reads never matters; one it reads raises MapError.
+    """
+
+    def __init__(self, rows: Mapping[str, tuple], check: Callable[[tuple, str], np.ndarray], index: int) -> None:
+        """Keep the (dtype, shape, data, checksum) rows by name; check(row, what) turns one into its array."""
+        self._rows = dict(rows)
+        self._check = check
+        self._index = index
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """Return descriptor `name`, checked; KeyError if the snapshot has none, MapError if it is damaged."""
+        return self._check(self._rows[name], f'descriptor {name!r} of snapshot {self._index}')
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._rows)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def __repr__(self) -> str:
+        return f'CheckedDescriptors({sorted(self._rows)}, snapshot {self._index})'
 
 
 class MapStore:
@@ -187,6 +271,7 @@ class MapStore:
             if key in RESERVED_META:
                 raise MapError(f'{path}: metadata key {key!r} is reserved')
             meta[str(key)] = value if isinstance(value, str) else json.dumps(value)
+        meta[META_CHECKSUM] = str(_meta_crc(meta))
         if path.exists() or Path(f'{path}-wal').exists():
             if not overwrite:
                 raise MapError(f'{path}: exists already; choose another name or pass overwrite')
@@ -258,7 +343,7 @@ class MapStore:
         except MapError:
             db.close()
             raise
-        except sqlite3.DatabaseError as exc:
+        except sqlite3.Error as exc:
             db.close()
             raise MapError(f'{path}: corrupt or truncated map file ({exc})') from None
         return store
@@ -278,12 +363,14 @@ class MapStore:
     ) -> MapStore:
         """Write a whole map in one go under a temporary name, rename it to path at the end; return it read-only.
 
-        `finish(store)` may add map-level data (a vocabulary) before the rename.
+        `finish(store)` may add map-level data (a vocabulary) before the rename. Interrupted (KeyboardInterrupt:
+        Ctrl-C, or a signal the caller turns into one) or killed, the partial map (partial_path(path)) is kept with
+        every snapshot written so far; on any other error it is removed.
         """
         path = Path(path)
         if path.exists() and not overwrite:
             raise MapError(f'{path}: exists already; choose another name or pass overwrite')
-        partial = path.with_name(f'.{path.name}.partial')
+        partial = partial_path(path)
         store = cls.create(partial, name, max_degree, created_from=created_from, metadata=metadata, overwrite=True)
         store._db.execute('PRAGMA synchronous=OFF')  # a crash leaves only the partial file, removed or redone
         try:
@@ -296,6 +383,9 @@ class MapStore:
             with partial.open('rb') as stream:
                 os.fsync(stream.fileno())
             os.replace(partial, path)
+        except KeyboardInterrupt:
+            store.close()  # checkpointed: the partial map is one self-contained file of the snapshots so far
+            raise
         except BaseException:
             store.close()
             for leftover in (partial, Path(f'{partial}-wal'), Path(f'{partial}-shm')):
@@ -310,16 +400,23 @@ class MapStore:
             listed = ', '.join(sorted(tables)) or 'none'
             raise MapError(f'{self.path}: an SQLite database but not a skynav map (no meta table; tables: {listed})')
         try:
-            meta = dict(self._db.execute('SELECT key, value FROM meta'))
+            rows = self._db.execute('SELECT key, value FROM meta').fetchall()
         except sqlite3.OperationalError:
             raise MapError(f'{self.path}: an SQLite database but not a skynav map (alien meta table)') from None
+        for key, value in rows:
+            if not isinstance(key, str) or not isinstance(value, str):
+                raise MapError(
+                    f'{self.path}: damaged map (meta {str(key)[:40]!r}: a {type(key).__name__} key with a '
+                    f'{type(value).__name__} value, where both are text)'
+                )
+        meta = dict(rows)
         if meta.get('format') != MAP_FORMAT:
             raise MapError(
                 f'{self.path}: an SQLite database but not a skynav map (meta format is '
                 f'{meta.get("format")!r}, expected {MAP_FORMAT!r})'
             )
         try:
-            version = int(meta.get('schema_version', ''))
+            version = _count(meta.get('schema_version', ''))
         except ValueError:
             raise MapError(
                 f'{self.path}: damaged map (schema_version {meta.get("schema_version")!r} is not a number)'
@@ -337,45 +434,55 @@ class MapStore:
             if missing := columns - present:
                 raise MapError(f'{self.path}: damaged map (table {table} lacks {", ".join(sorted(missing))})')
         try:
-            degree = int(meta['max_degree'])
-            if degree < 0:
-                raise ValueError
+            degree = _count(meta['max_degree'])
         except (KeyError, ValueError):
-            raise MapError(f'{self.path}: damaged map (max_degree {meta.get("max_degree")!r})') from None
+            raise MapError(f'{self.path}: damaged map (max_degree {meta.get("max_degree", "")[:40]!r})') from None
+        if degree > MAX_DEGREE:
+            raise MapError(f'{self.path}: damaged map (max_degree {degree} is above the {MAX_DEGREE} skynav reads)')
+        if version >= FIRST_CHECKED_VERSION and meta.get(META_CHECKSUM) != str(_meta_crc(meta)):
+            raise MapError(f'{self.path}: corrupt map (checksum of the meta table does not match)')
         self._meta = meta
 
     def _load_snapshots(self) -> None:
-        """Read every snapshot's stamp, coefficients and pose, checking order, sizes and checksums."""
+        """Read every snapshot's stamp, coefficients and pose, checking types, order, sizes and checksums.
+
+        The coefficients are what every reader uses (skynav's descriptors are derived from them), so they are
+        all checked here; every row is checked before the arrays are allocated.
+        """
         rows = self._db.execute(
             'SELECT idx, stamp_ns, coefficients, checksum, ' + ', '.join(POSE_COLUMNS) + ' FROM snapshots ORDER BY idx'
         ).fetchall()
         size = (self.max_degree + 1) ** 2
-        indices = np.fromiter((row[0] for row in rows), dtype=np.int64, count=len(rows))
-        if len(rows) and not np.array_equal(indices, np.arange(len(rows))):
-            gap = int(np.flatnonzero(indices != np.arange(len(rows)))[0])
-            raise MapError(
-                f'{self.path}: damaged map (snapshot indices are not 0..{len(rows) - 1}; index {gap} is missing)'
-            )
-        coefficients = np.empty((len(rows), size))
-        poses = np.full((len(rows), 7), np.nan)
-        for row in rows:
-            index, blob = row[0], row[2]
-            if not isinstance(blob, bytes) or len(blob) != 8 * size:
-                raise MapError(
-                    f'{self.path}: damaged map (snapshot {index} has {len(blob or b"")} bytes of '
-                    f'coefficients, expected {8 * size} for degree {self.max_degree})'
-                )
-            if _crc(blob) != row[3]:
-                raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
-            coefficients[index] = np.frombuffer(blob, dtype='<f8')
-            if row[4] is not None:
-                poses[index] = row[4:11]
+        for position, row in enumerate(rows):
+            self._check_snapshot_row(position, row, size, len(rows))
+        coefficients = np.frombuffer(b''.join(row[2] for row in rows), dtype='<f8').reshape(len(rows), size).copy()
+        poses = np.array([row[4:11] if row[4] is not None else (np.nan,) * 7 for row in rows], dtype=float)
+        poses = poses.reshape(len(rows), 7)
         self._stamps = np.fromiter((row[1] for row in rows), dtype=np.int64, count=len(rows))
         self._coefficients = coefficients
         self._poses = poses
         self._stamp_buffer, self._coefficient_buffer, self._pose_buffer = self._stamps, coefficients, poses
         self._capacity = len(rows)
         self._descriptor_cache.clear()
+
+    def _check_snapshot_row(self, position: int, row: tuple, size: int, count: int) -> None:
+        """Raise MapError unless row `position` (of `count`) is snapshot `position`, whole and intact."""
+        index, stamp, blob, checksum, *pose = row
+        if index != position or not isinstance(index, int):
+            raise MapError(
+                f'{self.path}: damaged map (snapshot indices are not 0..{count - 1}; index {position} is missing)'
+            )
+        if not isinstance(stamp, int) or not isinstance(checksum, int):
+            raise MapError(f'{self.path}: damaged map (snapshot {index}: stamp or checksum is not an integer)')
+        if not isinstance(blob, bytes) or len(blob) != 8 * size:
+            raise MapError(
+                f'{self.path}: damaged map (snapshot {index} has {len(blob) if isinstance(blob, bytes) else 0} '
+                f'bytes of coefficients, expected {8 * size} for degree {self.max_degree})'
+            )
+        if pose != [None] * 7 and not all(isinstance(v, float | int) and math.isfinite(v) for v in pose):
+            raise MapError(f'{self.path}: damaged map (snapshot {index}: the pose is not 7 finite numbers)')
+        if _row_crc(blob, stamp, tuple(pose), self.schema_version) != checksum:
+            raise MapError(f'{self.path}: corrupt map (checksum of snapshot {index} does not match)')
 
     # --- writing -------------------------------------------------------------------------------------------------
 
@@ -410,6 +517,7 @@ class MapStore:
                 raise ValueError(f'{self.path}: a pose is 7 finite numbers (x, y, z, qx, qy, qz, qw)')
             pose_values = tuple(float(v) for v in pose_array)
         blob = coefficients.astype('<f8').tobytes()
+        version = self.schema_version
         packed = [(str(name), *_pack(array)) for name, array in (descriptors or {}).items()]
         with self._lock:
             index = len(self)
@@ -417,7 +525,7 @@ class MapStore:
                 with self._transaction():
                     self._db.execute(
                         'INSERT INTO snapshots VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)',
-                        (index, int(stamp_ns), blob, _crc(blob), *pose_values),
+                        (index, int(stamp_ns), blob, _row_crc(blob, int(stamp_ns), pose_values, version), *pose_values),
                     )
                     if packed:
                         self._create_table('descriptors')
@@ -487,12 +595,17 @@ class MapStore:
         if key in RESERVED_META:
             raise MapError(f'{self.path}: metadata key {key!r} is reserved')
         text = value if isinstance(value, str) else json.dumps(value)
+        meta = {**self._meta, str(key): text}
+        rows = [(str(key), text)]
+        if self.schema_version >= FIRST_CHECKED_VERSION:
+            meta[META_CHECKSUM] = str(_meta_crc(meta))
+            rows.append((META_CHECKSUM, meta[META_CHECKSUM]))
         try:
             with self._transaction():
-                self._db.execute('INSERT OR REPLACE INTO meta VALUES (?, ?)', (str(key), text))
+                self._db.executemany('INSERT OR REPLACE INTO meta VALUES (?, ?)', rows)
         except sqlite3.Error as exc:
             raise MapError(f'{self.path}: cannot write metadata {key!r}: {exc}') from None
-        self._meta[str(key)] = text
+        self._meta = meta
 
     def _has_table(self, table: str) -> bool:
         """Return whether the file holds table `table` (the optional tables appear with their first rows)."""
@@ -558,6 +671,11 @@ class MapStore:
         return self._meta.get('name', '')
 
     @property
+    def schema_version(self) -> int:
+        """Return the schema version the file was written with (module docstring, 'Versions')."""
+        return int(self._meta['schema_version'])
+
+    @property
     def max_degree(self) -> int:
         """Return the SH degree L of the stored coefficients."""
         return int(self._meta['max_degree'])
@@ -595,7 +713,7 @@ class MapStore:
         return bool(len(self)) and bool(np.all(np.isfinite(self._poses)))
 
     def snapshot(self, index: int) -> Snapshot:
-        """Return one snapshot with all its descriptors."""
+        """Return one snapshot with its descriptors (each checked when it is looked up: CheckedDescriptors)."""
         if not 0 <= index < len(self):
             raise IndexError(f'{self.path}: no snapshot {index} (the map has {len(self)})')
         rows = self._read_optional(
@@ -603,7 +721,7 @@ class MapStore:
             'SELECT name, dtype, shape, data, checksum FROM descriptors WHERE snapshot_idx = ?',
             (int(index),),
         )
-        descriptors = {row[0]: self._checked(row[1:], f'descriptor {row[0]!r} of snapshot {index}') for row in rows}
+        descriptors = CheckedDescriptors({str(row[0]): row[1:] for row in rows}, self._checked, index)
         pose = self._poses[index]
         return Snapshot(
             index,
@@ -614,13 +732,14 @@ class MapStore:
         )
 
     def snapshots(self) -> list[Snapshot]:
-        """Return every snapshot (index order) with its descriptors."""
+        """Return every snapshot (index order) with its descriptors (each checked when it is looked up)."""
         return [self.snapshot(index) for index in range(len(self))]
 
     def descriptor_names(self) -> list[str]:
         """Return the names of the stored per-snapshot descriptors."""
         return [
-            row[0] for row in self._read_optional('descriptors', 'SELECT DISTINCT name FROM descriptors ORDER BY name')
+            str(row[0])
+            for row in self._read_optional('descriptors', 'SELECT DISTINCT name FROM descriptors ORDER BY name')
         ]
 
     def descriptor_list(self, name: str) -> list[np.ndarray]:
@@ -680,7 +799,7 @@ class MapStore:
         try:
             with self._lock:
                 return self._db.execute(sql, parameters).fetchall()
-        except sqlite3.DatabaseError as exc:
+        except sqlite3.Error as exc:
             raise MapError(f'{self.path}: corrupt or truncated map file ({exc})') from None
 
     def _read_optional(self, table: str, sql: str, parameters: tuple = ()) -> list[tuple]:
@@ -692,11 +811,11 @@ class MapStore:
     def _checked(self, row: tuple, what: str) -> np.ndarray:
         """Return the array of a (dtype, shape, data, checksum) row; MapError if it is damaged."""
         dtype, shape, data, checksum = row
-        if _crc(data) != checksum:
+        if not isinstance(data, bytes) or _crc(data) != checksum:
             raise MapError(f'{self.path}: corrupt map (checksum of {what} does not match)')
         try:
             return _unpack(dtype, shape, data)
-        except (TypeError, ValueError) as exc:
+        except ValueError as exc:
             raise MapError(f'{self.path}: damaged map ({what}: {exc})') from None
 
     def snapshot_stamp(self, index: int) -> int:
@@ -728,6 +847,12 @@ class MapStore:
 
     def __repr__(self) -> str:
         return f'MapStore({str(self.path)!r}, name={self.name!r}, snapshots={len(self)}, L={self.max_degree})'
+
+
+def partial_path(path: str | os.PathLike) -> Path:
+    """Return the file MapStore.build writes the map at `path` under until it is complete (hidden, beside it)."""
+    path = Path(path)
+    return path.with_name(f'.{path.name}.partial')
 
 
 def map_for_parameter(current: MapStore | None, path: str) -> MapStore | None:

@@ -87,7 +87,7 @@ class SnapshotChoice:
     def _view(self, index: int, field_of_view: float) -> Any:
         """Return the node's view of one map snapshot seen with a field of view (rad)."""
         assert self.store is not None  # the index comes from choose(), which needs a map
-        return self.view_of(self.store.snapshot(index).coefficients, field_of_view)
+        return self.view_of(self.store.coefficients()[index].copy(), field_of_view)
 
 
 def _uncounted(reason: str, detail: str) -> None:

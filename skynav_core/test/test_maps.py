@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from skynav_core.maps import PAGE_SIZE, SCHEMA_VERSION, MapError, MapStore, Snapshot, _crc
+from skynav_core.maps import PAGE_SIZE, SCHEMA_VERSION, MapError, MapStore, Snapshot, _crc, partial_path
 
 DEGREE = 4
 SIZE = (DEGREE + 1) ** 2
@@ -397,3 +397,120 @@ def test_sigkill_while_building_keeps_every_committed_snapshot(tmp_path):
         np.testing.assert_array_equal(store.coefficients()[i], coefficients_of(i))
     np.testing.assert_array_equal(store.descriptor_matrix('amplitude')[:, 0], np.arange(len(store)))
     assert store.info()['snapshots'] == len(store)
+
+
+# --- crafted headers: refused in one line before anything is allocated ------------------------------------------
+
+
+def craft(path, *statements: str, parameters: tuple = ()) -> None:
+    """Change a map file with SQL, as a crafted or damaged file would hold it (checksums left as they were)."""
+    with sqlite3.connect(path) as db:
+        for statement in statements:
+            db.execute(statement, parameters if '?' in statement else ())
+    db.close()
+
+
+@pytest.mark.parametrize(
+    ('statement', 'words'),
+    [
+        ("UPDATE meta SET value = '100000' WHERE key = 'max_degree'", ('max_degree 100000', 'above the 64')),
+        ("UPDATE meta SET value = '-1' WHERE key = 'max_degree'", ("max_degree '-1'",)),
+        ("UPDATE meta SET value = 'lots' WHERE key = 'max_degree'", ("max_degree 'lots'",)),
+        ("UPDATE meta SET value = 'lots' WHERE key = 'schema_version'", ("schema_version 'lots'",)),
+        ("UPDATE meta SET value = X'34' WHERE key = 'max_degree'", ("meta 'max_degree'", 'bytes value')),
+        ("UPDATE meta SET value = 'lawn' WHERE key = 'name'", ('checksum of the meta table',)),
+        ("UPDATE snapshots SET x = 'here' WHERE idx = 1", ('snapshot 1', 'pose is not 7 finite numbers')),
+        ('UPDATE snapshots SET qx = NULL WHERE idx = 1', ('snapshot 1', 'pose is not 7 finite numbers')),
+        ('UPDATE snapshots SET x = x + 0.5 WHERE idx = 1', ('checksum of snapshot 1',)),
+        ('UPDATE snapshots SET stamp_ns = stamp_ns + 1 WHERE idx = 2', ('checksum of snapshot 2',)),
+        ("UPDATE snapshots SET stamp_ns = 'soon' WHERE idx = 2", ('snapshot 2', 'not an integer')),
+        ("UPDATE snapshots SET coefficients = 'text' WHERE idx = 0", ('snapshot 0 has 0 bytes',)),
+        ('UPDATE snapshots SET idx = 7 WHERE idx = 1', ('index 1 is missing',)),
+    ],
+)
+def test_crafted_headers_and_rows_are_refused_in_one_line(tmp_path, statement, words):
+    path = tmp_path / 'crafted.db'
+    write_map(path, count=3)
+    craft(path, statement)
+    with pytest.raises(MapError) as excinfo:
+        MapStore.open(path)
+    assert_one_line_map_error(excinfo, path, *words)
+
+
+@pytest.mark.parametrize(
+    ('column', 'value', 'words'),
+    [
+        ('dtype', '|O', ("dtype '|O'",)),
+        ('dtype', 'O', ("dtype 'O'",)),
+        ('dtype', '<f8,<f8', ("dtype '<f8,<f8'",)),  # numpy would read a structure
+        ('dtype', '>f8', ("dtype '>f8'",)),
+        ('dtype', 3, ("dtype '3'",)),  # TEXT affinity: stored as '3'
+        ('shape', '99999,99999', ('needs 79998400008 bytes, has 32',)),
+        ('shape', '-4', ("shape '-4'",)),
+        ('shape', '1,1,1,1,4', ("shape '1,1,1,1,4'",)),
+        ('shape', '²', ("shape '²'",)),
+        ('shape', '4x1', ("shape '4x1'",)),
+    ],
+)
+def test_a_crafted_descriptor_is_refused_when_read_and_only_then(tmp_path, column, value, words):
+    path = tmp_path / 'crafted.db'
+    write_map(path, count=3)
+    craft(
+        path, f"UPDATE descriptors SET {column} = ? WHERE snapshot_idx = 1 AND name = 'amplitude'", parameters=(value,)
+    )
+    store = MapStore.open(path)  # the coefficients, stamps and poses are intact: the map opens
+    snapshot = store.snapshot(1)
+    np.testing.assert_array_equal(snapshot.coefficients, coefficients_of(1))
+    np.testing.assert_array_equal(snapshot.descriptors['orb'], np.full((2, 32), 1, np.uint8))
+    assert store.descriptor_list('orb')[1].shape == (2, 32)
+    for read in (lambda: snapshot.descriptors['amplitude'], lambda: store.descriptor_matrix('amplitude')):
+        with pytest.raises(MapError) as excinfo:
+            read()
+        assert_one_line_map_error(excinfo, path, "descriptor 'amplitude' of snapshot 1", *words)
+
+
+def test_a_damaged_descriptor_matters_only_to_whoever_reads_it(tmp_path):
+    path = tmp_path / 'flipped.db'
+    write_map(path, count=3)
+    with sqlite3.connect(path) as db:
+        (data,) = db.execute("SELECT data FROM descriptors WHERE snapshot_idx = 2 AND name = 'orb'").fetchone()
+        damaged = bytes([data[0] ^ 0x10]) + data[1:]
+        db.execute("UPDATE descriptors SET data = ? WHERE snapshot_idx = 2 AND name = 'orb'", (damaged,))
+    db.close()
+    store = MapStore.open(path)
+    snapshots = store.snapshots()  # every snapshot with its descriptors: nothing read yet
+    assert [sorted(s.descriptors) for s in snapshots] == [['amplitude', 'orb']] * 3
+    np.testing.assert_array_equal(snapshots[2].coefficients, coefficients_of(2))
+    np.testing.assert_array_equal(store.descriptor_matrix('amplitude')[:, 0], [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(snapshots[1].descriptors['orb'], np.full((2, 32), 1, np.uint8))
+    with pytest.raises(MapError) as excinfo:
+        snapshots[2].descriptors['orb']
+    assert_one_line_map_error(excinfo, path, "checksum of descriptor 'orb' of snapshot 2")
+    with pytest.raises(MapError, match="checksum of descriptor 'orb' of snapshot 2"):
+        store.descriptor_list('orb')
+
+
+def test_set_meta_keeps_the_meta_checksum(tmp_path):
+    path = tmp_path / 'm.db'
+    write_map(path, count=2)
+    store = MapStore.open(path, writable=True)
+    store.set_meta('note', {'mowed': True})
+    store.close()
+    reopened = MapStore.open(path)
+    assert reopened.meta['note'] == '{"mowed": true}' and reopened.schema_version == SCHEMA_VERSION
+
+
+def test_an_interrupted_build_keeps_its_partial_map(tmp_path):
+    path = tmp_path / 'built.db'
+
+    def interrupted():
+        for i in range(3):
+            yield Snapshot(i, 1_000_000_000 + i, coefficients_of(i), pose_of(i))
+        raise KeyboardInterrupt  # Ctrl-C (and SIGTERM in `skynav map build`) while the drive is read
+
+    with pytest.raises(KeyboardInterrupt):
+        MapStore.build(path, 'built', DEGREE, interrupted())
+    assert not path.exists() and [p.name for p in tmp_path.iterdir()] == [partial_path(path).name]  # checkpointed
+    store = MapStore.open(partial_path(path))
+    assert len(store) == 3 and store.has_poses
+    np.testing.assert_array_equal(store.coefficients()[2], coefficients_of(2))

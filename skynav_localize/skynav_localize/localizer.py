@@ -205,7 +205,12 @@ class Localizer:
         self.sequence = sequence or SequenceParams()
         self.candidates = int(candidates)
         self.circle = circle
-        self.settings = stored_settings(store.meta)
+        try:
+            self.settings = stored_settings(store.meta)
+        except ValueError as exc:  # skynav's methods only ask whether stored SH descriptors are current: not then
+            if self.method.baseline:
+                raise MapError(f'{store.path}: damaged map ({exc})') from None
+            self.settings = {}
         self.vocabulary: baselines.BowVocabulary | None = None
         self._featureless_snapshots: dict[tuple[float | None, str], np.ndarray] = {}
         self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)

@@ -41,6 +41,14 @@ IMAGE_DESCRIPTOR_NAMES = ('raw_uv', 'orb')
 SETTINGS_KEY = 'descriptor_settings'  # map meta key: JSON of the settings the stored descriptors were made with
 DEFAULT_MIN_TRAVEL = 0.1  # m of travel between snapshots
 DEFAULT_MIN_CHANGE = 0.05  # amplitude-descriptor distance (dimensionless) that counts as a changed view
+#: The range of each integer in a map's descriptor settings (inclusive): wider than any setting this library wrote,
+#: narrow enough that a crafted map cannot make a query allocate more than a small image.
+_SETTING_RANGES = {
+    'descriptor_version': (0, 1_000_000),
+    'raw_uv_size': (1, 1024),  # px, each of width and height of the down-sampled image
+    'raw_uv_patch': (1, 1024),  # px
+    'orb_features': (1, 100_000),  # ORB features per image
+}
 
 
 def descriptor_settings() -> dict:
@@ -54,11 +62,24 @@ def descriptor_settings() -> dict:
 
 
 def stored_settings(meta: Mapping[str, str]) -> dict:
-    """Return the descriptor settings recorded in a map's meta ({} when it has none)."""
+    """Return the descriptor settings recorded in a map's meta ({} when it has none); ValueError if they are damaged.
+
+    Each setting must have the type and range descriptor_settings() writes (a crafted map's are refused, not used).
+    """
     try:
-        return json.loads(meta.get(SETTINGS_KEY, '{}'))
+        settings = json.loads(meta.get(SETTINGS_KEY, '{}'))
     except json.JSONDecodeError:
-        return {}
+        raise ValueError(f'meta {SETTINGS_KEY!r} is not JSON') from None
+    if not isinstance(settings, dict):
+        raise ValueError(f'meta {SETTINGS_KEY!r} is not a JSON object')
+    for key, value in settings.items():
+        wanted = _SETTING_RANGES.get(key)
+        values = value if key == 'raw_uv_size' and isinstance(value, list) and len(value) == 2 else [value]
+        if wanted is not None and not all(
+            isinstance(v, int) and not isinstance(v, bool) and wanted[0] <= v <= wanted[1] for v in values
+        ):
+            raise ValueError(f'meta {SETTINGS_KEY!r}: {key} {str(value)[:40]} is not usable')
+    return settings
 
 
 def snapshot_descriptors(

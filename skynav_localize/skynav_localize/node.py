@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 
 from skynav_core.images import stamp_ns
-from skynav_core.maps import MapStore, map_for_parameter
+from skynav_core.maps import MapError, MapStore, map_for_parameter
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
@@ -87,14 +87,20 @@ class LocalizeNode(SkynavNode):
             ratio, values['max_distance'], method_acceptance.exclusion, view, method_acceptance.motion_slack, alike
         )
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
-        self.localizer = Localizer(
-            store,
-            values['method'],
-            acceptance=acceptance,
-            sequence=sequence,
-            candidates=values['candidates'],
-            degree=values['max_degree'],
-        )
+        try:
+            localizer = Localizer(
+                store,
+                values['method'],
+                acceptance=acceptance,
+                sequence=sequence,
+                candidates=values['candidates'],
+                degree=values['max_degree'],
+            )
+        except MapError as exc:  # a descriptor of the map damaged: refused like a map that cannot be opened
+            if store is not self.store:
+                store.close()
+            raise ValueError(str(exc)) from None
+        self.localizer = localizer
         if self.store is not None and self.store is not store:
             self.store.close()
         self.store = store

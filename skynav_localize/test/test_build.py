@@ -4,17 +4,21 @@
 A map of skynav's own holds each snapshot's SH coefficients and pose, nothing else; the baselines' descriptors come
 only with --baselines. Featureless drives (synthetic: the bundled garden drive's camera and poses with uniform,
 noise-free images: all sky, all ground, an open field with a level horizon) build like any other, and a baseline
-that cannot train on them says so in one line and is left out.
+that cannot train on them says so in one line and is left out. A build stopped by Ctrl-C or SIGTERM, or killed,
+keeps its partial map with every snapshot written so far, as `skynav map build --help` says.
 """
 
 from __future__ import annotations
 
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from skynav_core.maps import MapError, MapStore
+from skynav_core.maps import MapError, MapStore, partial_path
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.localizer import Localizer
 
@@ -140,3 +144,66 @@ def test_eval_localization_leaves_out_the_baselines_a_map_does_not_hold(featurel
         str(tmp_path / 'plots'),
     )
     assert only_baselines.returncode == 1 and one_line_error(only_baselines.stderr), only_baselines.stderr
+
+
+# Runs `skynav map build` with every snapshot write announced on stdout and followed by a pause, so that a signal
+# lands while the map is being written (the build itself is the real command).
+SLOW_BUILD = """
+import sys, time
+from skynav_bringup.cli import main
+from skynav_core import maps
+write = maps.MapStore.add_snapshot
+def announced(self, *args, **kwargs):
+    index = write(self, *args, **kwargs)
+    print(index, flush=True)
+    time.sleep(0.2)
+    return index
+maps.MapStore.add_snapshot = announced
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=lambda s: s.name)
+def test_a_stopped_or_killed_build_keeps_every_snapshot_written_so_far(signum, featureless_recording, tmp_path):
+    (tmp_path / 'maps').mkdir()
+    out = tmp_path / 'maps' / 'garden.db'
+    build = subprocess.Popen(
+        [
+            sys.executable,
+            '-c',
+            SLOW_BUILD,
+            'map',
+            'build',
+            str(featureless_recording('open-field', FRAMES)),
+            '--out',
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    written = -1
+    for line in build.stdout:
+        written = int(line)
+        if written >= 2:
+            break
+    build.send_signal(signum)
+    rest, stderr = build.communicate(timeout=60)
+    written = max([written, *(int(n) for n in rest.split())]) + 1  # printed once its transaction committed
+    partial = partial_path(out)
+    assert not out.exists() and partial.exists()  # never taken for a finished map
+    if signum == signal.SIGKILL:
+        assert build.returncode == -signal.SIGKILL
+    else:  # stopped cleanly: one line says where the snapshots are, and the file is self-contained
+        assert build.returncode == 130 and 'Traceback' not in stderr
+        assert stderr.splitlines()[-1] == (
+            f'skynav map build: error: stopped: the {written} snapshots written so far are kept in {partial}'
+        )
+        assert sorted(p.name for p in out.parent.iterdir()) == [partial.name]
+    store = MapStore.open(partial)
+    assert written <= len(store) <= written + 1  # at most the snapshot in flight at a kill -9 differs
+    assert store.has_poses and np.all(np.isfinite(store.coefficients()))
+    matches = Localizer(store, 'amplitude').match_sequence(store.coefficients(), field_of_view=np.radians(200))
+    assert list(matches.index) == list(range(len(store)))  # usable: each snapshot finds itself
+    info = run_skynav('map', 'info', str(partial))
+    assert info.returncode == 0 and f'Snapshots:          {len(store)}' in info.stdout

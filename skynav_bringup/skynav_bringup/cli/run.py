@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
 
     from skynav_core.bag import BagWriter, open_bag
     from skynav_core.cdr import rosbags_cdr
+    from skynav_core.cli import open_map
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
 
@@ -54,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
         if unknown := sorted(set(args.nodes) - {s.name for s in specs}):
             raise CliError(f'no installed node {", ".join(unknown)} (installed: {", ".join(s.name for s in specs)})')
         specs = [s for s in specs if s.name in args.nodes]
-    if args.map is not None and not args.map.is_file():
-        raise CliError(f'{args.map}: no such map file')
+    if args.map is not None:  # a map the nodes would refuse stops the run here, in one line
+        open_map(args.map).close()
     skipped = [s.name for s in specs if args.map is None and node_class(s).needs_map]
     specs = [s for s in specs if s.name not in skipped]
     if not specs:

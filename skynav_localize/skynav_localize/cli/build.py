@@ -8,8 +8,10 @@ stores what the product uses: its SH coefficients (skynav's descriptors are deri
 the map is loaded) and its ground-truth pose. With --baselines it also stores the baselines'
 descriptors (down-sampled UV image, ORB features and their vocabulary), which the evaluations
 compare against; a baseline that cannot be trained on the drive (no ORB feature anywhere) says so
-in one line and is left out. The file is written under a temporary name and renamed when complete;
-if the build is killed, that partial file still holds every snapshot written so far.
+in one line and is left out. The file is written under a temporary name (.MAP.db.partial, beside
+it) and renamed when complete; if the build is stopped (Ctrl-C, SIGTERM) or killed (kill -9), that
+partial file is kept and holds every snapshot written so far: `skynav map info` and every other
+command open it as a map.
 """
 
 from __future__ import annotations
@@ -48,14 +50,25 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Build the map; return the exit code."""
+    """Build the map; return the exit code. SIGTERM stops the build as Ctrl-C does (the partial map is kept)."""
+    import signal
+
+    previous = signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        return build(args)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def build(args: argparse.Namespace) -> int:
+    """Build the map (skyline -> SH -> snapshots -> file); return the exit code."""
     import json
 
     from tqdm import tqdm
 
     from skynav_core.bag import open_bag
     from skynav_core.cli import CliError, graph_arguments
-    from skynav_core.maps import MapError, Snapshot
+    from skynav_core.maps import MapError, Snapshot, partial_path
     from skynav_core.views import recording_views
 
     from ..descriptors import describe
@@ -110,6 +123,8 @@ def run(args: argparse.Namespace) -> int:
         )
     except MapError as exc:
         raise CliError(str(exc)) from None
+    except KeyboardInterrupt:
+        raise CliError(stopped(partial_path(args.out)), exit_code=130) from None
     for line in left_out:
         print(f'skynav map build: {line}', file=sys.stderr)
     info = store.info()
@@ -123,3 +138,14 @@ def run(args: argparse.Namespace) -> int:
     )
     store.close()
     return 0
+
+
+def stopped(partial: Path) -> str:
+    """Return the line that says how many snapshots the partial map of a stopped build keeps."""
+    from skynav_core.maps import MapError, MapStore
+
+    try:
+        with MapStore.open(partial) as store:
+            return f'stopped: the {len(store)} snapshots written so far are kept in {partial}'
+    except MapError as exc:
+        return f'stopped: no usable partial map ({exc})'
