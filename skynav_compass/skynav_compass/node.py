@@ -55,7 +55,6 @@ class CompassNode(SkynavNode):
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
         self.latest: CompassView | None = None
         self.live: CompassView | None = None
-        self.last_stamp = -1
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
         self.output(COMPASS_TOPIC, CompassEstimate)
@@ -74,6 +73,11 @@ class CompassNode(SkynavNode):
         self.snapshots.configure(values['map'], values['reference'], values['index'])
         self.values = values
         self.compass = Compass(values['max_degree'], CompassConfig(max_tilt=np.radians(values['max_tilt_deg'])))
+
+    def reset_time(self) -> None:
+        """Forget the last stamp and the latest place match."""
+        super().reset_time()
+        self.snapshots.forget_match()
 
     def store_reference(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Service: keep the latest view as the live reference."""

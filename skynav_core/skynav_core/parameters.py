@@ -90,3 +90,13 @@ def parameter_file(tables: Mapping[str, ParameterTable], header: str = '') -> st
             text = f'{name}: {_literal(parameter.default)}'
             lines.append(f'    {text.ljust(width + 2)}  # {parameter.description}')
     return '\n'.join(lines) + '\n'
+
+
+# Parameters every skynav node declares (SkynavNode), shipped in the parameter file's '/**' section.
+COMMON_PARAMETERS: ParameterTable = {
+    'max_stamp_jump_s': Parameter(
+        1.0,
+        "an input stamped this far before or after the last one taken restarts the node's time: "
+        'what it held is dropped and later inputs are taken (s)',
+    ),
+}
