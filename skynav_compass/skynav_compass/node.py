@@ -46,6 +46,7 @@ class CompassNode(SkynavNode):
     """Estimates the rotation of every view against its reference."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC)
 
     needs_map = True
 

@@ -73,6 +73,8 @@ class SkynavNode(Node):
     needs_map: ClassVar[bool] = False
     #: The node's parameters (declared with declare_table); the shipped parameter file is made from these tables.
     PARAMETERS: ClassVar[ParameterTable] = {}
+    #: The topics the node subscribes to (with input()): `skynav replay` waits until each has matched them all.
+    INPUT_TOPICS: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, name: str, router: Router | None = None, context: Context | None = None) -> None:
         super().__init__(name, context=context)
@@ -87,6 +89,7 @@ class SkynavNode(Node):
         self._received_ns: int | None = None  # system time (ns) the input being handled was received
         self._sequences: dict[str, int] = {}  # topic -> publication sequence number of its last input
         self._expiring: list[Callable[[int], None]] = []
+        self.input_topics: list[str] = []  # the topics subscribed with input()
         self._processing: deque[float] = deque(maxlen=PROCESSING_WINDOW)
         self.processing_total = 0.0  # s, all inputs processed so far
         self.processing_count = 0
@@ -162,7 +165,8 @@ class SkynavNode(Node):
     def input(
         self, topic: str, message_type: type, callback: Callable[[Any], None], qos: QoSProfile = STREAM_QOS
     ) -> None:
-        """Receive `topic`: live through a subscription, in `skynav run` through the router."""
+        """Receive `topic` (one of INPUT_TOPICS): live through a subscription, in `skynav run` through the router."""
+        self.input_topics.append(topic)
 
         def receive(message: Any) -> None:
             self.received[topic] += 1

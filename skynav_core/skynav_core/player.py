@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from rclpy.duration import Duration
@@ -59,14 +59,36 @@ class Player:
         """Return the number of messages one pass publishes."""
         return sum(self.bag.topics[name].count for name in self.topics)
 
-    def wait_for_subscribers(self, executor: SingleThreadedExecutor, timeout: float) -> list[str]:
-        """Wait until every topic has a subscriber; return the topics still without one."""
+    def wait_for_subscribers(
+        self,
+        executor: SingleThreadedExecutor,
+        expected: Mapping[str, int | Sequence[str]],
+        timeout: float,
+        stop: StopRequest | None = None,
+    ) -> list[str]:
+        """Wait until each topic has matched its expected subscribers; return what is still missing, one per topic.
 
-        def unmatched() -> list[str]:
-            return [n for n, p in self.publishers.items() if p.get_subscription_count() == 0]
+        `expected` gives per topic a number of subscribers, or the names of the nodes that must subscribe to it
+        (each matched: its subscription in the graph, and as many matched subscriptions as names).
+        """
 
-        spin_until(executor, lambda: not unmatched(), timeout)
-        return unmatched()
+        def missing() -> list[str]:
+            short = []
+            for topic, publisher in self.publishers.items():
+                want = expected.get(topic, 0)
+                matched = publisher.get_subscription_count()
+                if isinstance(want, int):
+                    if matched < want:
+                        short.append(f'{topic} ({matched} of {want} subscribers)')
+                    continue
+                present = {info.node_name for info in self.node.get_subscriptions_info_by_topic(topic)}
+                absent = [name for name in want if name not in present]
+                if absent or matched < len(want):
+                    short.append(f'{topic} ({matched} subscribers; not yet: {", ".join(absent) or "matching"})')
+            return short
+
+        spin_until(executor, lambda: (stop is not None and stop.requested) or not missing(), timeout)
+        return missing()
 
     def play(
         self,

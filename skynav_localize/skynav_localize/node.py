@@ -38,6 +38,7 @@ class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC,)
 
     needs_map = True
 

@@ -30,6 +30,7 @@ class ShNode(SkynavNode):
     """Transforms each skyline mask into SH coefficients."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (MASK_TOPIC, CAMERA_INFO_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sh', **kwargs)

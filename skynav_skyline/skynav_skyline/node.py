@@ -34,6 +34,7 @@ class SkylineNode(SkynavNode):
     """Segments each UV(/green) exposure into sky and ground."""
 
     PARAMETERS = NODE_PARAMETERS
+    INPUT_TOPICS = (UV_TOPIC, GREEN_TOPIC, CAMERA_INFO_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('skyline', **kwargs)

@@ -51,6 +51,7 @@ class WarpingNode(SkynavNode):
     """Estimates the home vector of every view towards the target snapshot."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC, COMPASS_TOPIC)
 
     needs_map = True
 
