@@ -190,7 +190,7 @@ class SkynavNode(Node):
             self.create_subscription(message_type, topic, receive_live, qos)
 
     def _count_lost(self, topic: str, sequence: int) -> None:
-        """Count the messages of `topic` lost before they reached the node: a gap in the publisher's sequence numbers."""
+        """Count the messages of `topic` lost before reaching the node: a gap in the publisher's sequence numbers."""
         if not 0 < sequence < SEQUENCE_UNSUPPORTED:
             return
         last = self._sequences.get(topic)
@@ -244,7 +244,7 @@ class SkynavNode(Node):
             )
 
     def stamp_jumped(self, stamp: int, last: int) -> bool:
-        """Restart the node's time if `stamp` lies over max_stamp_jump_s from `last` (ns; -1: none); return if it did."""
+        """Restart the node's time if `stamp` lies over max_stamp_jump_s from `last` (ns; -1: none); return if so."""
         if last < 0 or abs(stamp - last) <= self.max_stamp_jump_ns:
             return False
         self.time_resets += 1
