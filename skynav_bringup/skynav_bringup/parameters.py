@@ -12,7 +12,7 @@ from pathlib import Path
 
 from skynav_core.graph import node_class
 from skynav_core.nodes import installed_nodes
-from skynav_core.parameters import ALL_NODES, COMMON_PARAMETERS, parameter_file
+from skynav_core.parameters import COMMON_PARAMETERS, parameter_file
 
 SHIPPED = Path(__file__).resolve().parents[1] / 'config' / 'skynav.yaml'
 HEADER = """\
@@ -26,12 +26,12 @@ and `skynav launch --map` set their `map` parameter.
 
 skyline: the UV/green separator (angle_deg, threshold) and the UV-only threshold (threshold_uv) were
 learned on SYNTHETIC recordings and are unlikely to fit a real UV/green camera: learn your own from
-labelled recordings of it (`skynav skyline train`).
-
-'/**': what every node takes."""
+labelled recordings of it (`skynav skyline train`)."""
 
 
 def shipped_parameter_file() -> str:
     """Return the text of the shipped parameter file, made from every installed node's parameter table."""
-    tables = {ALL_NODES: COMMON_PARAMETERS} | {spec.name: node_class(spec).PARAMETERS for spec in installed_nodes()}
+    # The parameters every node takes are repeated per node: a '/**' section would be applied after (and so
+    # override) the nodes' sections of a user's file.
+    tables = {spec.name: {**node_class(spec).PARAMETERS, **COMMON_PARAMETERS} for spec in installed_nodes()}
     return parameter_file(tables, HEADER)

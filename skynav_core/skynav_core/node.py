@@ -195,13 +195,17 @@ class SkynavNode(Node):
             return
         last = self._sequences.get(topic)
         self._sequences[topic] = sequence
-        # A number at or below the last one is a new publisher; gaps are only told apart with a single publisher.
-        if last is not None and sequence > last + 1 and self.count_publishers(topic) == 1:
+        if last is None:
+            return  # the node's first message on the topic: it may have joined late
+        # A number at or below the last one is a new publisher: the node missed its first ones (sequence - 1).
+        # Gaps are told apart only while the topic has a single publisher.
+        missed = sequence - last - 1 if sequence > last else sequence - 1
+        if missed > 0 and self.count_publishers(topic) == 1:
             self.drop(
                 'lost',
-                sequence - last - 1,
-                f"{sequence - last - 1} messages on {topic} never reached the callback: the subscription's queue "
-                'overflowed while the node was busy, or the transport lost them (too large for it, or best effort)',
+                missed,
+                f"{missed} messages on {topic} never reached the callback: the subscription's queue overflowed "
+                'while the node was busy, or the transport lost them (too large for it, or best effort)',
             )
 
     def output(self, topic: str, message_type: type, qos: QoSProfile = STREAM_QOS) -> None:

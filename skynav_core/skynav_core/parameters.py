@@ -92,11 +92,9 @@ def parameter_file(tables: Mapping[str, ParameterTable], header: str = '') -> st
     return '\n'.join(lines) + '\n'
 
 
-# Parameters every skynav node declares (SkynavNode), shipped in the parameter file's '/**' section.
+# Parameters every skynav node declares (SkynavNode), repeated in each node's section of the shipped parameter file.
 COMMON_PARAMETERS: ParameterTable = {
     'max_stamp_jump_s': Parameter(
-        1.0,
-        "an input stamped this far before or after the last one taken restarts the node's time: "
-        'what it held is dropped and later inputs are taken (s)',
+        1.0, "an input stamped over this before or after the last one taken restarts the node's time (s)"
     ),
 }

@@ -23,6 +23,10 @@ REPLAY_DEPTH = 100
 ACK_TIMEOUT = 5.0
 # Longest single sleep between checks for Ctrl-C while waiting for a message's time (s).
 SLEEP_SLICE = 0.05
+# Time given to subscribers after this publisher has matched them (s): discovery runs both ways, and a subscriber
+# may match the publisher a little later; a best-effort one drops whatever comes before. Without it, about one
+# replay in three into a running graph lost its first exposure (test/test_replay_passes.py).
+SUBSCRIBER_SETTLE = 1.0
 
 
 @dataclass
@@ -87,7 +91,11 @@ class Player:
                     short.append(f'{topic} ({matched} subscribers; not yet: {", ".join(absent) or "matching"})')
             return short
 
-        spin_until(executor, lambda: (stop is not None and stop.requested) or not missing(), timeout)
+        def stopped() -> bool:
+            return stop is not None and stop.requested
+
+        if spin_until(executor, lambda: stopped() or not missing(), timeout) and not stopped():
+            spin_until(executor, stopped, SUBSCRIBER_SETTLE)
         return missing()
 
     def play(
