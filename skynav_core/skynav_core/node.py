@@ -205,7 +205,8 @@ class SkynavNode(Node):
                 'lost',
                 missed,
                 f"{missed} messages on {topic} never reached the callback: the subscription's queue overflowed "
-                'while the node was busy, or the transport lost them (too large for it, or best effort)',
+                'while the node was busy, or the transport lost them (best effort; or too large for it: over the '
+                "16 MiB shared-memory segment of skynav's Fast DDS profile)",
             )
 
     def output(self, topic: str, message_type: type, qos: QoSProfile = STREAM_QOS) -> None:
