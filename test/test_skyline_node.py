@@ -246,3 +246,47 @@ def test_missing_camera_info_is_counted_and_nothing_crashes(graph_node):
         skyline.terminate()
         out, _ = skyline.communicate(timeout=30)
     assert 'dropped input (no_camera_info)' in out and 'Traceback' not in out
+
+
+def test_an_image_too_large_for_the_transport_is_counted_as_lost(graph_node):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image
+
+    node, executor = graph_node
+    uv_pub = node.create_publisher(
+        Image, '/camera/uv/image_raw', QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    diagnostics = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
+    skyline = start_node('skynav_skyline.node:SkylineNode')
+
+    def values():
+        found = _diagnostic_values(diagnostics[-1], 'skynav/skyline') if diagnostics else None
+        return found or {}
+
+    try:
+        assert spin_until(
+            executor, lambda: uv_pub.get_subscription_count() and node.count_publishers('/diagnostics'), 30
+        )
+        stamp = 1_800_000_000 * 10**9
+        # small frames until the node takes them (discovery may still drop the first ones), then one of
+        # 4200x4200 pixels (17.6 MB: beyond the 16 MiB shared-memory segment of skynav's Fast DDS profile; an
+        # 8000x8000 one vanishes alike), then a small one again, which tells the node that one went missing
+        small = np.full((48, 64), 1000, np.uint16)
+        k = 0
+        while int(values().get('received', 0)) == 0 and k < 100:
+            uv_pub.publish(_image('mono16', small, stamp + k * 10**8))
+            spin_until(executor, lambda: False, 0.2)
+            k += 1
+        received = int(values()['received'])
+        lost = int(values().get('dropped_lost', 0))
+        uv_pub.publish(_image('mono8', np.full((4200, 4200), 100, np.uint8), stamp + (k + 1) * 10**8))
+        uv_pub.publish(_image('mono16', small, stamp + (k + 2) * 10**8))
+        assert spin_until(executor, lambda: int(values().get('received', 0)) > received, 30)
+        assert spin_until(executor, lambda: int(values().get('dropped_lost', 0)) == lost + 1, 10), values()
+        assert skyline.poll() is None
+    finally:
+        skyline.terminate()
+        out, _ = skyline.communicate(timeout=30)
+    assert 'dropped input (lost)' in out and 'Traceback' not in out
