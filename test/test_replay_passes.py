@@ -80,7 +80,7 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
         executor.shutdown()
         node.destroy_node()
     assert launch.returncode == 0, out + err
-    assert 'Traceback' not in err
+    assert 'Traceback' not in out + err
 
     gains = [
         {name: now[name] - before.get(name, 0) for name in now} for before, now in zip([{}, *published], published)
@@ -97,6 +97,8 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
         assert gain['warping'] >= 0.5 * exposures, (number, gains, status['warping'])
     for name in ('skyline', 'localize', 'compass', 'warping'):
         values = status[name]
-        assert values['time_resets'] == str(PASSES - 1), (name, values)  # each pass after the first
+        # each pass after the first; the warping node also restarts when it fell over max_stamp_jump_s behind
+        resets = int(values['time_resets'])
+        assert resets == PASSES - 1 or (name == 'warping' and resets >= PASSES - 1), (name, values)
         assert 'rejected_out_of_order' not in values, (name, values)
-    assert sum('time restarted' in line for line in err.splitlines()) == 4 * (PASSES - 1)
+    assert sum('time restarted' in line for line in out.splitlines()) >= 4 * (PASSES - 1)
