@@ -101,11 +101,16 @@ class SkynavNode(Node):
         self._declared: list[str] = []
         self._defaults: dict[str, Any] = {}
         jump = COMMON_PARAMETERS['max_stamp_jump_s']
-        self.max_stamp_jump_ns = self._stamp_jump_ns(
-            self.declare_parameter(
-                'max_stamp_jump_s', jump.default, ParameterDescriptor(description=jump.description)
-            ).value
-        )
+        value = self.declare_parameter(
+            'max_stamp_jump_s', jump.default, ParameterDescriptor(description=jump.description)
+        ).value
+        try:
+            self.max_stamp_jump_ns = self._stamp_jump_ns(value)
+        except (TypeError, ValueError) as exc:
+            self.rejected['parameters'] += 1
+            self.get_logger().error(f'unusable parameters ({exc}); using the default {jump.default} s')
+            self.set_parameters([Parameter('max_stamp_jump_s', value=jump.default)])
+            self.max_stamp_jump_ns = self._stamp_jump_ns(jump.default)
         self.output('/diagnostics', DiagnosticArray)
         if router is None:
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
@@ -156,7 +161,7 @@ class SkynavNode(Node):
     @staticmethod
     def _stamp_jump_ns(seconds: float) -> int:
         """Return the max_stamp_jump_s parameter in ns; ValueError unless it is positive."""
-        if not seconds > 0:
+        if not (isinstance(seconds, int | float) and seconds > 0):
             raise ValueError('max_stamp_jump_s must be positive')
         return int(seconds * 1e9)
 

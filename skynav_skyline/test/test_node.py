@@ -145,6 +145,13 @@ def test_a_small_jump_parameter_restarts_time_on_a_reordering(scene):
         assert not result.successful and 'max_stamp_jump_s' in result.reason
 
 
+def test_an_unusable_jump_parameter_falls_back_to_the_default():
+    with in_process([SPEC], ['-p', 'max_stamp_jump_s:=-1.0']) as graph:
+        node = graph.nodes[0]
+        assert node.get_parameter('max_stamp_jump_s').value == 1.0 and node.max_stamp_jump_ns == 10**9
+        assert node.rejected == {'parameters': 1}
+
+
 def test_frames_lost_waiting_are_counted_as_dropped(scene):
     uv, green = scene
     with in_process([SPEC]) as graph:
