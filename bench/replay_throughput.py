@@ -116,7 +116,7 @@ def main() -> int:
                 '--rate',
                 '0',
                 '--wait-for-subscribers',
-                '30',
+                '1',
             ],
             capture_output=True,
             text=True,

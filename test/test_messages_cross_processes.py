@@ -45,7 +45,7 @@ def test_every_message_type_crosses_processes(tmp_path, ros_context):
             received[topic].append,
             QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE),
         )
-    replay = start_skynav('replay', str(tmp_path / 'all_types.mcap'), '--rate', '0', '--wait-for-subscribers', '30')
+    replay = start_skynav('replay', str(tmp_path / 'all_types.mcap'), '--rate', '0', '--wait-for-subscribers', '1')
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and sum(map(len, received.values())) < len(sent):
         executor.spin_once(timeout_sec=0.05)

@@ -72,8 +72,6 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
             str(repeat),
             '--rate',
             '1',
-            '--wait-for-subscribers',
-            '30',
             '--topics',
             '/camera/uv/image_raw',
             '/camera/green/image_raw',

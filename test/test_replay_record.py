@@ -19,7 +19,7 @@ def test_replay_then_record_reproduces_the_bag(tmp_path):
     out = tmp_path / 'copy.mcap'
     recorder = start_skynav('record', str(out), '--all')
     wait_text(recorder, 'recording every topic')
-    replay = start_skynav('replay', str(source), '--rate', '0', '--wait-for-subscribers', '30')
+    replay = start_skynav('replay', str(source), '--rate', '0', '--wait-for-subscribers', '1')
     assert replay.wait(timeout=90) == 0, replay.stderr.read()
     recorder.send_signal(signal.SIGINT)
     assert recorder.wait(timeout=30) == 0, recorder.stderr.read()
@@ -45,7 +45,7 @@ def test_replay_follows_the_recorded_timing(tmp_path):
     recorder = start_skynav('record', str(out), '/skyline/sh')
     wait_text(recorder, 'recording')
     replay = start_skynav(
-        'replay', str(source), '--rate', '2', '--topics', '/skyline/sh', '--wait-for-subscribers', '30'
+        'replay', str(source), '--rate', '2', '--topics', '/skyline/sh', '--wait-for-subscribers', '1'
     )
     assert replay.wait(timeout=60) == 0, replay.stderr.read()
     recorder.send_signal(signal.SIGINT)

@@ -82,7 +82,7 @@ def test_replayed_recording_gives_masks_that_match_ground_truth(graph_node):
             '--rate',
             '1',
             '--wait-for-subscribers',
-            '30',
+            '1',  # this test's skyline node, the only one running (a graph's sh would read the camera info too)
             '--topics',
             '/camera/uv/image_raw',
             '/camera/green/image_raw',
@@ -185,11 +185,12 @@ def test_bad_input_is_logged_counted_and_survived(graph_node):
         assert masks, 'the skyline node never answered'
         masks.clear()
         # Bad inputs: wrong encoding, UV and green of different sizes, an all-NaN radiance image,
-        # an exposure older than the last one; then a good frame.
+        # the last good exposure again (no newer than the last one, and close to it: not a restart of time);
+        # then a good frame.
         frame(k + 1, np.zeros((48, 64, 3), np.uint8).reshape(48, 192), good_green, 'rgb8')
         frame(k + 2, good_uv, good_green[:, :32])
         frame(k + 3, np.full((48, 64), np.nan, np.float32), np.full((48, 64), np.nan, np.float32), '32FC1', '32FC1')
-        frame(-5, good_uv, good_green)
+        frame(k - 1, good_uv, good_green)
         frame(k + 4, good_uv, good_green)
         assert spin_until(executor, lambda: len(masks) >= 1, 30)
 
@@ -237,11 +238,55 @@ def test_missing_camera_info_is_counted_and_nothing_crashes(graph_node):
 
         def dropped():
             values = _diagnostic_values(diagnostics[-1], 'skynav/skyline') if diagnostics else None
-            return int((values or {}).get('rejected_no_camera_info', 0))
+            return int((values or {}).get('dropped_no_camera_info', 0))
 
         assert spin_until(executor, lambda: dropped() >= 5, 30)
         assert skyline.poll() is None
     finally:
         skyline.terminate()
         out, _ = skyline.communicate(timeout=30)
-    assert 'rejected input (no_camera_info)' in out and 'Traceback' not in out
+    assert 'dropped input (no_camera_info)' in out and 'Traceback' not in out
+
+
+def test_an_image_too_large_for_the_transport_is_counted_as_lost(graph_node):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image
+
+    node, executor = graph_node
+    uv_pub = node.create_publisher(
+        Image, '/camera/uv/image_raw', QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+    )
+    diagnostics = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
+    skyline = start_node('skynav_skyline.node:SkylineNode')
+
+    def values():
+        found = _diagnostic_values(diagnostics[-1], 'skynav/skyline') if diagnostics else None
+        return found or {}
+
+    try:
+        assert spin_until(
+            executor, lambda: uv_pub.get_subscription_count() and node.count_publishers('/diagnostics'), 30
+        )
+        stamp = 1_800_000_000 * 10**9
+        # small frames until the node takes them (discovery may still drop the first ones), then one of
+        # 4200x4200 pixels (17.6 MB: beyond the 16 MiB shared-memory segment of skynav's Fast DDS profile; an
+        # 8000x8000 one vanishes alike), then a small one again, which tells the node that one went missing
+        small = np.full((48, 64), 1000, np.uint16)
+        k = 0
+        while int(values().get('received', 0)) == 0 and k < 100:
+            uv_pub.publish(_image('mono16', small, stamp + k * 10**8))
+            spin_until(executor, lambda: False, 0.2)
+            k += 1
+        received = int(values()['received'])
+        lost = int(values().get('dropped_lost', 0))
+        uv_pub.publish(_image('mono8', np.full((4200, 4200), 100, np.uint8), stamp + (k + 1) * 10**8))
+        uv_pub.publish(_image('mono16', small, stamp + (k + 2) * 10**8))
+        assert spin_until(executor, lambda: int(values().get('received', 0)) > received, 30)
+        assert spin_until(executor, lambda: int(values().get('dropped_lost', 0)) == lost + 1, 10), values()
+        assert skyline.poll() is None
+    finally:
+        skyline.terminate()
+        out, _ = skyline.communicate(timeout=30)
+    assert 'dropped input (lost)' in out and 'Traceback' not in out

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from skynav_core.graph import node_class
 from skynav_core.nodes import installed_nodes
-from skynav_core.parameters import parameter_file
+from skynav_core.parameters import COMMON_PARAMETERS, parameter_file
 
 SHIPPED = Path(__file__).resolve().parents[1] / 'config' / 'skynav.yaml'
 HEADER = """\
@@ -31,4 +31,7 @@ labelled recordings of it (`skynav skyline train`)."""
 
 def shipped_parameter_file() -> str:
     """Return the text of the shipped parameter file, made from every installed node's parameter table."""
-    return parameter_file({spec.name: node_class(spec).PARAMETERS for spec in installed_nodes()}, HEADER)
+    # The parameters every node takes are repeated per node: a '/**' section would be applied after (and so
+    # override) the nodes' sections of a user's file.
+    tables = {spec.name: {**node_class(spec).PARAMETERS, **COMMON_PARAMETERS} for spec in installed_nodes()}
+    return parameter_file(tables, HEADER)

@@ -20,7 +20,9 @@ def test_every_node_declares_its_table_with_the_shipped_defaults(ros_context):
             declared = node.parameter_values()
             table = {name: parameter.default for name, parameter in node.PARAMETERS.items()}
             assert set(declared) == set(table), spec.name
+            assert sorted(node.input_topics) == sorted(node.INPUT_TOPICS), spec.name  # what `skynav replay` waits for
             for name, value in shipped[spec.name]['ros__parameters'].items():
-                assert value == declared[name] or (value != value and declared[name] != declared[name]), (spec, name)
+                actual = node.get_parameter(name).value  # the node's table, and what every node takes
+                assert value == actual or (value != value and actual != actual), (spec, name)
         finally:
             node.destroy_node()

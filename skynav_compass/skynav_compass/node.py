@@ -47,6 +47,7 @@ class CompassNode(SkynavNode):
     """Estimates the rotation of every view against its reference."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC)
 
     needs_map = True
 
@@ -56,7 +57,6 @@ class CompassNode(SkynavNode):
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
         self.latest: CompassView | None = None
         self.live: CompassView | None = None
-        self.last_stamp = -1
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
         self.output(COMPASS_TOPIC, CompassEstimate)
@@ -75,6 +75,11 @@ class CompassNode(SkynavNode):
         self.snapshots.configure(values['map'], values['reference'], values['index'])
         self.values = values
         self.compass = Compass(values['max_degree'], CompassConfig(max_tilt=np.radians(values['max_tilt_deg'])))
+
+    def reset_time(self) -> None:
+        """Forget the last stamp and the latest place match."""
+        super().reset_time()
+        self.snapshots.forget_match()
 
     def store_reference(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         """Service: keep the latest view as the live reference."""

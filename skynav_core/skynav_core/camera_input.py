@@ -20,17 +20,26 @@ if TYPE_CHECKING:
 
 CAMERA_INFO_TOPIC = '/camera/uv/camera_info'
 HELD_INPUTS = 30  # inputs that wait for the first camera info; older ones are dropped beyond this
+HELD_AT_MOST_NS = 5_000_000_000  # an input waits at most this long for camera info (ns), then it is dropped
 
 
 class CameraInput:
     """The camera model of the latest valid camera info, narrowed to a field-of-view limit."""
 
-    def __init__(self, reject: Callable[[str, str], None], capacity: int = HELD_INPUTS) -> None:
+    def __init__(
+        self,
+        reject: Callable[[str, str], None],
+        drop: Callable[[str, int, str], None],
+        capacity: int = HELD_INPUTS,
+        max_wait_ns: int = HELD_AT_MOST_NS,
+    ) -> None:
         self.reject = reject
+        self.drop = drop  # (cause, count, detail): inputs that were never processed
         self.camera: EquidistantCamera | None = None
         self.fov_limit = 2 * np.pi  # rad, full angle; a node parameter may narrow it
-        self._held: deque = deque()
+        self._held: deque[tuple[int, Any]] = deque()  # (time held since in ns, input)
         self._capacity = capacity
+        self._max_wait_ns = max_wait_ns
 
     def update(self, info: CameraInfo) -> bool:
         """Take a camera info message; return whether the camera model changed."""
@@ -50,18 +59,41 @@ class CameraInput:
         if self.camera is not None:
             self.camera = replace(self.camera, fov_limit=self.fov_limit)
 
-    def hold(self, item: Any) -> None:
-        """Keep an input until a camera is known; beyond the capacity the oldest is dropped and counted."""
-        self._held.append(item)
+    def hold(self, item: Any, now_ns: int) -> None:
+        """Keep an input from `now_ns` until a camera is known; beyond the capacity the oldest is dropped and counted."""
+        self._held.append((now_ns, item))
         if len(self._held) > self._capacity:
             self._held.popleft()
-            self.reject(
-                'no_camera_info', f'no camera info on {CAMERA_INFO_TOPIC} yet; the oldest waiting input was dropped'
+            self.drop(
+                'no_camera_info', 1, f'no camera info on {CAMERA_INFO_TOPIC} yet; the oldest waiting input was dropped'
             )
+
+    def expire(self, now_ns: int) -> None:
+        """Drop (and count) the inputs that have waited for camera info longer than allowed at `now_ns`."""
+        expired = 0
+        while self._held and now_ns - self._held[0][0] > self._max_wait_ns:
+            self._held.popleft()
+            expired += 1
+        self.drop(
+            'no_camera_info',
+            expired,
+            f'no camera info on {CAMERA_INFO_TOPIC} within {self._max_wait_ns / 1e9:g} s; the inputs waiting for it '
+            'were dropped',
+        )
+
+    def forget(self, cause: str) -> None:
+        """Drop (and count under `cause`) every input held."""
+        self.drop(cause, len(self._held), f'{len(self._held)} inputs waiting for camera info were forgotten')
+        self._held.clear()
+
+    @property
+    def held(self) -> int:
+        """Return the number of inputs waiting for camera info."""
+        return len(self._held)
 
     def release(self) -> list[Any]:
         """Return (and forget) the inputs held so far, oldest first."""
-        held = list(self._held)
+        held = [item for _, item in self._held]
         self._held.clear()
         return held
 

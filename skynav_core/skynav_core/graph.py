@@ -37,6 +37,15 @@ def node_class(spec: NodeSpec) -> type[SkynavNode]:
     return getattr(importlib.import_module(module), name)
 
 
+def graph_readers(specs: Iterable[NodeSpec]) -> dict[str, list[str]]:
+    """Return, per topic, the names of the nodes of a graph that subscribe to it."""
+    readers: dict[str, list[str]] = defaultdict(list)
+    for spec in specs:
+        for topic in node_class(spec).INPUT_TOPICS:
+            readers[topic].append(spec.name)
+    return dict(readers)
+
+
 def type_name(message: Any) -> str:
     """Return 'pkg/msg/Name' of an rclpy message."""
     return f'{type(message).__module__.split(".")[0]}/msg/{type(message).__name__}'

@@ -9,13 +9,20 @@ A skynav node is an ordinary rclpy node with three habits:
 - bad input never kills it: `reject(reason, detail)` logs one clear line for the first input of each
   kind of problem, counts every one, and the node goes on (`in_order` rejects an input no newer than
   the last one taken as 'out_of_order'); an exception in a callback is logged and counted the same way;
+- no input is lost unseen: `drop(cause, count, detail)` counts inputs that never got processed (lost
+  before the callback: a gap in the publisher's sequence numbers; waiting too long for their partner
+  or for camera info; waiting when the time restarted), logged once per cause;
+- an input stamped more than `max_stamp_jump_s` before or after the last one taken (a camera clock
+  that jumps, a recording replayed again) restarts the node's time: one log line, a count, and
+  `reset_time()` forgets what depended on the old time, so later inputs are taken again;
 - its parameters are turned into working state by one method, `configure(values)`, which raises
   ValueError for values it cannot use: at start-up the node then keeps its defaults, at run time the
   change is refused with that reason.
 
 It publishes a DiagnosticStatus on /diagnostics once a second: output rate, processing time per
-input, age of the data at publication, and counts of inputs received, outputs published, inputs
-rejected (by reason) and callback errors.
+input, latency (from the receipt of the input to the publication of its output, live only), and
+counts of inputs received, outputs published, inputs rejected (by reason), inputs dropped (by cause),
+time restarts and callback errors.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from .parameters import ParameterTable
+from .parameters import COMMON_PARAMETERS, ParameterTable
 
 # Camera topics: best effort matches any publisher (drivers often publish best effort).
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -42,6 +49,8 @@ SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=Re
 STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE)
 DIAGNOSTICS_PERIOD = 1.0  # s
 PROCESSING_WINDOW = 100  # inputs whose processing times the diagnostics summarise
+# rmw's value of a message-info sequence number the middleware does not provide.
+SEQUENCE_UNSUPPORTED = 2**64 - 1
 
 
 class Router(Protocol):
@@ -64,6 +73,8 @@ class SkynavNode(Node):
     needs_map: ClassVar[bool] = False
     #: The node's parameters (declared with declare_table); the shipped parameter file is made from these tables.
     PARAMETERS: ClassVar[ParameterTable] = {}
+    #: The topics the node subscribes to (with input()): `skynav replay` waits until each has matched them all.
+    INPUT_TOPICS: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, name: str, router: Router | None = None, context: Context | None = None) -> None:
         super().__init__(name, context=context)
@@ -71,7 +82,14 @@ class SkynavNode(Node):
         self.received: Counter = Counter()
         self.published: Counter = Counter()
         self.rejected: Counter = Counter()
+        self.dropped: Counter = Counter()
+        self.time_resets = 0
         self.errors = 0
+        self.last_stamp = -1  # ns, the newest input taken (-1: none since the start or the last time restart)
+        self._received_ns: int | None = None  # system time (ns) the input being handled was received
+        self._sequences: dict[str, int] = {}  # topic -> publication sequence number of its last input
+        self._expiring: list[Callable[[int], None]] = []
+        self.input_topics: list[str] = []  # the topics subscribed with input()
         self._processing: deque[float] = deque(maxlen=PROCESSING_WINDOW)
         self.processing_total = 0.0  # s, all inputs processed so far
         self.processing_count = 0
@@ -82,6 +100,17 @@ class SkynavNode(Node):
         self._output_publishers: dict[str, Any] = {}
         self._declared: list[str] = []
         self._defaults: dict[str, Any] = {}
+        jump = COMMON_PARAMETERS['max_stamp_jump_s']
+        value = self.declare_parameter(
+            'max_stamp_jump_s', jump.default, ParameterDescriptor(description=jump.description)
+        ).value
+        try:
+            self.max_stamp_jump_ns = self._stamp_jump_ns(value)
+        except (TypeError, ValueError) as exc:
+            self.rejected['parameters'] += 1
+            self.get_logger().error(f'unusable parameters ({exc}); using the default {jump.default} s')
+            self.set_parameters([Parameter('max_stamp_jump_s', value=jump.default)])
+            self.max_stamp_jump_ns = self._stamp_jump_ns(jump.default)
         self.output('/diagnostics', DiagnosticArray)
         if router is None:
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
@@ -120,18 +149,29 @@ class SkynavNode(Node):
     def _on_set_parameters(self, parameters: list) -> SetParametersResult:
         values = self.parameter_values()
         values.update({p.name: p.value for p in parameters if p.name in values})
+        jumps = [p.value for p in parameters if p.name == 'max_stamp_jump_s']
         try:
+            jump = self._stamp_jump_ns(jumps[-1]) if jumps else self.max_stamp_jump_ns
             self.configure(values)
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        self.max_stamp_jump_ns = jump
         return SetParametersResult(successful=True)
+
+    @staticmethod
+    def _stamp_jump_ns(seconds: float) -> int:
+        """Return the max_stamp_jump_s parameter in ns; ValueError unless it is positive."""
+        if not (isinstance(seconds, int | float) and seconds > 0):
+            raise ValueError('max_stamp_jump_s must be positive')
+        return int(seconds * 1e9)
 
     # --- topics -----------------------------------------------------------------------------
 
     def input(
         self, topic: str, message_type: type, callback: Callable[[Any], None], qos: QoSProfile = STREAM_QOS
     ) -> None:
-        """Receive `topic`: live through a subscription, in `skynav run` through the router."""
+        """Receive `topic` (one of INPUT_TOPICS): live through a subscription, in `skynav run` through the router."""
+        self.input_topics.append(topic)
 
         def receive(message: Any) -> None:
             self.received[topic] += 1
@@ -144,10 +184,35 @@ class SkynavNode(Node):
                         f'error handling {topic} (counted in /diagnostics):\n{traceback.format_exc()}'
                     )
 
+        def receive_live(message: Any, info: dict) -> None:
+            self._received_ns = info.get('received_timestamp') or time.time_ns()
+            self._count_lost(topic, info.get('publication_sequence_number', SEQUENCE_UNSUPPORTED))
+            receive(message)
+
         if self.router is not None:
             self.router.subscribe(topic, receive)
         else:
-            self.create_subscription(message_type, topic, receive, qos)
+            self.create_subscription(message_type, topic, receive_live, qos)
+
+    def _count_lost(self, topic: str, sequence: int) -> None:
+        """Count the messages of `topic` lost before reaching the node: a gap in the publisher's sequence numbers."""
+        if not 0 < sequence < SEQUENCE_UNSUPPORTED:
+            return
+        last = self._sequences.get(topic)
+        self._sequences[topic] = sequence
+        if last is None:
+            return  # the node's first message on the topic: it may have joined late
+        # A number at or below the last one is a new publisher: the node missed its first ones (sequence - 1).
+        # Gaps are told apart only while the topic has a single publisher.
+        missed = sequence - last - 1 if sequence > last else sequence - 1
+        if missed > 0 and self.count_publishers(topic) == 1:
+            self.drop(
+                'lost',
+                missed,
+                f"{missed} messages on {topic} never reached the callback: the subscription's queue overflowed "
+                'while the node was busy, or the transport lost them (best effort; or too large for it: over the '
+                "16 MiB shared-memory segment of skynav's Fast DDS profile)",
+            )
 
     def output(self, topic: str, message_type: type, qos: QoSProfile = STREAM_QOS) -> None:
         """Declare a topic this node publishes."""
@@ -163,6 +228,8 @@ class SkynavNode(Node):
             self._output_publishers[topic].publish(message)
         if topic != '/diagnostics':
             self.published[topic] += 1
+            if self.router is None and self._received_ns is not None:
+                self._ages.append((time.time_ns() - self._received_ns) / 1e9)
 
     # --- accounting ---------------------------------------------------------------------------
 
@@ -175,12 +242,47 @@ class SkynavNode(Node):
                 f'further inputs rejected for this reason are counted in /diagnostics'
             )
 
+    def drop(self, cause: str, count: int, detail: str) -> None:
+        """Count `count` inputs lost for `cause` without being processed; log one clear line the first time."""
+        if count <= 0:
+            return
+        first = cause not in self.dropped
+        self.dropped[cause] += count
+        if first:
+            self.get_logger().warning(
+                f'dropped input ({cause}): {detail}; further inputs dropped for this cause are counted in /diagnostics'
+            )
+
+    def stamp_jumped(self, stamp: int, last: int) -> bool:
+        """Restart the node's time if `stamp` lies over max_stamp_jump_s from `last` (ns; -1: none); return if so."""
+        if last < 0 or abs(stamp - last) <= self.max_stamp_jump_ns:
+            return False
+        self.time_resets += 1
+        self.get_logger().warning(
+            f'input stamped {stamp} is {(stamp - last) / 1e9:+.3f} s from the last one taken: time restarted '
+            '(a camera clock that jumped, or a recording played again); counted in /diagnostics as time_resets',
+            throttle_duration_sec=1.0,
+        )
+        self.reset_time()
+        return True
+
+    def reset_time(self) -> None:
+        """Forget whatever depends on the inputs' time; nodes extend it with their own (waiting inputs, history)."""
+        self.last_stamp = -1
+
     def in_order(self, stamp: int, last: int, what: str = 'view') -> bool:
-        """Return whether an input stamped `stamp` (ns) is newer than the last one taken; reject it otherwise."""
-        if stamp > last:
+        """Return whether an input stamped `stamp` (ns) is to be taken after the last one taken; reject it otherwise.
+
+        Newer inputs are taken; so is one that jumps (stamp_jumped), after the node's time restarts.
+        """
+        if self.stamp_jumped(stamp, last) or stamp > last:
             return True
         self.reject('out_of_order', f'{what} stamped {stamp} is not newer than the last one')
         return False
+
+    def expire_with_time(self, expire: Callable[[int], None]) -> None:
+        """Call `expire(now_ns)` before each diagnostics report, to drop inputs that waited too long."""
+        self._expiring.append(expire)
 
     def now_ns(self) -> int:
         """Return the current time: the node's clock live, the input's time in `skynav run`."""
@@ -198,8 +300,6 @@ class SkynavNode(Node):
         self._processing.append(elapsed)
         self.processing_total += elapsed
         self.processing_count += 1
-        if self.router is None:
-            self._ages.append((self.get_clock().now().nanoseconds - stamp) / 1e9)
 
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return this node's status: rates, processing time, counts."""
@@ -207,7 +307,7 @@ class SkynavNode(Node):
         outputs = sum(self.published.values())
         elapsed = (now - self._reported_at) / 1e9 if self._reported_at is not None else 0.0
         rate = (outputs - self._published_at_report) / elapsed if elapsed > 0 else 0.0
-        problems = sum(self.rejected.values()) + self.errors
+        problems = sum(self.rejected.values()) + sum(self.dropped.values()) + self.errors
         values = {
             'rate_hz': f'{rate:.2f}',
             'processing_ms_mean': f'{1e3 * sum(self._processing) / len(self._processing):.2f}'
@@ -217,15 +317,21 @@ class SkynavNode(Node):
             'received': str(sum(self.received.values())),
             'published': str(outputs),
             'rejected': str(sum(self.rejected.values())),
+            'dropped': str(sum(self.dropped.values())),
+            'time_resets': str(self.time_resets),
             'errors': str(self.errors),
         }
         if self._ages:
             values['latency_ms_mean'] = f'{1e3 * sum(self._ages) / len(self._ages):.2f}'
         values.update({f'rejected_{reason}': str(count) for reason, count in sorted(self.rejected.items())})
+        values.update({f'dropped_{cause}': str(count) for cause, count in sorted(self.dropped.items())})
         fresh_problems = problems - self._problems_at_report
         self._reported_at, self._published_at_report, self._problems_at_report = now, outputs, problems
         if fresh_problems:
-            level, text = DiagnosticStatus.WARN, f'{fresh_problems} inputs rejected or failed since the last report'
+            level, text = (
+                DiagnosticStatus.WARN,
+                f'{fresh_problems} inputs rejected, dropped or failed since the last report',
+            )
         else:
             level, text = DiagnosticStatus.OK, f'{rate:.1f} Hz'
         return DiagnosticStatus(
@@ -237,8 +343,10 @@ class SkynavNode(Node):
         )
 
     def publish_diagnostics(self) -> None:
-        """Publish the status on /diagnostics."""
-        array = DiagnosticArray(status=[self.diagnostic_status()])
+        """Drop the inputs that waited too long, then publish the status on /diagnostics."""
         now = self.now_ns()
+        for expire in self._expiring:
+            expire(now)
+        array = DiagnosticArray(status=[self.diagnostic_status()])
         array.header.stamp.sec, array.header.stamp.nanosec = divmod(now, 1_000_000_000)
         self.emit('/diagnostics', array)

@@ -90,3 +90,11 @@ def parameter_file(tables: Mapping[str, ParameterTable], header: str = '') -> st
             text = f'{name}: {_literal(parameter.default)}'
             lines.append(f'    {text.ljust(width + 2)}  # {parameter.description}')
     return '\n'.join(lines) + '\n'
+
+
+# Parameters every skynav node declares (SkynavNode), repeated in each node's section of the shipped parameter file.
+COMMON_PARAMETERS: ParameterTable = {
+    'max_stamp_jump_s': Parameter(
+        1.0, "an input stamped over this before or after the last one taken restarts the node's time (s)"
+    ),
+}

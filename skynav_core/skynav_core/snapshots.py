@@ -53,6 +53,10 @@ class SnapshotChoice:
         self.rule, self.index, self.lookahead = rule, index, lookahead
         self.view = lru_cache(SNAPSHOT_VIEWS_CACHED)(self._view)
 
+    def forget_match(self) -> None:
+        """Forget the latest place match (the time restarted: where the robot is must be found again)."""
+        self.match = None
+
     def on_match(self, match: Any) -> None:
         """Remember the latest accepted place match (skynav_msgs/PlaceMatch)."""
         if match.accepted and match.index >= 0:

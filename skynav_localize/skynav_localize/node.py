@@ -43,6 +43,7 @@ class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC,)
 
     needs_map = True
 
@@ -51,7 +52,6 @@ class LocalizeNode(SkynavNode):
         self.declare_table(PARAMETERS)
         self.store: MapStore | None = None
         self.localizer: Localizer | None = None
-        self.last_stamp = -1
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.output(MATCH_TOPIC, PlaceMatch)
         self.teach = TeachServer(self) if self.router is None else None  # live graphs only (an action server)
@@ -107,6 +107,12 @@ class LocalizeNode(SkynavNode):
         self.get_logger().info(
             f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, method {values["method"]}'
         )
+
+    def reset_time(self) -> None:
+        """Forget the last stamp and the sequence of views so far."""
+        super().reset_time()
+        if self.localizer is not None:
+            self.localizer.reset()
 
     def on_coefficients(self, message: ShCoefficients) -> None:
         """Match one view and publish the result."""

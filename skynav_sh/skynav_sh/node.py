@@ -31,11 +31,13 @@ class ShNode(SkynavNode):
     """Transforms each skyline mask into SH coefficients."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (MASK_TOPIC, CAMERA_INFO_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sh', **kwargs)
         self.declare_table(PARAMETERS)
-        self.camera_input = CameraInput(self.reject)
+        self.camera_input = CameraInput(self.reject, self.drop)
+        self.expire_with_time(self.camera_input.expire)
         self.transform: FisheyeTransform | None = None
         self.input(MASK_TOPIC, Image, self.on_mask)
         self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
@@ -71,7 +73,7 @@ class ShNode(SkynavNode):
             self.reject(exc.reason, f'mask stamped {stamp}: {exc}')
             return
         if self.camera_input.camera is None:
-            self.camera_input.hold((stamp, mask))
+            self.camera_input.hold((stamp, mask), self.now_ns())
             return
         self.publish_coefficients(stamp, mask)
 

@@ -35,13 +35,14 @@ class SkylineNode(SkynavNode):
     """Segments each UV(/green) exposure into sky and ground."""
 
     PARAMETERS = NODE_PARAMETERS
+    INPUT_TOPICS = (UV_TOPIC, GREEN_TOPIC, CAMERA_INFO_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('skyline', **kwargs)
         self.declare_table(NODE_PARAMETERS)
-        self.camera_input = CameraInput(self.reject)
+        self.camera_input = CameraInput(self.reject, self.drop)
+        self.expire_with_time(self.camera_input.expire)
         self.segmenter: SkylineSegmenter | None = None
-        self.last_stamp = -1
         self.input(UV_TOPIC, Image, partial(self.on_image, 'uv'), SENSOR_QOS)
         self.input(GREEN_TOPIC, Image, partial(self.on_image, 'green'), SENSOR_QOS)
         self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
@@ -53,9 +54,19 @@ class SkylineNode(SkynavNode):
         self.params = skyline_params({name: values[name] for name in PARAMETERS})
         if values['pair_tolerance_ms'] < 0:
             raise SkylineError('pair_tolerance_ms must not be negative')
-        self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6))
+        self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6), on_drop=self.drop_unpaired)
         self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
         self.segmenter = None  # rebuilt for the next frame
+
+    def drop_unpaired(self, count: int) -> None:
+        """Count frames whose other channel never came."""
+        self.drop('unpaired', count, 'a UV or green frame whose other channel never came (within pair_tolerance_ms)')
+
+    def reset_time(self) -> None:
+        """Forget the last stamp, the frames waiting for their other channel and those waiting for camera info."""
+        super().reset_time()
+        self.pairer.clear()
+        self.camera_input.forget('time_restarted')
 
     def on_camera_info(self, info: CameraInfo) -> None:
         """Adopt the camera geometry; process what waited for it."""
@@ -92,7 +103,7 @@ class SkylineNode(SkynavNode):
             )
             return
         if self.camera_input.camera is None:
-            self.camera_input.hold((stamp, uv, green))
+            self.camera_input.hold((stamp, uv, green), self.now_ns())
             return
         if not self.camera_input.matches(uv[0].shape):
             return

@@ -92,6 +92,89 @@ def test_out_of_order_and_mismatched_inputs_are_rejected(scene):
         assert node.rejected == {'out_of_order': 1, 'size_mismatch': 1, 'camera_info_mismatch': 1}
 
 
+def exposure(graph, uv, green, stamp):
+    """Feed the UV and green frames of one exposure stamped `stamp` (ns); return the masks it gave."""
+    before = len(masks_of(graph))
+    graph.feed(raw('/camera/uv/image_raw', image(uv), stamp))
+    graph.feed(raw('/camera/green/image_raw', image(green), stamp))
+    return masks_of(graph)[before:]
+
+
+def test_one_exposure_stamped_a_day_ahead_poisons_no_later_one(scene):
+    uv, green = scene
+    day = 86_400 * 10**9
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        stamps = [T0, T0 + 10**8, T0 + 2 * 10**8 + day, T0 + 3 * 10**8, T0 + 4 * 10**8]
+        got = [stamp_ns(m.message.header) for t in stamps for m in exposure(graph, uv, green, t)]
+        assert got == stamps  # the stray exposure is taken, and so is every one after it
+        assert node.time_resets == 2 and sum(node.rejected.values()) == 0
+        # a small reordering is still refused
+        assert exposure(graph, uv, green, T0 + 3 * 10**8) == []
+        assert node.rejected == {'out_of_order': 2}  # its UV and its green frame
+        values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+        assert values['time_resets'] == '2' and values['rejected_out_of_order'] == '2'
+
+
+def test_a_recording_played_again_gives_its_masks_again(scene):
+    uv, green = scene
+    stamps = [T0 + k * 10**8 for k in range(15)]  # 1.4 s: longer than max_stamp_jump_s
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        for _ in range(3):
+            graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+            for stamp in stamps:
+                exposure(graph, uv, green, stamp)
+        assert [stamp_ns(m.message.header) for m in masks_of(graph)] == stamps * 3
+        assert node.time_resets == 2 and sum(node.rejected.values()) == 0 and node.errors == 0
+
+
+def test_a_small_jump_parameter_restarts_time_on_a_reordering(scene):
+    uv, green = scene
+    with in_process([SPEC], ['-p', 'max_stamp_jump_s:=0.05']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        exposure(graph, uv, green, T0)
+        assert len(exposure(graph, uv, green, T0 - 10**8)) == 1
+        assert node.time_resets == 1 and sum(node.rejected.values()) == 0
+        result = node.set_parameters([__import__('rclpy').parameter.Parameter('max_stamp_jump_s', value=0.0)])[0]
+        assert not result.successful and 'max_stamp_jump_s' in result.reason
+
+
+def test_an_unusable_jump_parameter_falls_back_to_the_default():
+    with in_process([SPEC], ['-p', 'max_stamp_jump_s:=-1.0']) as graph:
+        node = graph.nodes[0]
+        assert node.get_parameter('max_stamp_jump_s').value == 1.0 and node.max_stamp_jump_ns == 10**9
+        assert node.rejected == {'parameters': 1}
+
+
+def test_frames_lost_waiting_are_counted_as_dropped(scene):
+    uv, green = scene
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        # a UV frame whose green never comes, then a frame far later: the waiting UV frame is dropped
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        exposure(graph, uv, green, T0)
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8))
+        exposure(graph, uv, green, T0 + 100 * 10**8)
+        assert node.dropped == {'unpaired': 1} and node.time_resets == 1
+    with in_process([SPEC]) as graph:
+        node = graph.nodes[0]
+        # exposures with no camera info: held, then dropped when they have waited too long
+        for k in range(3):
+            exposure(graph, uv, green, T0 + k * 10**8)
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10 * 10**9))
+        graph.publish_diagnostics()
+        assert node.dropped == {'no_camera_info': 3}
+        values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+        assert values['dropped'] == '3' and values['dropped_no_camera_info'] == '3'
+
+
 def test_uv_only_does_not_wait_for_green(scene):
     uv, _ = scene
     with in_process([SPEC], ['-p', 'channels:=uv']) as graph:

@@ -52,6 +52,7 @@ class WarpingNode(SkynavNode):
     """Estimates the home vector of every view towards the target snapshot."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC, COMPASS_TOPIC)
 
     needs_map = True
 
@@ -59,8 +60,7 @@ class WarpingNode(SkynavNode):
         super().__init__('warping', **kwargs)
         self.declare_table(PARAMETERS)
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
-        self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0)
-        self.last_stamp = -1
+        self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0, on_drop=self.drop_unpaired)
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
         self.input(COMPASS_TOPIC, CompassEstimate, self.on_compass)
@@ -85,6 +85,16 @@ class WarpingNode(SkynavNode):
         """Return the view of a map snapshot as this node compares it."""
         return view_from_coefficients(coefficients, field_of_view, self.settings.degree)
 
+    def drop_unpaired(self, count: int) -> None:
+        """Count views whose compass estimate never came (or estimates whose view never came)."""
+        self.drop('unpaired', count, 'a view whose compass estimate never came, or an estimate without its view')
+
+    def reset_time(self) -> None:
+        """Forget the last stamp, what waits for its partner and the latest place match."""
+        super().reset_time()
+        self.pairer.clear()
+        self.snapshots.forget_match()
+
     def on_compass(self, estimate: CompassEstimate) -> None:
         """Pair a compass estimate with the view of the same stamp."""
         if self.values['use_compass']:
@@ -92,7 +102,9 @@ class WarpingNode(SkynavNode):
 
     def pair(self, channel: str, message: ShCoefficients | CompassEstimate) -> None:
         """Home once a view ('sh') and its compass estimate ('compass') of the same stamp have both come."""
-        pair = self.pairer.add(channel, stamp_ns(message.header), message)
+        stamp = stamp_ns(message.header)
+        self.stamp_jumped(stamp, self.last_stamp)
+        pair = self.pairer.add(channel, stamp, message)
         if pair is not None:
             self.home(pair[1], pair[2])
 

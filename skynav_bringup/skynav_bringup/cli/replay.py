@@ -4,6 +4,10 @@
 The stored CDR bytes are published unchanged. Publishers offer RELIABLE (and
 TRANSIENT_LOCAL where the recording's publishers were latched), which every
 subscriber can match. BAG is a rosbag2 directory or a bare .mcap file.
+
+Before the first message it waits until every replayed topic has its subscribers
+(by default: the nodes of the skynav graph that read it), so that a graph
+started just before loses no message to discovery.
 """
 
 from __future__ import annotations
@@ -31,10 +35,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='replay only these topics')
     parser.add_argument(
         '--wait-for-subscribers',
+        type=int,
+        metavar='N',
+        help='before the first message, wait until every replayed topic has N subscribers (0: do not wait); '
+        "default: until each topic's readers in the skynav graph (every installed node that subscribes to it) "
+        'have all matched',
+    )
+    parser.add_argument(
+        '--wait-timeout',
         type=float,
-        default=0.0,
+        default=30.0,
         metavar='SECONDS',
-        help='before publishing, wait up to this long until every replayed topic has a subscriber',
+        help='wait for subscribers at most this long, then publish anyway with a warning (default 30)',
     )
 
 
@@ -47,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.rate < 0:
         raise CliError('--rate must be 0 (as fast as possible) or positive', exit_code=2)
+    if (args.wait_for_subscribers or 0) < 0 or args.wait_timeout < 0:
+        raise CliError('--wait-for-subscribers and --wait-timeout must not be negative', exit_code=2)
     with open_bag(args.bag) as bag:
         topics = args.topics or list(bag.topics)
         if missing := [t for t in topics if t not in bag.topics]:
@@ -55,11 +69,14 @@ def run(args: argparse.Namespace) -> int:
 
         with StopRequest() as stop, tool_node('skynav_replay') as (node, executor):
             player = Player(node, bag, topics)
-            if args.wait_for_subscribers > 0:
-                lonely = player.wait_for_subscribers(executor, args.wait_for_subscribers)
-                if lonely:
+            expected = _expected_subscribers(topics, args.wait_for_subscribers)
+            if any(expected.values()):
+                lonely = player.wait_for_subscribers(executor, expected, args.wait_timeout, stop)
+                if lonely and not stop.requested:
                     print(
-                        f'skynav replay: no subscriber yet on {", ".join(lonely)}; publishing anyway', file=sys.stderr
+                        f'skynav replay: after {args.wait_timeout:g} s still waiting on {"; ".join(lonely)}; '
+                        'publishing anyway (--wait-for-subscribers 0: do not wait)',
+                        file=sys.stderr,
                     )
             stats = _play_with_progress(player, args, stop)
     print(
@@ -75,6 +92,17 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _expected_subscribers(topics: list[str], count: int | None) -> dict:
+    """Return per topic the subscribers to wait for: `count` of them, or by default the skynav graph's readers."""
+    if count is not None:
+        return {topic: count for topic in topics}
+    from skynav_core.graph import graph_readers
+    from skynav_core.nodes import installed_nodes
+
+    readers = graph_readers(installed_nodes())
+    return {topic: readers.get(topic, []) for topic in topics}
 
 
 def _play_with_progress(player, args: argparse.Namespace, stop):

@@ -103,11 +103,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def summary(graph) -> str:
-    """Return a table of what each node received, published, rejected, and its time per input."""
+    """Return a table of what each node received, published, rejected (and dropped), and its time per input."""
     lines = [f'{"node":12s} {"received":>9s} {"published":>10s} {"rejected":>9s} {"errors":>7s} {"ms/input":>9s}']
     for node in graph.nodes:
         per_input = 1e3 * node.processing_total / node.processing_count if node.processing_count else float('nan')
-        rejected = ', '.join(f'{k} {v}' for k, v in sorted(node.rejected.items()))
+        rejected = ', '.join(
+            [f'{k} {v}' for k, v in sorted(node.rejected.items())]
+            + [f'dropped {k} {v}' for k, v in sorted(node.dropped.items())]
+            + ([f'time restarts {node.time_resets}'] if node.time_resets else [])
+        )
         lines.append(
             f'{node.get_name():12s} {sum(node.received.values()):9d} {sum(node.published.values()):10d} '
             f'{sum(node.rejected.values()):9d} {node.errors:7d} {per_input:9.2f}'
