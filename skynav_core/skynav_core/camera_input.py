@@ -60,7 +60,7 @@ class CameraInput:
             self.camera = replace(self.camera, fov_limit=self.fov_limit)
 
     def hold(self, item: Any, now_ns: int) -> None:
-        """Keep an input from `now_ns` until a camera is known; beyond the capacity the oldest is dropped and counted."""
+        """Keep an input from `now_ns` until a camera is known; past capacity the oldest is dropped and counted."""
         self._held.append((now_ns, item))
         if len(self._held) > self._capacity:
             self._held.popleft()
