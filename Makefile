@@ -13,7 +13,7 @@ PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/setup.cfg $(p)
                     $(shell find $(addsuffix /config,$(PY_PACKAGES)) \
                             $(addsuffix /launch,$(PY_PACKAGES)) -type f 2>/dev/null)
 PY_PACKAGE_FILES += tools/link_data_files.py
-MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) skynav_msgs/CMakeLists.txt \
+MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) $(wildcard skynav_msgs/action/*.action) skynav_msgs/CMakeLists.txt \
              skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
 
 .PHONY: setup test demo lock clean

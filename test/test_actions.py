@@ -1,0 +1,137 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The contract's actions (docs/interfaces.md, "Driving: teach, follow, home"): built, named codes, round-trip."""
+
+import threading
+import time
+
+import pytest
+
+from skynav_core.actions import ERROR_NONE, error_codes, error_name
+
+# The fields of each action exactly as the contract writes them: (goal, result, feedback), name -> rosidl type.
+CONTRACT = {
+    'Teach': (
+        {
+            'map_path': 'string',
+            'map_name': 'string',
+            'spacing': 'double',
+            'max_length': 'double',
+            'overwrite': 'boolean',
+        },
+        {'error_code': 'uint8', 'error_msg': 'string', 'snapshots': 'int32', 'route_length': 'double'},
+        {'snapshots': 'int32', 'route_length': 'double'},
+    ),
+    'FollowRoute': (
+        {'map_path': 'string', 'start_index': 'int32', 'end_index': 'int32', 'max_speed': 'double'},
+        {'error_code': 'uint8', 'error_msg': 'string', 'reached_index': 'int32', 'driven_length': 'double'},
+        {
+            'matched_index': 'int32',
+            'target_index': 'int32',
+            'progress': 'double',
+            'confidence': 'double',
+            'state': 'string',
+        },
+    ),
+    'Home': (
+        {'map_path': 'string', 'index': 'int32', 'max_speed': 'double'},
+        {'error_code': 'uint8', 'error_msg': 'string', 'driven_length': 'double'},
+        {'confidence': 'double', 'steps': 'int32'},
+    ),
+}
+# Error codes every action names (besides its own).
+CODES = {
+    'Teach': {'NONE', 'MAP_EXISTS', 'MAP_WRITE_FAILED', 'NO_INPUT'},
+    'FollowRoute': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX'},
+    'Home': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX'},
+}
+# One non-default value per rosidl type, to see every field survive serialisation.
+SAMPLE = {'string': 'garden ü.db', 'double': -1.25, 'int32': -7, 'uint8': 3, 'boolean': True}
+
+
+def action_type(name):
+    from skynav_msgs import action
+
+    return getattr(action, name)
+
+
+@pytest.mark.parametrize('name', sorted(CONTRACT))
+def test_fields_are_the_contracts(name):
+    kind = action_type(name)
+    for part, fields in zip((kind.Goal, kind.Result, kind.Feedback), CONTRACT[name], strict=True):
+        assert part.get_fields_and_field_types() == fields, part.__name__
+
+
+@pytest.mark.parametrize('name', sorted(CONTRACT))
+def test_error_codes_are_named_and_distinct(name):
+    result = action_type(name).Result
+    codes = error_codes(result)
+    assert set(codes.values()) >= CODES[name]
+    assert codes[ERROR_NONE] == 'NONE'
+    assert len(codes) == len(set(codes.values()))  # no two names share a code
+    for code, constant in codes.items():
+        assert getattr(result, constant) == code
+        assert error_name(result(error_code=code)) == constant
+    unnamed = max(codes) + 1
+    assert error_name(result(error_code=unnamed)) == f'ERROR_{unnamed}'
+
+
+@pytest.mark.parametrize('name', sorted(CONTRACT))
+def test_messages_round_trip_through_cdr(name):
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    kind = action_type(name)
+    for part, fields in zip((kind.Goal, kind.Result, kind.Feedback), CONTRACT[name], strict=True):
+        message = part(**{field: SAMPLE[rosidl] for field, rosidl in fields.items()})
+        back = deserialize_message(serialize_message(message), part)
+        assert back == message
+        assert back != part()  # the sample differs from the defaults in some field, so equality means something
+
+
+def test_a_goal_round_trips_through_an_action_server(ros_context):
+    """A Teach goal sent by a client reaches a server, which sends feedback and a result back (rclpy.action)."""
+    from rclpy.action import ActionClient, ActionServer
+    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.node import Node
+
+    teach = action_type('Teach')
+    received = []
+
+    def execute(goal_handle):
+        received.append(goal_handle.request)
+        goal_handle.publish_feedback(teach.Feedback(snapshots=2, route_length=0.5))
+        goal_handle.succeed()
+        return teach.Result(error_code=teach.Result.NONE, snapshots=3, route_length=0.75)
+
+    server_node = Node('teach_server', context=ros_context)
+    client_node = Node('teach_client', context=ros_context)
+    server = ActionServer(server_node, teach, '/skynav/teach', execute)
+    client = ActionClient(client_node, teach, '/skynav/teach')
+    executor = MultiThreadedExecutor(context=ros_context)
+    executor.add_node(server_node)
+    executor.add_node(client_node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        assert client.wait_for_server(timeout_sec=20)
+        feedback = []
+        goal = teach.Goal(map_path='/tmp/x.db', map_name='x', spacing=0.2, max_length=3.0, overwrite=True)
+        future = client.send_goal_async(goal, feedback_callback=lambda message: feedback.append(message.feedback))
+        deadline = time.monotonic() + 20
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        handle = future.result()
+        assert handle.accepted
+        result_future = handle.get_result_async()
+        while not result_future.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        result = result_future.result().result
+        while not feedback and time.monotonic() < deadline:  # feedback is a topic: it may trail the result
+            time.sleep(0.01)
+        assert received == [goal]
+        assert (result.snapshots, result.route_length, error_name(result)) == (3, 0.75, 'NONE')
+        assert feedback == [teach.Feedback(snapshots=2, route_length=0.5)]
+    finally:
+        executor.shutdown()
+        server.destroy()
+        client.destroy()
+        spinner.join(timeout=5)
