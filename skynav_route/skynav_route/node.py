@@ -42,7 +42,7 @@ from skynav_core.rotations import as_matrix
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
-from .controller import LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, View
+from .controller import LOCALIZING, LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, View
 from .parameters import PARAMETERS
 
 CMD_TOPIC = '/cmd_vel'
@@ -61,8 +61,8 @@ class ActiveGoal:
     handle: Any  # rclpy ServerGoalHandle
     controller: RouteFollower | Homer
     done: Future
-    started: int  # ns, node time
-    last_frame: int  # ns, node time the last frame was processed (or the start)
+    started: int | None = None  # ns, node time of the watchdog's first look (a simulator's clock may start late)
+    last_frame: int | None = None  # ns, node time the last frame was processed (or the start)
     driven: float = 0.0  # m
     reached_index: int = -1
     steps: int = 0
@@ -211,6 +211,7 @@ class RouteNode(SkynavNode):
             view = self.view(stamp)
             step = goal.controller.step(view)
             goal.last_frame = self.now_ns()
+            goal.started = goal.last_frame if goal.started is None else goal.started
             goal.steps += 1
             goal.confidence = step.confidence
             if view.odometry is not None:
@@ -253,6 +254,8 @@ class RouteNode(SkynavNode):
         if goal is None:
             return
         now = self.now_ns()
+        if goal.started is None or goal.last_frame is None:
+            goal.started = goal.last_frame = now
         if now - goal.started > self.values['goal_timeout'] * 1e9:
             self.finish(TIMED_OUT)
         elif now - goal.last_frame > self.values['input_timeout'] * 1e9:
@@ -315,10 +318,13 @@ class RouteNode(SkynavNode):
         """Configure the graph for a goal, drive it and return how it ended ('busy' if another one runs)."""
         if self.active is not None:
             return 'busy', None
-        now = self.now_ns()
-        goal = self.active = ActiveGoal(kind, handle, controller, Future(), now, now)
+        goal = self.active = ActiveGoal(kind, handle, controller, Future())
         await self.configure_peers(peers)
-        goal.last_frame = goal.started = self.now_ns()
+        # a first feedback tells the client the graph is set up for the goal, before any frame is answered
+        if kind is FollowRoute:
+            handle.publish_feedback(FollowRoute.Feedback(matched_index=-1, target_index=-1, state=LOCALIZING))
+        else:
+            handle.publish_feedback(Home.Feedback(confidence=0.0, steps=0))
         return await goal.done, goal
 
     def peer_settings(self, map_path: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
