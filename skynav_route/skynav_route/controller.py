@@ -14,7 +14,9 @@ weighted by its confidence 1 - residual). The steering direction is the sum of t
 a proportional turn-rate law on its ground angle (pure pursuit in spirit) with speed falling as cos(error).
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
-passed); arrived when the home vector stays unsure for a few frames (the views agree: nothing is left to home on).
+passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
+is left to home on). Near home the vectors become unsure a few decimetres early, so on those frames the robot
+keeps its last confident course straight on (it never steers on an unsure vector) and then stops.
 
 Safety: a frame without the inputs to steer on is *unsure*. Unsure frames first make the robot creep straight on
 (recovering); after `lost_frames` of them in a row (or `recover_distance` m of odometry) the goal ends LOST with a
@@ -260,8 +262,9 @@ class Homer:
             self.unsure += 1
             if self.unsure >= self.settings.arrived_frames:
                 return Step(self._motion.stop(view.stamp), STOPPING, REACHED, confidence=confidence)
-            # unsure: hold still and look again rather than drive on a guess
-            return Step(self._motion.stop(view.stamp), RECOVERING, confidence=confidence)
+            # unsure near home: keep the last confident course straight on (never steer on a guess), then stop
+            desired = Command(self.speed_share * self.limits.max_speed if self.driving else 0.0, 0.0)
+            return Step(self._motion.limited(desired, view.stamp, self.limits), RECOVERING, confidence=confidence)
         self.unsure = 0
         error = ground_angle(view.home_direction)
         if self.driving and abs(error) > math.pi / 2:  # it points back: home was passed

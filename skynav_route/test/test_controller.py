@@ -165,9 +165,14 @@ def test_homer_slows_down_after_passing_home_and_arrives_when_unsure():
     full = homer.speed_share
     homer.step(home_view(10, math.pi))  # home is behind now: passed
     assert homer.speed_share == full / 2
-    steps = [homer.step(home_view(11 + f, 0.0, residual=0.99)) for f in range(3)]
+    for f in range(11, 30):
+        homer.step(home_view(f, 0.0))  # turned back towards home: on at half the speed
+    assert homer._motion.command.linear == pytest.approx(full / 2 * LIMITS.max_speed)
+    steps = [homer.step(home_view(30 + f, 1.0, residual=0.99)) for f in range(3)]
     assert [s.outcome for s in steps] == ['', '', REACHED]
-    assert all(s.command.is_zero for s in steps)  # unsure: it stands still rather than drive on a guess
+    # unsure: straight on (never steering on a guess) at that speed, then a stop
+    assert [s.command.angular for s in steps] == [0.0, 0.0, 0.0] and steps[-1].command.is_zero
+    assert steps[1].command.linear == pytest.approx(full / 2 * LIMITS.max_speed)
 
 
 def test_homer_is_lost_without_home_vectors_to_its_snapshot():
