@@ -15,8 +15,9 @@ a proportional turn-rate law on its ground angle (pure pursuit in spirit) with s
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
-is left to home on). Near home the vectors become unsure a few decimetres early, so on those frames the robot
-keeps its last confident course straight on (it never steers on an unsure vector) and then stops.
+is left to home on). Near home the vectors become unsure a few decimetres early (0.3-0.4 m in the synthetic park),
+so on those frames the robot keeps its last confident course straight on (it never steers on an unsure vector)
+for `arrive_creep` m (by odometry, else by its commands) and then stops.
 
 Safety: a frame without the inputs to steer on is *unsure*. Unsure frames first make the robot creep straight on
 (recovering); after `lost_frames` of them in a row (or `recover_distance` m of odometry) the goal ends LOST with a
@@ -54,7 +55,8 @@ class Settings:
     heading_gain: float = 1.5  # rad/s of turn rate per rad of heading error
     homing_gain: float = 2.0  # weight of a fully confident home vector against the route direction
     unsure_residual: float = 0.97  # HomeVector.residual above this: no confident direction
-    arrived_frames: int = 3  # homing: consecutive unsure home vectors that mean "arrived"
+    arrived_frames: int = 3  # homing: consecutive unsure home vectors that mean "arrived"...
+    arrive_creep: float = 0.25  # m: ...once the robot has crept this far straight on through them (if it drove)
     lost_frames: int = 10  # consecutive unsure frames (after recovering) that end a goal LOST
     recover_speed: float = 0.3  # share of the speed limit at which the robot creeps on while recovering
     recover_distance: float = 1.0  # m of odometry driven while recovering that end a goal LOST
@@ -246,6 +248,7 @@ class Homer:
         self.index, self.limits, self.settings = index, limits, settings
         self.speed_share = 1.0
         self.unsure = 0  # consecutive unsure home vectors (the views agree: arrived)
+        self.crept = 0.0  # m driven straight on through them
         self.missing = 0  # consecutive frames without a home vector to this snapshot
         self.driving = False  # whether the robot has driven towards home yet (overshoot needs that)
         self._motion = _Motion()
@@ -260,12 +263,16 @@ class Homer:
         confidence = float(np.clip(1.0 - view.home_residual, 0.0, 1.0))
         if view.home_residual > self.settings.unsure_residual:
             self.unsure += 1
-            if self.unsure >= self.settings.arrived_frames:
+            if self.unsure > 1:  # travel since the first unsure frame: odometry, else the last command
+                dt = (view.stamp - self._motion.stamp) / 1e9 if self._motion.stamp is not None else 0.0
+                self.crept += view.odometry if view.odometry is not None else self._motion.command.linear * dt
+            crept_enough = self.crept >= self.settings.arrive_creep or not self.driving
+            if self.unsure >= self.settings.arrived_frames and crept_enough:
                 return Step(self._motion.stop(view.stamp), STOPPING, REACHED, confidence=confidence)
             # unsure near home: keep the last confident course straight on (never steer on a guess), then stop
             desired = Command(self.speed_share * self.limits.max_speed if self.driving else 0.0, 0.0)
             return Step(self._motion.limited(desired, view.stamp, self.limits), RECOVERING, confidence=confidence)
-        self.unsure = 0
+        self.unsure, self.crept = 0, 0.0
         error = ground_angle(view.home_direction)
         if self.driving and abs(error) > math.pi / 2:  # it points back: home was passed
             self.speed_share = max(self.speed_share / 2, self.settings.min_speed_share)

@@ -129,6 +129,7 @@ class RouteNode(SkynavNode):
             homing_gain=values['homing_gain'],
             unsure_residual=values['unsure_residual'],
             arrived_frames=values['arrived_frames'],
+            arrive_creep=values['arrive_creep'],
             lost_frames=values['lost_frames'],
             recover_speed=values['recover_speed'],
             recover_distance=values['recover_distance'],

@@ -24,6 +24,10 @@ PARAMETERS = {
         _SETTINGS.unsure_residual, 'home vectors with a larger residual are unsure (homing: several in a row = arrived)'
     ),
     'arrived_frames': Parameter(_SETTINGS.arrived_frames, 'homing: consecutive unsure home vectors that mean arrived'),
+    'arrive_creep': Parameter(
+        _SETTINGS.arrive_creep,
+        'homing: m the robot keeps its course straight on through unsure home vectors before it stops (arrived)',
+    ),
     'lost_frames': Parameter(
         _SETTINGS.lost_frames, 'consecutive unaccepted or unsure frames (after trying to recover) that end a goal LOST'
     ),

@@ -159,7 +159,7 @@ def test_homer_turns_in_place_towards_home_behind_then_drives():
 
 
 def test_homer_slows_down_after_passing_home_and_arrives_when_unsure():
-    homer = Homer(0, LIMITS, Settings(arrived_frames=3))
+    homer = Homer(0, LIMITS, Settings(arrived_frames=3, arrive_creep=0.05))
     for f in range(10):
         homer.step(home_view(f, 0.0))
     full = homer.speed_share
@@ -168,11 +168,17 @@ def test_homer_slows_down_after_passing_home_and_arrives_when_unsure():
     for f in range(11, 30):
         homer.step(home_view(f, 0.0))  # turned back towards home: on at half the speed
     assert homer._motion.command.linear == pytest.approx(full / 2 * LIMITS.max_speed)
-    steps = [homer.step(home_view(30 + f, 1.0, residual=0.99)) for f in range(3)]
-    assert [s.outcome for s in steps] == ['', '', REACHED]
-    # unsure: straight on (never steering on a guess) at that speed, then a stop
-    assert [s.command.angular for s in steps] == [0.0, 0.0, 0.0] and steps[-1].command.is_zero
-    assert steps[1].command.linear == pytest.approx(full / 2 * LIMITS.max_speed)
+    steps = [homer.step(home_view(30 + f, 1.0, residual=0.99)) for f in range(4)]
+    # unsure: straight on (never steering on a guess) at 0.2 m/s, 0.02 m a frame, until 0.05 m are crept; then a stop
+    assert [s.outcome for s in steps] == ['', '', '', REACHED]
+    assert [s.command.angular for s in steps] == [0.0] * 4 and steps[-1].command.is_zero
+    assert [s.command.linear for s in steps[:3]] == pytest.approx([full / 2 * LIMITS.max_speed] * 3)
+
+
+def test_homer_started_at_home_stops_without_driving():
+    homer = Homer(0, LIMITS, Settings(arrived_frames=3))
+    steps = [homer.step(home_view(f, 1.0, residual=0.99)) for f in range(3)]
+    assert [s.outcome for s in steps] == ['', '', REACHED] and all(s.command.is_zero for s in steps)
 
 
 def test_homer_is_lost_without_home_vectors_to_its_snapshot():
