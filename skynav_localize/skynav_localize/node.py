@@ -9,6 +9,10 @@ A view without a skyline (all sky or all ground in its field of view) is matched
 nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
 only if it moves along the route with the robot (matching, the module notes).
 
+Live (not in `skynav run`), the node also serves the Teach action /skynav/teach (teach_server): while a goal
+runs, the views it takes (and /odom) become snapshots of a new map, which it and the nodes of `teach_map_nodes`
+use as soon as the goal ends.
+
 Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the node cannot use
 ('malformed', 'non_finite', 'degree': below the descriptors' degree, checked with a map;
 skynav_core.sh_input) and 'out_of_order'.
@@ -28,6 +32,7 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .parameters import PARAMETERS
+from .teach_server import TeachServer
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
@@ -49,6 +54,7 @@ class LocalizeNode(SkynavNode):
         self.last_stamp = -1
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.output(MATCH_TOPIC, PlaceMatch)
+        self.teach = TeachServer(self) if self.router is None else None  # live graphs only (an action server)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -63,6 +69,8 @@ class LocalizeNode(SkynavNode):
             raise ValueError('sequence_length and candidates must be at least 1')
         if values['max_self_similarity'] < 0:  # NaN (the method's) passes
             raise ValueError("max_self_similarity must be at least 0 (NaN: the method's)")
+        if self.teach is not None:
+            self.teach.configure(values)
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -128,6 +136,14 @@ class LocalizeNode(SkynavNode):
                 result.candidate_indices = [int(i) for i in match.candidate_indices]
                 result.candidate_distances = [float(d) for d in match.candidate_distances]
         self.emit(MATCH_TOPIC, result)
+        if self.teach is not None:
+            self.teach.on_view(stamp, coefficients)
+
+    def destroy_node(self) -> None:
+        """Close a map being taught, then the node."""
+        if self.teach is not None:
+            self.teach.close()
+        super().destroy_node()
 
 
 def main(args=None) -> int:

@@ -8,6 +8,7 @@ import math
 from skynav_core.parameters import Parameter
 
 from .localizer import DESCRIPTOR_DEGREE, OUR_METHODS
+from .teaching import DEFAULT_ODOMETRY_TOLERANCE_NS, DEFAULT_SPACING, VIEW_CHANGE_PER_METRE
 
 PARAMETERS = {
     'map': Parameter('', 'SQLite map file (`skynav map build`); empty: no map'),
@@ -32,4 +33,17 @@ PARAMETERS = {
     ),
     'candidates': Parameter(5, 'runners-up in each match'),
     'max_degree': Parameter(DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut to it)'),
+    'teach_spacing': Parameter(DEFAULT_SPACING, 'Teach goals: m of travel between snapshots when the goal says <= 0'),
+    'teach_view_change': Parameter(
+        VIEW_CHANGE_PER_METRE,
+        'Teach goals without /odom: amplitude-descriptor change per metre of spacing that makes a snapshot '
+        '(calibrated on the bundled synthetic teach drives)',
+    ),
+    'teach_odometry_tolerance': Parameter(
+        DEFAULT_ODOMETRY_TOLERANCE_NS * 1e-9, 'Teach goals: s between a view and the /odom sample paired with it'
+    ),
+    'teach_input_timeout': Parameter(5.0, 'Teach goals: s without a usable view before the goal ends with NO_INPUT'),
+    'teach_map_nodes': Parameter(
+        ['compass', 'warping'], 'nodes whose `map` parameter is set to a map taught here when its goal ends'
+    ),
 }

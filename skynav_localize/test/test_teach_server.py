@@ -1,0 +1,243 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The Teach action server of the localize node, live: views and /odom in, a map out that the nodes switch to.
+
+The views are the bundled synthetic garden teach drive's (SH of its ground-truth masks, conftest.read_recording),
+published on /skyline/sh; its ground-truth poses play /odom. The localize, compass and warping nodes run in this
+process on DDS, each as it runs in `skynav launch` (one single-threaded executor each); the kill -9 test runs the
+localize node in a process of its own.
+"""
+
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+
+from skynav_core.actions import error_name
+from skynav_core.maps import MapStore
+from skynav_localize.teaching import ODOM_POSE
+
+TIMEOUT = 30.0  # s for discovery and results under load
+
+
+def spin_in_thread(node, context):
+    """Spin one node in a thread with a single-threaded executor of its own; return (executor, thread)."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    return executor, thread
+
+
+def wait(condition, timeout=TIMEOUT, what='condition'):
+    """Wait until condition() is true; fail with `what` after timeout s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f'timed out waiting for {what}'
+        time.sleep(0.01)
+
+
+class Operator:
+    """The test's side: publishes views and odometry, sends Teach goals (its own node and executor thread)."""
+
+    def __init__(self, context):
+        from nav_msgs.msg import Odometry
+        from rclpy.action import ActionClient
+        from rclpy.node import Node
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        from skynav_msgs.action import Teach
+        from skynav_msgs.msg import ShCoefficients
+
+        self.node = Node('operator', context=context)
+        self.views = self.node.create_publisher(
+            ShCoefficients, '/skyline/sh', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        )
+        self.odometry = self.node.create_publisher(Odometry, '/odom', 100)
+        self.client = ActionClient(self.node, Teach, '/skynav/teach')
+        self.feedback = []
+        self.executor, self.thread = spin_in_thread(self.node, context)
+        assert self.client.wait_for_server(timeout_sec=TIMEOUT)
+        wait(lambda: self.views.get_subscription_count() >= 1, what='the localize node to subscribe /skyline/sh')
+
+    def drive(self, recording, indices, odometry=True, period=0.04, shift=0):
+        """Publish views (and, just before each, /odom of the same instant) of a recording's frames."""
+        from nav_msgs.msg import Odometry
+
+        from skynav_msgs.msg import ShCoefficients
+
+        for k in indices:
+            stamp = int(recording.stamps[k]) + shift  # ns
+            if odometry:
+                message = Odometry()
+                message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+                message.header.frame_id, message.child_frame_id = 'odom', 'base_link'
+                p, q = message.pose.pose.position, message.pose.pose.orientation
+                p.x, p.y, p.z, q.x, q.y, q.z, q.w = (float(v) for v in recording.poses[k])
+                self.odometry.publish(message)
+            view = ShCoefficients(max_degree=16, coefficients=recording.coefficients[k].tolist(), fill='zero')
+            view.header.stamp.sec, view.header.stamp.nanosec = divmod(stamp, 10**9)
+            view.header.frame_id = 'camera_link'
+            view.field_of_view = float(np.radians(200))
+            self.views.publish(view)
+            time.sleep(period)
+
+    def send(self, **fields):
+        """Send a Teach goal; return its goal handle (accepted)."""
+        from skynav_msgs.action import Teach
+
+        future = self.client.send_goal_async(
+            Teach.Goal(**fields), feedback_callback=lambda message: self.feedback.append(message.feedback)
+        )
+        wait(future.done, what='the goal to be accepted')
+        handle = future.result()
+        assert handle.accepted
+        return handle
+
+    def result(self, handle):
+        """Return (status, result) of a goal once it ended."""
+        future = handle.get_result_async()
+        wait(future.done, what='the result')
+        return future.result().status, future.result().result
+
+    def cancel(self, handle):
+        """Cancel a goal; return (status, result)."""
+        future = handle.cancel_goal_async()
+        wait(future.done, what='the cancel response')
+        return self.result(handle)
+
+    def close(self):
+        self.executor.shutdown()
+        self.client.destroy()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def graph(ros_context):
+    """The localize, compass and warping nodes live, and an operator."""
+    from skynav_compass.node import CompassNode
+    from skynav_localize.node import LocalizeNode
+    from skynav_warping.node import WarpingNode
+
+    nodes = [LocalizeNode(context=ros_context), CompassNode(context=ros_context), WarpingNode(context=ros_context)]
+    nodes[0].set_parameters([Parameter('teach_input_timeout', value=1.0)])
+    spinners = [spin_in_thread(node, ros_context) for node in nodes]
+    operator = Operator(ros_context)
+    yield dict(zip(('localize', 'compass', 'warping'), nodes, strict=True)), operator
+    operator.close()
+    for (executor, _), node in zip(spinners, nodes, strict=True):
+        executor.shutdown()
+        node.destroy_node()
+
+
+def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tmp_path):
+    from action_msgs.msg import GoalStatus
+
+    from skynav_msgs.msg import PlaceMatch
+
+    nodes, operator = graph
+    drive = garden['teach']
+    path = tmp_path / 'taught.db'
+    handle = operator.send(map_path=str(path), spacing=0.3)
+    operator.drive(drive, range(len(drive.stamps)))
+    wait(lambda: nodes['localize'].last_stamp == drive.stamps[-1], what='the last view taken')
+    assert nodes['localize'].received['/skyline/sh'] == len(drive.stamps)
+    status, result = operator.cancel(handle)
+    assert status == GoalStatus.STATUS_CANCELED and error_name(result) == 'NONE'
+    travelled = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(drive.poses[:, :3], axis=0), axis=1))])
+    assert result.snapshots >= travelled[-1] / 0.4
+    assert result.route_length == pytest.approx(operator.feedback[-1].route_length)
+    assert [f.snapshots for f in operator.feedback] == list(range(1, result.snapshots + 1))
+    with MapStore.open(path) as store:
+        assert len(store) == result.snapshots and store.name == 'taught'
+        kept = np.searchsorted(drive.stamps, store.stamps())
+        np.testing.assert_array_equal(drive.stamps[kept], store.stamps())
+        assert np.all(np.diff(travelled[kept]) >= 0.3 - 0.01)  # odometry extrapolated over <= 0.1 s
+        odometry = store.descriptor_matrix(ODOM_POSE)
+        paired = np.isfinite(odometry[:, 0])  # the first view may come before the first odometry sample
+        assert paired[1:].all()
+        np.testing.assert_allclose(odometry[paired, :3], drive.poses[kept][paired, :3], atol=0.02)
+    for name, node in nodes.items():
+        assert node.get_parameter('map').value == str(path), name
+    assert len(nodes['localize'].store) == result.snapshots
+    assert all(len(nodes[name].snapshots.store) == result.snapshots for name in ('compass', 'warping'))
+    # localization runs on the new map from the next view on
+    matches = []
+    operator.node.create_subscription(PlaceMatch, '/localization/match', matches.append, 10)
+    wait(lambda: operator.node.count_publishers('/localization/match') >= 1, what='the match publisher')
+    time.sleep(0.5)  # the new subscription is matched on both sides
+    operator.drive(drive, [40], odometry=False, shift=10**10)  # on a second drive, 10 s later
+    wait(lambda: matches, what='a match')
+    assert matches[-1].map_name == 'taught' and matches[-1].index >= 0
+
+
+def test_max_length_ends_the_goal_with_success(graph, garden, tmp_path):
+    from action_msgs.msg import GoalStatus
+
+    _, operator = graph
+    drive = garden['teach']
+    handle = operator.send(map_path=str(tmp_path / 'short.db'), spacing=0.5, max_length=2.0)
+    operator.drive(drive, range(40))
+    status, result = operator.result(handle)
+    assert status == GoalStatus.STATUS_SUCCEEDED and error_name(result) == 'NONE'
+    assert 2.0 <= result.route_length < 2.5
+    with MapStore.open(tmp_path / 'short.db') as store:
+        assert len(store) == result.snapshots
+
+
+def test_goals_that_cannot_be_taught_end_with_named_errors(graph, garden, tmp_path):
+    from action_msgs.msg import GoalStatus
+
+    _, operator = graph
+    taken = tmp_path / 'taken.db'
+    taken.write_bytes(b'not a map')
+    status, result = operator.result(operator.send(map_path=str(taken)))
+    assert (status, error_name(result)) == (GoalStatus.STATUS_ABORTED, 'MAP_EXISTS')
+    assert taken.read_bytes() == b'not a map'
+    status, result = operator.result(operator.send(map_path=str(tmp_path / 'no' / 'such.db')))
+    assert (status, error_name(result)) == (GoalStatus.STATUS_ABORTED, 'MAP_WRITE_FAILED')
+    status, result = operator.result(operator.send(map_path=''))
+    assert (status, error_name(result)) == (GoalStatus.STATUS_ABORTED, 'BAD_GOAL')
+    # no views at all: NO_INPUT after teach_input_timeout (1 s here); a second goal meanwhile is BUSY
+    first = operator.send(map_path=str(tmp_path / 'silent.db'))
+    status, result = operator.result(operator.send(map_path=str(tmp_path / 'other.db')))
+    assert (status, error_name(result)) == (GoalStatus.STATUS_ABORTED, 'BUSY')
+    status, result = operator.result(first)
+    assert (status, error_name(result), result.snapshots) == (GoalStatus.STATUS_ABORTED, 'NO_INPUT', 0)
+    assert 'no usable view' in result.error_msg
+    assert not (tmp_path / 'silent.db').exists()
+
+
+KILLED_NODE = [sys.executable, '-m', 'skynav_core.run_node', 'skynav_localize.node:LocalizeNode']
+
+
+def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, tmp_path):
+    drive = garden['teach']
+    path = tmp_path / 'killed.db'
+    process = subprocess.Popen(KILLED_NODE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    operator = None
+    try:
+        operator = Operator(ros_context)
+        operator.send(map_path=str(path), spacing=0.1)
+        operator.drive(drive, range(30), period=0.05)
+        wait(lambda: len(operator.feedback) >= 10, what='ten snapshots')
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=TIMEOUT)
+        committed = len(operator.feedback)  # each feedback follows its snapshot's commit
+    finally:
+        if process.poll() is None:
+            process.kill()
+        if operator is not None:
+            operator.close()
+    assert process.returncode == -signal.SIGKILL
+    with MapStore.open(path) as store:
+        assert len(store) >= committed
+        kept = np.searchsorted(drive.stamps, store.stamps())
+        np.testing.assert_array_equal(drive.stamps[kept], store.stamps())
+        np.testing.assert_allclose(store.coefficients(), drive.coefficients[kept])

@@ -1,0 +1,163 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Live teaching's logic (RouteTeacher): snapshots by odometry or by view change, max_length, committed maps."""
+
+import numpy as np
+import pytest
+
+from skynav_core.maps import MapStore
+from skynav_localize.teaching import (
+    DEFAULT_ODOMETRY_TOLERANCE_NS,
+    ODOM_POSE,
+    BadGoal,
+    MapExists,
+    MapWriteFailed,
+    OdometryTrack,
+    RouteTeacher,
+)
+
+
+def path_length(positions):
+    """Return the cumulative path length (m) along positions (N, 3)."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))])
+
+
+def teach_drive(teacher, recording, odometry=True):
+    """Offer every view of a recording (its ground-truth poses as odometry of the same stamps); return kept."""
+    kept = []
+    for k, stamp in enumerate(recording.stamps):
+        if odometry:
+            teacher.add_odometry(int(stamp), recording.poses[k])
+        if teacher.offer(int(stamp), recording.coefficients[k]):
+            kept.append(k)
+    return kept
+
+
+def test_with_odometry_a_snapshot_every_spacing_metres(garden, tmp_path):
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.3)
+    kept = teach_drive(teacher, drive)
+    travelled = path_length(drive.poses[:, :3])
+    gaps = np.diff(travelled[kept])
+    step = np.max(np.diff(travelled))
+    assert np.all(gaps >= 0.3) and np.all(gaps < 0.3 + step + 1e-9)
+    assert len(kept) == teacher.snapshots >= travelled[-1] / (0.3 + step)
+    assert teacher.route_length == pytest.approx(travelled[kept[-1]] - travelled[kept[0]])
+    assert teacher.finish() == tmp_path / 'garden.db'
+    with MapStore.open(tmp_path / 'garden.db') as store:
+        assert store.name == 'garden' and len(store) == len(kept) and store.max_degree == 16
+        np.testing.assert_array_equal(store.stamps(), drive.stamps[kept])
+        np.testing.assert_allclose(store.coefficients(), drive.coefficients[kept])
+        np.testing.assert_allclose(store.descriptor_matrix(ODOM_POSE), drive.poses[kept])
+        assert not store.has_poses  # ground truth is never stored by a node
+        assert store.meta['taught'] == 'live'
+
+
+@pytest.mark.parametrize('spacing', [0.2, 0.5])
+def test_without_odometry_the_view_change_gives_about_the_spacing(garden, tmp_path, spacing):
+    # VIEW_CHANGE_PER_METRE is calibrated on the bundled teach drives so that the spacing holds roughly
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=spacing)
+    kept = teach_drive(teacher, drive, odometry=False)
+    gaps = np.diff(path_length(drive.poses[:, :3])[kept])
+    assert 0.7 * spacing <= np.median(gaps) <= 1.5 * spacing
+    assert teacher.route_length == 0.0  # unknown without odometry
+    with MapStore.open(teacher.finish()) as store:
+        assert len(store) == len(kept)
+        assert np.all(np.isnan(store.descriptor_matrix(ODOM_POSE)))
+
+
+def test_max_length_stores_the_view_that_reaches_it_and_ends(garden, tmp_path):
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.5, max_length=2.0)
+    kept = teach_drive(teacher, drive)
+    travelled = path_length(drive.poses[:, :3])
+    assert teacher.finished
+    assert travelled[kept[-1]] - travelled[kept[0]] >= 2.0
+    assert travelled[kept[-2]] - travelled[kept[0]] < 2.0
+    assert teacher.route_length >= 2.0
+    assert not teacher.offer(int(drive.stamps[-1]) + 1, drive.coefficients[-1])
+
+
+def test_odometry_far_from_the_views_stamp_is_not_used(garden, tmp_path):
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.3)
+    late = 10**10 + DEFAULT_ODOMETRY_TOLERANCE_NS  # odometry 10 s ahead of every view
+    for k, stamp in enumerate(drive.stamps[:10]):
+        teacher.add_odometry(int(stamp) + late, drive.poses[k])
+        teacher.offer(int(stamp), drive.coefficients[k])
+    assert teacher.route_length == 0.0
+    assert teacher.snapshots >= 1
+    with MapStore.open(teacher.finish()) as store:
+        assert np.all(np.isnan(store.descriptor_matrix(ODOM_POSE)))
+
+
+def test_odometry_track_ignores_old_or_broken_samples():
+    track = OdometryTrack(capacity=3)
+    pose = np.array([0, 0, 0, 0, 0, 0, 1.0])
+    assert track.add(10, pose)
+    assert not track.add(10, pose + [1, 0, 0, 0, 0, 0, 0])  # not newer
+    assert not track.add(20, np.full(7, np.nan))
+    for k, stamp in enumerate((20, 30, 40), start=1):
+        assert track.add(stamp, pose + [k, 0, 0, 0, 0, 0, 0])
+    assert track.at(10, 5) is None  # dropped beyond the capacity
+    found = track.at(41, 5)  # past the newest sample: extrapolated at the last velocity (0.1 m/ns here)
+    assert found is not None and found[1] == pytest.approx(3.1) and found[0][0] == pytest.approx(3.1)
+    found = track.at(25, 5)  # between samples: interpolated
+    assert found[1] == pytest.approx(1.5) and found[0][0] == pytest.approx(1.5)
+    assert track.at(30, 0)[1] == 2.0
+    assert track.at(100, 5) is None
+
+
+def test_a_view_ahead_of_its_odometry_uses_the_extrapolated_path_length(garden, tmp_path):
+    # live, a view is often taken before the odometry sample of its instant arrives
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.3)
+    kept = []
+    for k, stamp in enumerate(drive.stamps):
+        if k:
+            teacher.add_odometry(int(drive.stamps[k - 1]) + 10_000_000, drive.poses[k - 1])
+        if teacher.offer(int(stamp), drive.coefficients[k]):
+            kept.append(k)
+    gaps = np.diff(path_length(drive.poses[:, :3])[kept])[1:]  # the first snapshot has no odometry yet
+    assert np.all(gaps >= 0.3 - 0.01) and np.all(gaps < 0.41)
+
+
+def test_views_of_a_higher_degree_are_cut_and_of_a_lower_one_refused(garden, tmp_path):
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.1)
+    low = drive.coefficients[0][: 9**2]  # degree 8
+    assert teacher.offer(1, low)
+    assert teacher.offer(2, drive.coefficients[40])  # degree 16: cut to 8
+    with pytest.raises(ValueError, match='degree 4'):
+        teacher.offer(3, drive.coefficients[1][:25])
+    with MapStore.open(teacher.finish()) as store:
+        assert store.max_degree == 8
+        np.testing.assert_allclose(store.coefficients()[1], drive.coefficients[40][:81])
+
+
+def test_goals_that_cannot_be_taught(tmp_path):
+    existing = tmp_path / 'taken.db'
+    existing.write_bytes(b'x')
+    with pytest.raises(MapExists):
+        RouteTeacher(existing)
+    RouteTeacher(existing, overwrite=True)  # allowed: replaced with the first snapshot
+    with pytest.raises(MapWriteFailed, match='no such directory'):
+        RouteTeacher(tmp_path / 'missing' / 'map.db')
+    with pytest.raises(MapWriteFailed, match='directory'):
+        RouteTeacher(tmp_path)
+    with pytest.raises(BadGoal):
+        RouteTeacher('')
+    with pytest.raises(BadGoal):
+        RouteTeacher(tmp_path / 'a.db', max_length=float('nan'))
+    with pytest.raises(BadGoal):
+        RouteTeacher(tmp_path / 'a.db', spacing=float('inf'))
+
+
+def test_a_map_that_cannot_be_written_fails_with_map_write_failed(garden, tmp_path):
+    drive = garden['teach']
+    folder = tmp_path / 'gone'
+    folder.mkdir()
+    teacher = RouteTeacher(folder / 'map.db')
+    folder.rmdir()  # the directory disappears between the goal and the first view
+    with pytest.raises(MapWriteFailed):
+        teacher.offer(int(drive.stamps[0]), drive.coefficients[0])
