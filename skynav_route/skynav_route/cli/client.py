@@ -23,6 +23,9 @@ from skynav_core.ros import StopRequest, tool_node
 SUCCEEDED, CANCELED = 4, 5  # action_msgs/GoalStatus
 PRINT_PERIOD = 1.0  # s between progress lines when the output is not a terminal
 CANCEL_WAIT = 10.0  # s to wait for the result of a canceled goal
+# s to let discovery finish the other way once the server is seen: a request sent before the server has matched
+# this client is lost (DDS discovery is per direction; ENV.md: a late joiner can take seconds)
+SERVER_SETTLE = 2.0
 
 
 def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], seconds: float, stop: StopRequest) -> bool:
@@ -79,10 +82,15 @@ def _send(
         if stop.requested:
             raise KeyboardInterrupt
         raise CliError(f'no {action_name} action server answered within {wait:g} s: is `skynav launch` running?')
+    spin_until(executor, lambda: False, SERVER_SETTLE, stop)
+    if stop.requested:
+        raise KeyboardInterrupt
     line = ProgressLine()
     sent = client.send_goal_async(goal, feedback_callback=lambda m: line.show(describe(m.feedback)))
-    if not spin_until(executor, sent.done, wait, stop) or not sent.result().accepted:
-        raise CliError(f'the {action_name} server did not take the goal')
+    if not spin_until(executor, sent.done, wait, stop):
+        raise CliError(f'the {action_name} server did not answer the goal within {wait:g} s')
+    if not sent.result().accepted:
+        raise CliError(f'the {action_name} server rejected the goal')
     handle = sent.result()
     result = handle.get_result_async()
     while not result.done() and not stop.requested:
