@@ -31,6 +31,7 @@ PACKAGES = (
     'skynav_compass',
     'skynav_warping',
     'skynav_sim',
+    'skynav_route',
 )
 for _package in PACKAGES:
     importlib.import_module(_package)

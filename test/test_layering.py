@@ -19,6 +19,7 @@ ALLOWED = {
     'skynav_compass': {'skynav_msgs', 'skynav_core', 'skynav_sh'},
     'skynav_warping': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_compass'},
     'skynav_sim': {'skynav_msgs', 'skynav_core', 'skynav_localize'},
+    'skynav_route': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_localize', 'skynav_compass', 'skynav_warping'},
     'skynav_bringup': {
         'skynav_msgs',
         'skynav_core',
@@ -28,6 +29,7 @@ ALLOWED = {
         'skynav_compass',
         'skynav_warping',
         'skynav_sim',
+        'skynav_route',
     },
 }
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The running graph localizes a replayed repeat drive on the map of its teach drive, and steers along it.
 
-`skynav launch --map` starts every node (skyline, sh, localize, compass, warping), `skynav replay`
+`skynav launch --map` starts every node (skyline, sh, localize, compass, warping, route), `skynav replay`
 plays the synthetic repeat drive, and the outputs are checked against the ground truth. Offline
 (`skynav eval localization`, `skynav demo`) every place match of this pair is accepted and correct,
 the compass's error against the matched snapshot is 0.8 deg median and 1.5 deg at most, and the home
@@ -58,10 +58,11 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     try:
         # Wait until the graph is connected inside too (a late DDS joiner can take seconds, and whatever an
         # unmatched subscription misses is lost): the outputs published, and every inner topic taken up by all
-        # its readers (sh; localize, compass, warping; compass, warping and this test; warping and this test).
+        # its readers (sh; localize, compass, warping, route; compass, warping, route and this test; warping, route
+        # and this test). The route node (idle here: no goal) reads them too, so it counts.
         deadline = time.monotonic() + 60
         outputs = ('/localization/match', '/compass/orientation', '/homing/home_vector')
-        readers = {'/skyline/mask': 1, '/skyline/sh': 3, '/localization/match': 3, '/compass/orientation': 2}
+        readers = {'/skyline/mask': 1, '/skyline/sh': 4, '/localization/match': 4, '/compass/orientation': 3}
         while time.monotonic() < deadline and (
             min(node.count_publishers(t) for t in outputs) == 0
             or any(node.count_subscribers(t) < n for t, n in readers.items())

@@ -94,6 +94,10 @@ class InProcessGraph:
         """Return the log time of the input being processed."""
         return self._now
 
+    def advance(self, now_ns: int) -> None:
+        """Set the graph's time (ns) for what is published next: a simulator's clock, stepping the graph itself."""
+        self._now = now_ns
+
     # --- driving --------------------------------------------------------------------------------
 
     @property

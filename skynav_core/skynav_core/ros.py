@@ -98,7 +98,12 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
     apply_ros_environment()
-    rclpy.init(args=args)
+    # A node that drives the robot stops it on the way out, which needs the context alive: it takes the signals as
+    # KeyboardInterrupt (SIGTERM too) instead of rclpy's handler, which shuts the context down first.
+    own_signals = getattr(node_factory, 'stops_on_signal', False)
+    if own_signals:
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own_signals else SignalHandlerOptions.ALL)
     node = None
     try:
         node = node_factory()

@@ -1,49 +1,60 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Closed-loop homing and route following in the simulator, with the real skynav nodes in the loop.
+"""Closed-loop homing and route following in the simulator, driven only through the robot's interfaces.
 
-A simulated robot is a node of the in-process graph: each cycle it renders the view from its pose
-and publishes it on the camera topics like a camera; the skyline, SH, (localize,) compass and
-warping nodes answer before the call returns, and the robot drives a step.
-
-Homing: it turns towards the home vector, halves its step when successive home vectors point back
-(it passed home) and stops when the warping node reports no confident direction several times in
-a row (the views agree: home) or after a step limit.
-
-Route following: it steers along the route's direction at the matched snapshot (the compass turns
-the snapshot's forward axis into the current view), pulled towards a snapshot further on by the
-home vector in proportion to its confidence, until the place match reaches the route's end.
+The simulated mower is a node of the in-process graph (skynav_core.graph), like a robot on its topics: each
+frame it publishes /clock, /odom and the camera topics of its view; the skyline, SH, (localize,) compass,
+warping and route nodes answer before the call returns, the route node's /cmd_vel reply among them, and the
+mower obeys that command for one frame period (skynav_sim.mower: wheel slip, odometry noise) before the next
+frame. So the simulation steps exactly as fast as the graph answers, on sim time: a result never depends on
+the machine's speed. The goal (Home or FollowRoute) goes to the route node through its action server, as
+`skynav home|follow` send it; the route node's steering (skynav_route.controller) is the only steering. Ground
+truth is used to render the view and to score the run, never inside the loop.
 
 Everything here is synthetic and deterministic: the same inputs drive the same paths.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.action import ActionClient
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image
 
+from skynav_core.actions import error_name
 from skynav_core.camera import EquidistantCamera
-from skynav_core.graph import in_process
-from skynav_core.images import fill_image
+from skynav_core.graph import InProcessGraph, in_process
+from skynav_core.images import fill_image, stamp_ns
+from skynav_core.maps import MapStore, Snapshot
 from skynav_core.node import SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
-from skynav_core.rotations import as_matrix
+from skynav_localize.mapping import build_map
+from skynav_msgs.action import FollowRoute, Home
 
+from .mower import Mower, Pose2D
 from .recording import CAMERA_FRAME, start_stamp
 from .render import Renderer
 from .robot import bump, camera_pose
-from .scenarios import FRAME_RATE
 from .sensor import Sensor
 from .sky import Sky
 from .world import World
 
-STEP = 0.25  # m: the robot's drive per cycle while far from home
-MIN_STEP = 0.04  # m: steps are halved on overshoot, down to this
-UNSURE_RESIDUAL = 0.97  # HomeVector.residual above this: no confident direction
-UNSURE_TO_STOP = 3  # consecutive unsure home vectors that end a run (at home)
-SUCCESS_RADIUS = 0.3  # m: a run succeeds when it ends this close to home
-ROUTE_HOMING_GAIN = 2.0  # weight of a fully confident home vector against the route direction
+FRAME_PERIOD = 0.2  # s of sim time between camera frames while driving (5 Hz)
+SPEED = 0.4  # m/s: the goals' speed limit in the simulator (0.08 m per frame)
+SUCCESS_RADIUS = 0.3  # m: a homing run succeeds when it ends this close to home
+COMMAND_TIMEOUT = 0.5  # s: the mower's base stops when no command came for this long
+GOAL_WAIT = 60.0  # s of wall time for the action server to appear and take the goal
+RESULT_WAIT = 10.0  # s of wall time for a goal's result once the robot stands still
+ROUTE_LOOKAHEAD = 6  # snapshots ahead of the matched one the warping node homes to (the route node's default)
+GRAPH_NODES = ('skyline', 'sh', 'localize', 'compass', 'warping', 'route')
 
 
 @dataclass
@@ -52,9 +63,12 @@ class Run:
 
     start: np.ndarray  # (2,) m
     goal: np.ndarray  # (2,) m
-    path: list[np.ndarray] = field(default_factory=list)  # robot positions (x, y), start first
-    residuals: list[float] = field(default_factory=list)
-    stopped: str = ''  # why the run ended: 'home', 'steps', 'blocked', 'lost'
+    path: list[np.ndarray] = field(default_factory=list)  # true mower positions (x, y), one per frame, start first
+    confidences: list[float] = field(default_factory=list)  # the goal's feedback, one per processed frame
+    stopped: str = ''  # why the run ended: 'reached', an error code's name (LOST, ...), 'blocked' or 'frames'
+    result: Any = None  # the action's result
+    commands: int = 0  # /cmd_vel messages the mower received
+    stopped_frames: int = 0  # frames the mower stood still while the goal ran
 
     @property
     def final_error(self) -> float:
@@ -67,51 +81,69 @@ class Run:
         return self.final_error <= SUCCESS_RADIUS
 
     @property
+    def driven(self) -> float:
+        """Return the length (m) of the true path."""
+        return float(np.sum(np.linalg.norm(np.diff(np.array(self.path), axis=0), axis=1)))
+
+    @property
     def path_ratio(self) -> float:
         """Return the driven length over the straight-line distance from start to goal."""
-        driven = float(np.sum(np.linalg.norm(np.diff(np.array(self.path), axis=0), axis=1)))
-        return driven / max(float(np.linalg.norm(self.start - self.goal)), 1e-9)
+        return self.driven / max(float(np.linalg.norm(self.start - self.goal)), 1e-9)
 
 
-class SimRobotNode(SkynavNode):
-    """The simulated robot in the in-process graph: publishes camera frames, listens to the home vector."""
+class SimMowerNode(SkynavNode):
+    """The simulated mower in the in-process graph: camera, /odom and /clock out, /cmd_vel in."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('sim_robot', **kwargs)
-        from geometry_msgs.msg import PoseStamped
-        from sensor_msgs.msg import CameraInfo, Image
-
-        from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch
-
-        self.image_type, self.info_type, self.pose_type = Image, CameraInfo, PoseStamped
+        super().__init__('sim_mower', **kwargs)
         for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
             self.output(topic, Image)
         self.output('/camera/uv/camera_info', CameraInfo)
-        self.home_vector = None
-        self.compass = None
-        self.match = None
-        self.input('/homing/home_vector', HomeVector, lambda m: setattr(self, 'home_vector', m))
-        self.input('/compass/orientation', CompassEstimate, lambda m: setattr(self, 'compass', m))
-        self.input('/localization/match', PlaceMatch, lambda m: setattr(self, 'match', m))
+        self.output('/odom', Odometry)
+        self.output('/clock', Clock)
+        self.commands: list[TwistStamped] = []
+        self.input('/cmd_vel', TwistStamped, self.commands.append)
+
+    def publish_clock(self, stamp: int) -> None:
+        """Publish the sim time (ns)."""
+        message = Clock()
+        message.clock.sec, message.clock.nanosec = divmod(stamp, 1_000_000_000)
+        self.emit('/clock', message)
+
+    def publish_odometry(self, stamp: int, pose: Pose2D) -> None:
+        """Publish the wheel odometry: base_link's pose in frame odom."""
+        message = Odometry()
+        message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+        message.header.frame_id, message.child_frame_id = 'odom', 'base_link'
+        message.pose.pose.position.x, message.pose.pose.position.y = pose.x, pose.y
+        message.pose.pose.orientation.z = float(np.sin(pose.heading / 2))
+        message.pose.pose.orientation.w = float(np.cos(pose.heading / 2))
+        self.emit('/odom', message)
 
     def publish_frame(
         self, stamp: int, uv: np.ndarray, green: np.ndarray, encoding: str, camera: EquidistantCamera
     ) -> None:
         """Publish one exposure as the camera topics carry it."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
-        info = self.info_type()
+        info = CameraInfo()
         for key, value in camera.camera_info_fields().items():
             setattr(info, key, value)
         messages = [
             ('/camera/uv/camera_info', info),
-            ('/camera/uv/image_raw', fill_image(self.image_type(), uv, encoding)),
-            ('/camera/green/image_raw', fill_image(self.image_type(), green, encoding)),
+            ('/camera/uv/image_raw', fill_image(Image(), uv, encoding)),
+            ('/camera/green/image_raw', fill_image(Image(), green, encoding)),
         ]
-        self.home_vector = self.compass = None
         for topic, message in messages:
             message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
             message.header.frame_id = CAMERA_FRAME
             self.emit(topic, message)
+
+    def command(self, stamp: int) -> tuple[float, float]:
+        """Return the command the base obeys at `stamp` (ns): the latest, unless older than COMMAND_TIMEOUT."""
+        if not self.commands or stamp - stamp_ns(self.commands[-1].header) > COMMAND_TIMEOUT * 1e9:
+            return 0.0, 0.0
+        twist = self.commands[-1].twist
+        return float(twist.linear.x), float(twist.angular.z)
 
 
 class Simulation:
@@ -148,84 +180,103 @@ class Simulation:
         )
 
     def stamp(self) -> int:
-        """Return the stamp of the next frame (ns), FRAME_RATE apart."""
-        return start_stamp(self.hours) + int(self.frames * 1e9 / FRAME_RATE)
+        """Return the stamp of the next frame (ns), FRAME_PERIOD apart."""
+        return start_stamp(self.hours) + int(round(self.frames * FRAME_PERIOD * 1e9))
 
 
-def graph_specs() -> list[NodeSpec]:
-    """Return the installed nodes of the homing loop and the simulated robot."""
-    specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh', 'localize', 'compass', 'warping')]
-    return specs + [NodeSpec('sim_robot', 'skynav_sim', 'skynav_sim.closed_loop:SimRobotNode')]
+def graph_specs(names: tuple[str, ...] = GRAPH_NODES) -> list[NodeSpec]:
+    """Return the installed nodes of the loop (by name) and the simulated mower."""
+    specs = [s for s in installed_nodes() if s.name in names]
+    return specs + [NodeSpec('sim_mower', 'skynav_sim', 'skynav_sim.closed_loop:SimMowerNode')]
 
 
-def ground_direction(pose, direction) -> np.ndarray:
-    """Return a camera_link direction turned into map and projected on the ground: a unit (x, y)."""
-    world = pose.rotation.apply(direction)[:2]
-    return world / max(float(np.linalg.norm(world)), 1e-9)
+def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], seconds: float) -> bool:
+    """Spin the executor until `done()` or `seconds` of wall time passed; return done()."""
+    deadline = time.monotonic() + seconds
+    while not done() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+    return done()
 
 
-def route_direction(pose, compass) -> np.ndarray:
-    """Return the taught route's direction at the compass's snapshot, on the ground in map (unit x, y).
-
-    The snapshot was taken driving along its camera's +x; R (d_snapshot = R d_current) carries that
-    axis into the current view as R^T e_x, the first row of R.
-    """
-    q = compass.rotation
-    return ground_direction(pose, as_matrix([q.x, q.y, q.z, q.w])[0])
-
-
-def drive(
+def drive_goal(
+    graph: InProcessGraph,
     simulation: Simulation,
-    robot: SimRobotNode,
-    start: np.ndarray,
-    heading: float,
-    goal: np.ndarray,
-    max_steps: int,
-    done: Callable[[SimRobotNode], str] | None = None,
-    homing: bool = True,
+    mower: Mower,
+    action: tuple[type, str],
+    goal: Any,
+    goal_place: np.ndarray,
+    max_frames: int,
 ) -> Run:
-    """Drive the robot by its home vectors from `start` until it stops; return the run.
-
-    Homing (`homing`): towards the home vector; halve the step when home was passed, stop when the
-    direction stays unsure. Route following: fixed steps along the route's direction from the
-    compass, pulled towards the snapshot ahead by the home vector as far as it is confident, until
-    `done` says the route ended.
-    """
-    run = Run(np.asarray(start, float), np.asarray(goal, float), [np.asarray(start, float)])
-    position, step, unsure, previous = np.asarray(start, float), STEP, 0, None
-    for _ in range(max_steps):
-        uv, green, pose = simulation.capture(*position, heading)
-        robot.publish_frame(simulation.stamp(), uv, green, simulation.encoding, simulation.camera)
-        vector = robot.home_vector
-        if done is not None and (reason := done(robot)):
-            run.stopped = reason
-            break
-        if vector is None or (not homing and robot.compass is None):  # the nodes rejected the view or have no target
-            run.stopped = 'lost'
-            break
-        run.residuals.append(float(vector.residual))
-        ground = ground_direction(pose, [vector.direction.x, vector.direction.y, vector.direction.z])
-        if homing:
-            unsure = unsure + 1 if vector.residual > UNSURE_RESIDUAL else 0
-            if unsure >= UNSURE_TO_STOP:
-                run.stopped = 'home'
+    """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run."""
+    robot = graph.nodes[-1]
+    context = robot.context
+    executor = SingleThreadedExecutor(context=context)
+    client_node = Node('sim_goal_client', context=context)
+    for node in [*graph.nodes, client_node]:
+        executor.add_node(node)
+    client = ActionClient(client_node, action[0], action[1])
+    run = Run(mower.pose.position, np.asarray(goal_place, float), [mower.pose.position])
+    feedback: list[Any] = []
+    try:
+        if not spin_until(executor, client.server_is_ready, GOAL_WAIT):
+            raise RuntimeError(f'no action server {action[1]} in the simulated graph')
+        sent = client.send_goal_async(goal, feedback_callback=lambda m: feedback.append(m.feedback))
+        if not spin_until(executor, sent.done, GOAL_WAIT) or not sent.result().accepted:
+            raise RuntimeError(f'the route node did not take the {action[0].__name__} goal')
+        result = sent.result().get_result_async()
+        # the first feedback says the graph is set up for the goal (before any frame)
+        spin_until(executor, lambda: bool(feedback) or result.done(), GOAL_WAIT)
+        for _ in range(max_frames):
+            if result.done():
                 break
-            if previous is not None and ground @ previous < 0:  # it points back: home was passed
-                step = max(step / 2, MIN_STEP)
-            previous = ground
+            stamp = simulation.stamp()
+            graph.advance(stamp)
+            robot.publish_clock(stamp)
+            robot.publish_odometry(stamp, mower.odometry)
+            uv, green, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+            answered, heard = len(robot.commands), len(feedback)
+            robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
+            run.commands = len(robot.commands)
+            linear, angular = robot.command(stamp)
+            if len(robot.commands) > answered:  # lockstep: its feedback too before the next frame
+                spin_until(executor, lambda h=heard: len(feedback) > h or result.done(), RESULT_WAIT)
+                run.stopped_frames += linear == 0.0 and angular == 0.0
+            executor.spin_once(timeout_sec=0)
+            if result.done():
+                break
+            mower.drive(linear, angular, FRAME_PERIOD)
+            run.path.append(mower.pose.position)
+            if mower.blocked:
+                run.stopped = 'blocked'
+                break
+        if result.done():
+            response = result.result().result
+            run.result = response
+            run.stopped = 'reached' if response.error_code == 0 else error_name(response)
         else:
-            steer = route_direction(pose, robot.compass) + ROUTE_HOMING_GAIN * (1.0 - vector.residual) * ground
-            ground = steer / max(float(np.linalg.norm(steer)), 1e-9)
-        target = position + step * ground
-        if not simulation.world.is_free(*target):
-            run.stopped = 'blocked'
-            break
-        heading = float(np.arctan2(ground[1], ground[0]))
-        position = target
-        run.path.append(position.copy())
-    else:
-        run.stopped = 'steps'
+            run.stopped = run.stopped or 'frames'
+            handle = sent.result()
+            cancel = handle.cancel_goal_async()
+            spin_until(executor, cancel.done, RESULT_WAIT)
+            spin_until(executor, result.done, RESULT_WAIT)
+        run.confidences = [float(f.confidence) for f in feedback]
+    finally:
+        executor.remove_node(client_node)
+        for node in graph.nodes:
+            executor.remove_node(node)
+        client.destroy()
+        client_node.destroy_node()
+        executor.shutdown()
     return run
+
+
+@dataclass(frozen=True)
+class Base:
+    """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed."""
+
+    slip: float = 0.05
+    odometry_noise: float = 0.02
+    seed: int = 0
 
 
 def home_runs(
@@ -236,19 +287,27 @@ def home_runs(
     map_path,
     hours: float,
     seed: int,
-    max_steps: int,
+    max_frames: int,
     progress: Callable[[Run], None] | None = None,
     ros_args: list[str] | None = None,
     bump_tilt: float = 0.0,
+    base: Base = Base(),
 ) -> list[Run]:
-    """Home from each start to the one snapshot of the map at `goal` (views bumped up to bump_tilt degrees)."""
+    """Home from each start to snapshot 0 of the map at `goal` with a Home goal (views bumped up to bump_tilt deg)."""
     runs = []
-    arguments = ['-p', f'map:={map_path}', '-p', 'reference:=index', '-p', 'target:=index', *(ros_args or [])]
-    for start, heading in starts:
+    arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
+    for k, (start, heading) in enumerate(starts):
         simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
-        with in_process([s for s in graph_specs() if s.name != 'localize'], arguments) as graph:
-            robot = graph.nodes[-1]
-            run = drive(simulation, robot, start, heading, goal, max_steps)
+        mower = Mower(
+            world,
+            Pose2D(float(start[0]), float(start[1]), float(heading)),
+            np.random.default_rng([base.seed, seed, k]),
+            base.slip,
+            base.odometry_noise,
+        )
+        with in_process(graph_specs(tuple(n for n in GRAPH_NODES if n != 'localize')), arguments) as graph:
+            goal_message = Home.Goal(map_path='', index=0, max_speed=SPEED)
+            run = drive_goal(graph, simulation, mower, (Home, '/skynav/home'), goal_message, goal, max_frames)
         runs.append(run)
         if progress is not None:
             progress(run)
@@ -268,12 +327,9 @@ def snapshot_map(
     bump_tilt: float = 0.0,
 ):
     """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
-    from skynav_core.maps import Snapshot
-    from skynav_localize.mapping import build_map
-
     simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
-    specs.append(NodeSpec('sim_robot', 'skynav_sim', 'skynav_sim.closed_loop:SimRobotNode'))
+    specs.append(NodeSpec('sim_mower', 'skynav_sim', 'skynav_sim.closed_loop:SimMowerNode'))
     with in_process(specs, ros_args) as graph:
         graph.keep_outputs = True
         robot = graph.nodes[-1]
@@ -307,9 +363,6 @@ def random_starts(
     return starts
 
 
-ROUTE_LOOKAHEAD = 6  # snapshots ahead of the matched one that route following homes to (0.6-1.2 m here)
-
-
 def follow_route(
     world: World,
     camera: EquidistantCamera,
@@ -318,38 +371,29 @@ def follow_route(
     heading: float,
     hours: float,
     seed: int,
-    max_steps: int,
+    max_frames: int,
     ros_args: list[str] | None = None,
+    base: Base = Base(),
+    bump_tilt: float = 0.0,
 ) -> tuple[Run, np.ndarray]:
-    """Follow the route of a map from `start`: localize, home to a snapshot further on, step, repeat.
+    """Follow the route of a map from `start` with a FollowRoute goal to its last snapshot.
 
-    Returns the run and the route (snapshot positions x, y in m).
+    Returns the run and the route (snapshot positions x, y in m: for scoring only, the loop never sees them).
     """
-    from skynav_core.maps import MapStore
-
-    store = MapStore.open(map_path)
-    route = store.positions()[:, :2]
-    last = len(store) - 1
-    store.close()
-    arguments = [
-        '-p',
-        f'map:={map_path}',
-        '-p',
-        'reference:=match',
-        '-p',
-        'target:=next',
-        '-p',
-        f'lookahead:={ROUTE_LOOKAHEAD}',
-        *(ros_args or []),
-    ]
-
-    def at_end(robot: SimRobotNode) -> str:
-        match = robot.match
-        return 'end' if match is not None and match.accepted and match.index >= last - 1 else ''
-
-    simulation = Simulation(world, camera, hours, seed)
+    with MapStore.open(map_path) as store:
+        route = store.positions()[:, :2]
+    arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
+    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
+    mower = Mower(
+        world,
+        Pose2D(float(start[0]), float(start[1]), float(heading)),
+        np.random.default_rng([base.seed, seed]),
+        base.slip,
+        base.odometry_noise,
+    )
+    goal = FollowRoute.Goal(map_path='', start_index=-1, end_index=-1, max_speed=SPEED)
     with in_process(graph_specs(), arguments) as graph:
-        run = drive(simulation, graph.nodes[-1], start, heading, route[-1], max_steps, at_end, homing=False)
+        run = drive_goal(graph, simulation, mower, (FollowRoute, '/skynav/follow_route'), goal, route[-1], max_frames)
     return run, route
 
 

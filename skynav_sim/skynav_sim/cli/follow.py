@@ -1,15 +1,13 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Closed-loop route following in the synthetic world of a teach drive, with the skynav nodes in the loop.
+"""Closed-loop route following in the synthetic world of a teach drive: the graph drives the simulated mower.
 
-The map (`skynav map build TEACH.mcap`) holds the snapshots of a synthetic teach drive; the world,
-its seed and the camera are read back from the teach recording. A simulated robot starts beside the
-route's first snapshot, off by --offset metres to the left and turned by --turn degrees, and each
-cycle renders its view and publishes it as a camera would; the skyline, SH, localize, compass and
-warping nodes answer in this process: the place match, the rotation against the matched snapshot
-and the home vector to the snapshot ROUTE_LOOKAHEAD (6) ahead. The robot steers along the route's
-direction at the matched snapshot (from the compass), pulled towards the snapshot ahead as far as
-the home vector is confident, and drives 0.25 m a step until the match reaches the route's end.
-Reports how far the path stayed from the taught route and plots both. Everything is synthetic.
+The map (`skynav map build TEACH.mcap`, or `skynav sim teach`) holds the snapshots of a synthetic teach drive;
+the world, its seed and the camera are read back from the teach recording. The simulated mower starts beside
+the route's first snapshot, off by --offset metres to the left and turned by --turn degrees. The graph
+(skyline, SH, localize, compass, warping and the route node) runs in this process; a FollowRoute goal goes to
+the route node's action server, and the mower obeys its /cmd_vel, one command per camera frame, on sim time
+(skynav_sim.closed_loop), until the goal's result. Reports how far the true path stayed from the taught
+route and plots both. Everything is synthetic.
 """
 
 from __future__ import annotations
@@ -43,11 +41,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument('--time', default='morning', help='time of day of the run (default morning)')
     parser.add_argument(
-        '--max-steps',
+        '--max-frames',
         type=int,
         default=0,
         metavar='N',
-        help='steps before the run is given up (default: twice the route length over the step)',
+        help='camera frames before the run is given up (default: three times the route length at full speed)',
+    )
+    parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
+    parser.add_argument(
+        '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
+    )
+    parser.add_argument(
+        '--bump-tilt', type=float, default=0.0, metavar='DEG', help='bumpy ground: views tilted up to DEG more'
     )
     parser.add_argument(
         '--out', type=Path, default=Path('sim_follow'), metavar='DIR', help='folder for the plot (default sim_follow)'
@@ -87,15 +92,17 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
     from skynav_core.maps import MapError, MapStore
 
-    from ..closed_loop import STEP, follow_route, route_deviation
+    from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, route_deviation
     from ..sky import parse_time
 
     try:
         hours = parse_time(args.time)
     except ValueError as exc:
         raise CliError(str(exc), exit_code=2) from None
-    if args.max_steps < 0:
-        raise CliError('--max-steps must not be negative', exit_code=2)
+    if args.max_frames < 0:
+        raise CliError('--max-frames must not be negative', exit_code=2)
+    if not (0 <= args.slip < 1 and 0 <= args.odometry_noise < 1 and 0 <= args.bump_tilt <= 90):
+        raise CliError('--slip and --odometry-noise must be within 0..1, --bump-tilt within 0..90', exit_code=2)
     world, seed, camera = teach_world(args.teach)
     try:
         with MapStore.open(args.map) as store:
@@ -111,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     left = np.array([-np.sin(route_heading), np.cos(route_heading)])
     start = route[0] + args.offset * left
     length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
-    max_steps = args.max_steps or int(2 * length / STEP) + 10
+    max_frames = args.max_frames or int(3 * length / (SPEED * FRAME_PERIOD)) + 50
     print(
         f'following the {length:.1f} m route of {args.map.name} ({count} snapshots) in the synthetic '
         f'{world.style} world (seed {seed}) at {hours:.1f} h, from {args.offset:+.2f} m beside its start, '
@@ -119,18 +126,30 @@ def run(args: argparse.Namespace) -> int:
         flush=True,
     )
     run, route = follow_route(
-        world, camera, args.map, start, route_heading + np.radians(args.turn), hours, seed, max_steps
+        world,
+        camera,
+        args.map,
+        start,
+        route_heading + np.radians(args.turn),
+        hours,
+        seed,
+        max_frames,
+        base=Base(args.slip, args.odometry_noise),
+        bump_tilt=args.bump_tilt,
     )
     deviation = route_deviation(run, route)
     end = float(np.linalg.norm(run.path[-1] - route[-1]))
-    reached = run.stopped == 'end' and end <= END_RADIUS
+    reached = run.stopped == 'reached' and end <= END_RADIUS
     print(
-        f'{len(run.path) - 1} steps; stopped: {run.stopped}; {end:.2f} m from the last snapshot '
+        f'{len(run.path) - 1} frames ({(len(run.path) - 1) * FRAME_PERIOD:.1f} s sim time, '
+        f'{run.stopped_frames} standing still); goal ended: {run.stopped}; {end:.2f} m from the last snapshot '
         f'({"reached the end" if reached else "did NOT reach the end"})'
     )
     print(
         f'distance from the taught route: median {np.median(deviation):.2f} m, 90th percentile '
-        f'{np.percentile(deviation, 90):.2f} m, largest {deviation.max():.2f} m (at the start {deviation[0]:.2f} m)'
+        f'{np.percentile(deviation, 90):.2f} m, largest {deviation.max():.2f} m, RMSE '
+        f'{np.sqrt(np.mean(deviation**2)):.2f} m (at the start {deviation[0]:.2f} m); driven {run.driven:.1f} m '
+        f'of the {length:.1f} m taught'
     )
     args.out.mkdir(parents=True, exist_ok=True)
     plot = args.out / 'route_following.png'

@@ -1,13 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Closed-loop homing in a synthetic world, with the skynav nodes in the loop.
+"""Closed-loop homing in a synthetic world: the graph drives the simulated mower home.
 
-A snapshot is taken at a home place; a simulated robot then starts at random free places up to
---max-distance away and homes: each cycle it renders its view and publishes it as a camera would,
-the skyline, SH, compass and warping nodes compute the home vector (in this process, synchronously),
-and the robot turns towards it and drives a step (0.25 m, halved when it passes home). A run ends
-when the home vector stays unsure three times (the robot believes it is home) or after --max-steps.
-Reports the share of runs that end within 0.3 m of home and the driven path length relative to the
-straight line, and plots the paths. Everything is synthetic.
+A snapshot is taken at a home place; the simulated mower then starts at random free places up to
+--max-distance away. The graph (skyline, SH, compass, warping and the route node) runs in this process; a
+Home goal goes to the route node's action server and the mower obeys its /cmd_vel, one command per camera
+frame, on sim time (skynav_sim.closed_loop). A run ends with the goal's result (arrived: the home vector stays
+unsure; or an error) or after --max-frames. Reports the share of runs that end within 0.3 m of home and the
+driven path length relative to the straight line, and plots the paths. Everything is synthetic.
 """
 
 from __future__ import annotations
@@ -28,7 +27,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--starts', type=int, default=20, help='runs from random start places (default 20)')
     parser.add_argument('--min-distance', type=float, default=0.5, metavar='M', help='nearest start (0.5 m)')
     parser.add_argument('--max-distance', type=float, default=4.0, metavar='M', help='farthest start (4 m)')
-    parser.add_argument('--max-steps', type=int, default=60, help='steps before a run is given up (60)')
+    parser.add_argument(
+        '--max-frames', type=int, default=150, help='camera frames (0.2 s each) before a run is given up (150)'
+    )
     parser.add_argument('--time', default='forenoon', help='time of day (default forenoon)')
     parser.add_argument(
         '--bump-tilt',
@@ -61,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from ..world import generate
     from . import options
 
-    if args.starts < 1 or args.max_steps < 1 or not 0 < args.min_distance < args.max_distance:
-        raise CliError('need --starts >= 1, --max-steps >= 1 and 0 < --min-distance < --max-distance', exit_code=2)
+    if args.starts < 1 or args.max_frames < 1 or not 0 < args.min_distance < args.max_distance:
+        raise CliError('need --starts >= 1, --max-frames >= 1 and 0 < --min-distance < --max-distance', exit_code=2)
     if not 0 <= args.bump_tilt <= 90:
         raise CliError('--bump-tilt must be between 0 and 90 degrees', exit_code=2)
     try:
@@ -89,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             map_path,
             hours,
             args.seed,
-            args.max_steps,
+            args.max_frames,
             progress=lambda _: bar.update(),
             bump_tilt=args.bump_tilt,
         )
@@ -107,7 +108,7 @@ def report(runs, args) -> str:
 
     from ..closed_loop import SUCCESS_RADIUS
 
-    lines = [f'{"run":>4s} {"start (m)":>10s} {"end (m)":>8s} {"steps":>6s} {"path / line":>12s}  stopped']
+    lines = [f'{"run":>4s} {"start (m)":>10s} {"end (m)":>8s} {"frames":>6s} {"path / line":>12s}  stopped']
     for k, r in enumerate(runs):
         lines.append(
             f'{k:4d} {np.linalg.norm(r.start - r.goal):10.2f} {r.final_error:8.2f} {len(r.path) - 1:6d} '

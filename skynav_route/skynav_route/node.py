@@ -1,0 +1,416 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The route node: serves /skynav/follow_route and /skynav/home and drives the robot through /cmd_vel.
+
+Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and,
+when a robot has it, /odom; publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as docs/interfaces.md
+("Driving") says: while a goal is active, exactly one command per camera frame it processes, stamped with that
+frame's stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, stale inputs, shutdown);
+nothing while idle. It never reads /ground_truth/*.
+
+A frame is processed when its home vector comes (warping is the last stage), or, when none comes, once a view
+`frame_wait` s newer arrives on /skyline/sh (in the in-process graph, where every node has answered a view before
+the next subscriber hears it, at the frame's own /skyline/sh). The command comes from skynav_route.controller.
+
+For each goal it sets the compass and warping nodes' snapshot choice through their parameters (following: the
+compass against the match, the warping node `lookahead` snapshots ahead; homing: both against the goal's index)
+and, for a goal naming another map, the `map` of localize, compass and warping.
+
+The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
+frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.action import ActionServer, CancelResponse
+from rclpy.parameter import Parameter as RosParameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+
+from skynav_core.images import stamp_ns
+from skynav_core.maps import MapError, MapStore
+from skynav_core.node import SkynavNode
+from skynav_core.ros import run_node
+from skynav_core.rotations import as_matrix
+from skynav_msgs.action import FollowRoute, Home
+from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
+
+from .controller import LOCALIZING, LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, View
+from .parameters import PARAMETERS
+
+CMD_TOPIC = '/cmd_vel'
+BASE_FRAME = 'base_link'
+FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
+WATCHDOG_PERIOD = 0.1  # s
+KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
+CANCELED, STALE, TIMED_OUT, SHUTDOWN = 'canceled', 'stale', 'timeout', 'shutdown'
+
+
+@dataclass
+class ActiveGoal:
+    """The goal being driven: its handle, its controller and how it ends."""
+
+    kind: type  # FollowRoute or Home
+    handle: Any  # rclpy ServerGoalHandle
+    controller: RouteFollower | Homer
+    done: Future
+    started: int | None = None  # ns, node time of the watchdog's first look (a simulator's clock may start late)
+    last_frame: int | None = None  # ns, node time the last frame was processed (or the start)
+    driven: float = 0.0  # m
+    reached_index: int = -1
+    steps: int = 0
+    confidence: float = 0.0
+
+
+def twist(stamp: int, command: Command) -> TwistStamped:
+    """Return a velocity command stamped `stamp` (ns) in base_link."""
+    message = TwistStamped()
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(int(stamp), 1_000_000_000)
+    message.header.frame_id = BASE_FRAME
+    message.twist.linear.x, message.twist.angular.z = float(command.linear), float(command.angular)
+    return message
+
+
+class RouteNode(SkynavNode):
+    """Drives the robot along a taught route or home to a snapshot."""
+
+    PARAMETERS = PARAMETERS
+    #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
+    stops_on_signal = True
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('route', **kwargs)
+        self.declare_table(PARAMETERS)
+        self.active: ActiveGoal | None = None
+        self.matches: dict[int, PlaceMatch] = {}
+        self.compass: dict[int, CompassEstimate] = {}
+        self.homes: dict[int, HomeVector] = {}
+        self.last_frame = -1  # stamp (ns) of the last frame processed
+        self.odom: np.ndarray | None = None  # latest base_link position in odom (x, y), m
+        self.odom_at_frame: np.ndarray | None = None
+        self.input('/skyline/sh', ShCoefficients, self.on_view)
+        self.input('/localization/match', PlaceMatch, lambda m: self._keep(self.matches, m))
+        self.input('/compass/orientation', CompassEstimate, lambda m: self._keep(self.compass, m))
+        self.input('/homing/home_vector', HomeVector, self.on_home_vector)
+        self.input('/odom', Odometry, self.on_odom)
+        self.output(CMD_TOPIC, TwistStamped)
+        self.servers = [
+            ActionServer(self, kind, name, execute_callback=execute, cancel_callback=self.on_cancel)
+            for kind, name, execute in (
+                (FollowRoute, FOLLOW_ACTION, self.execute_follow),
+                (Home, HOME_ACTION, self.execute_home),
+            )
+        ]
+        if self.router is None:
+            self.create_timer(WATCHDOG_PERIOD, self.watchdog)
+        else:
+            self.input('/clock', Clock, lambda _: self.watchdog())
+        self.start()
+
+    def configure(self, values: dict) -> None:
+        """Take the limits and thresholds (ValueError if unusable)."""
+        numbers = [v for v in values.values() if isinstance(v, float)]
+        if not all(math.isfinite(v) and v >= 0 for v in numbers):
+            raise ValueError('every limit, gain and timeout must be finite and not negative')
+        if values['max_speed'] <= 0 or values['max_turn_rate'] <= 0 or values['input_timeout'] <= 0:
+            raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
+        if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:
+            raise ValueError('lost_frames and arrived_frames must be at least 1, lookahead not negative')
+        self.values = values
+        self.settings = Settings(
+            heading_gain=values['heading_gain'],
+            homing_gain=values['homing_gain'],
+            unsure_residual=values['unsure_residual'],
+            arrived_frames=values['arrived_frames'],
+            arrive_creep=values['arrive_creep'],
+            lost_frames=values['lost_frames'],
+            recover_speed=values['recover_speed'],
+            recover_distance=values['recover_distance'],
+        )
+
+    def limits(self, max_speed: float) -> Limits:
+        """Return the limits of a goal asking for `max_speed` (m/s; <= 0: the parameter)."""
+        v = self.values
+        speed = max_speed if max_speed > 0 else v['max_speed']
+        return Limits(speed, v['max_acceleration'], v['max_turn_rate'], v['max_turn_acceleration'])
+
+    # --- inputs ---------------------------------------------------------------------------------
+
+    def _keep(self, kept: dict[int, Any], message: Any) -> None:
+        """Keep a frame's message by stamp (the last KEPT_FRAMES frames)."""
+        kept[stamp_ns(message.header)] = message
+        while len(kept) > KEPT_FRAMES:
+            del kept[min(kept)]
+
+    def on_odom(self, message: Odometry) -> None:
+        """Remember the latest odometry position (m, frame odom)."""
+        p = message.pose.pose.position
+        if math.isfinite(p.x) and math.isfinite(p.y):
+            self.odom = np.array([p.x, p.y])
+        else:
+            self.reject('non_finite', 'an /odom pose is not finite')
+
+    def on_home_vector(self, message: HomeVector) -> None:
+        """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
+        self._keep(self.homes, message)
+        stamp = stamp_ns(message.header)
+        if stamp <= self.last_frame:
+            self.reject('late', 'a home vector came after its frame was answered without it')
+            return
+        self.process(stamp)
+
+    def on_view(self, message: ShCoefficients) -> None:
+        """Process the frames before this view that got no home vector (in-process: this one too)."""
+        stamp = stamp_ns(message.header)
+        wait = 0 if self.router is not None else int(self.values['frame_wait'] * 1e9)
+        waiting = [
+            s for s in set(self.matches) | set(self.compass) if self.last_frame < s <= stamp - wait and s < stamp
+        ]
+        if self.router is not None and stamp > self.last_frame:
+            waiting.append(stamp)
+        if waiting:
+            self.process(max(waiting))
+
+    # --- driving --------------------------------------------------------------------------------
+
+    def view(self, stamp: int) -> View:
+        """Return what the controller knows of the frame stamped `stamp`."""
+        view = View(stamp)
+        match, compass, home = self.matches.get(stamp), self.compass.get(stamp), self.homes.get(stamp)
+        if match is not None:
+            view.match_index, view.match_accepted = int(match.index), bool(match.accepted)
+        if compass is not None:
+            q = compass.rotation
+            view.rotation, view.rotation_index = as_matrix([q.x, q.y, q.z, q.w]), int(compass.snapshot_index)
+        if home is not None:
+            d = np.array([home.direction.x, home.direction.y, home.direction.z])
+            if np.all(np.isfinite(d)) and np.linalg.norm(d) > 0 and math.isfinite(home.residual):
+                view.home_direction, view.home_residual = d / np.linalg.norm(d), float(home.residual)
+                view.home_index = int(home.snapshot_index)
+        if self.odom is not None:
+            previous = self.odom_at_frame if self.odom_at_frame is not None else self.odom
+            view.odometry = float(np.linalg.norm(self.odom - previous))
+            self.odom_at_frame = self.odom.copy()
+        return view
+
+    def process(self, stamp: int) -> None:
+        """Answer one camera frame with one command while a goal is active; nothing while idle."""
+        if not self.in_order(stamp, self.last_frame, 'frame'):
+            return
+        previous, self.last_frame = self.last_frame, stamp
+        goal = self.active
+        if goal is None:
+            return
+        with self.processing(stamp):
+            view = self.view(stamp)
+            step = goal.controller.step(view)
+            goal.last_frame = self.now_ns()
+            goal.started = goal.last_frame if goal.started is None else goal.started
+            goal.steps += 1
+            goal.confidence = step.confidence
+            if view.odometry is not None:
+                goal.driven += view.odometry
+            elif previous >= 0:
+                goal.driven += abs(step.command.linear) * min((stamp - previous) / 1e9, 1.0)
+            goal.reached_index = max(goal.reached_index, step.matched_index)
+        self.emit(CMD_TOPIC, twist(stamp, step.command))
+        if goal.kind is FollowRoute:
+            feedback = FollowRoute.Feedback(
+                matched_index=step.matched_index,
+                target_index=step.target_index,
+                progress=step.progress,
+                confidence=step.confidence,
+                state=step.state,
+            )
+        else:
+            feedback = Home.Feedback(confidence=step.confidence, steps=goal.steps)
+        goal.handle.publish_feedback(feedback)
+        if step.outcome:
+            self.finish(step.outcome, stopped=True)
+
+    def stop(self, stamp: int | None = None) -> None:
+        """Publish a zero command (stamped with the node's time unless a frame's stamp is given)."""
+        self.emit(CMD_TOPIC, twist(self.now_ns() if stamp is None else stamp, Command()))
+
+    def finish(self, outcome: str, stopped: bool = False) -> None:
+        """End the active goal: stop the robot (unless the last command was a stop) and wake its execution."""
+        goal, self.active = self.active, None
+        if goal is None:
+            return
+        if not stopped:
+            self.stop()
+        if not goal.done.done():
+            goal.done.set_result(outcome)
+
+    def watchdog(self) -> None:
+        """Stop the robot when no frame came for input_timeout s (STALE_INPUT) or the goal ran too long (TIMEOUT)."""
+        goal = self.active
+        if goal is None:
+            return
+        now = self.now_ns()
+        if goal.started is None or goal.last_frame is None:
+            goal.started = goal.last_frame = now
+        if now - goal.started > self.values['goal_timeout'] * 1e9:
+            self.finish(TIMED_OUT)
+        elif now - goal.last_frame > self.values['input_timeout'] * 1e9:
+            self.finish(STALE)
+
+    def on_cancel(self, handle: Any) -> CancelResponse:
+        """Accept a cancel: stop at once."""
+        if self.active is not None and self.active.handle.goal_id == handle.goal_id:
+            self.finish(CANCELED)
+        return CancelResponse.ACCEPT
+
+    def destroy_node(self) -> None:
+        """Stop the robot before going away (shutdown)."""
+        if self.active is not None:
+            try:
+                self.finish(SHUTDOWN)
+            except Exception:  # the context may be gone already: nothing more can be sent
+                pass
+        super().destroy_node()
+
+    # --- goals ----------------------------------------------------------------------------------
+
+    def open_map(self, map_path: str) -> tuple[int, str]:
+        """Return the snapshot count and path of the goal's map (its own, or the node's); raise MapError."""
+        path = map_path or self.values['map']
+        if not path:
+            raise MapError('no map: the goal names none and the route node has no `map` parameter')
+        with MapStore.open(path) as store:
+            return len(store), str(path)
+
+    async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
+        """Set parameters of other nodes ({node: {name: value}}); a node that does not answer is logged and skipped."""
+        if not self.values['configure_peers']:
+            return
+        for name, values in settings.items():
+            client = AsyncParameterClient(self, name)
+            deadline = self.get_clock().now().nanoseconds + self.values['peer_timeout'] * 1e9
+            while not client.services_are_ready() and self.get_clock().now().nanoseconds < deadline:
+                await self.pause(0.05)
+            if not client.services_are_ready():
+                self.get_logger().warning(f'node {name} does not answer: its settings for this goal were not set')
+                continue
+            future = client.set_parameters([RosParameter(k, value=v) for k, v in values.items()])
+            while not future.done() and self.get_clock().now().nanoseconds < deadline:
+                await self.pause(0.05)
+            failed = [r.reason for r in future.result().results if not r.successful] if future.done() else ['no answer']
+            if failed:
+                self.get_logger().warning(f'node {name} refused the settings of this goal: {"; ".join(failed)}')
+
+    async def pause(self, seconds: float) -> None:
+        """Wait `seconds` (wall time) inside a goal's execution without blocking the executor."""
+        future = Future()
+        timer = self.create_timer(seconds, lambda: future.done() or future.set_result(True))
+        await future
+        self.destroy_timer(timer)
+
+    async def run_goal(
+        self, kind: type, handle: Any, controller: RouteFollower | Homer, peers: dict
+    ) -> tuple[str, ActiveGoal | None]:
+        """Configure the graph for a goal, drive it and return how it ended ('busy' if another one runs)."""
+        if self.active is not None:
+            return 'busy', None
+        goal = self.active = ActiveGoal(kind, handle, controller, Future())
+        await self.configure_peers(peers)
+        # a first feedback tells the client the graph is set up for the goal, before any frame is answered
+        if kind is FollowRoute:
+            handle.publish_feedback(FollowRoute.Feedback(matched_index=-1, target_index=-1, state=LOCALIZING))
+        else:
+            handle.publish_feedback(Home.Feedback(confidence=0.0, steps=0))
+        return await goal.done, goal
+
+    def peer_settings(self, map_path: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
+        """Return the settings of localize, compass and warping for a goal on the map at `map_path`."""
+        peers = {'compass': dict(compass), 'warping': dict(warping)}
+        if map_path != self.values['map']:
+            peers['localize'] = {'map': map_path}
+            for values in peers.values():
+                values['map'] = map_path
+        return peers
+
+    async def execute_follow(self, handle: Any) -> FollowRoute.Result:
+        """Drive along the route of a FollowRoute goal."""
+        goal, result = handle.request, FollowRoute.Result()
+        try:
+            count, path = self.open_map(goal.map_path)
+        except MapError as exc:
+            return self.refuse(handle, result, FollowRoute.Result.NO_MAP, str(exc))
+        end = count - 1 if goal.end_index < 0 else goal.end_index
+        if not math.isfinite(goal.max_speed):
+            return self.refuse(handle, result, FollowRoute.Result.BAD_GOAL, 'max_speed is not finite')
+        if not (-1 <= goal.start_index < count and 0 <= end < count):
+            return self.refuse(
+                handle, result, FollowRoute.Result.BAD_INDEX, f'the map has snapshots 0..{count - 1}: no such index'
+            )
+        if goal.start_index >= 0 and goal.start_index > end:
+            return self.refuse(handle, result, FollowRoute.Result.BAD_INDEX, 'start_index lies beyond end_index')
+        controller = RouteFollower(goal.start_index, end, self.limits(goal.max_speed), self.settings)
+        peers = self.peer_settings(
+            path, {'reference': 'match'}, {'target': 'next', 'lookahead': self.values['lookahead']}
+        )
+        outcome, active = await self.run_goal(FollowRoute, handle, controller, peers)
+        if active is None:
+            return self.refuse(handle, result, FollowRoute.Result.BUSY, 'another follow or home goal is running')
+        result.reached_index = max(controller.matched, -1)
+        return self.conclude(handle, result, outcome, active, FollowRoute.Result)
+
+    async def execute_home(self, handle: Any) -> Home.Result:
+        """Drive to the place of the Home goal's snapshot."""
+        goal, result = handle.request, Home.Result()
+        try:
+            count, path = self.open_map(goal.map_path)
+        except MapError as exc:
+            return self.refuse(handle, result, Home.Result.NO_MAP, str(exc))
+        if not math.isfinite(goal.max_speed):
+            return self.refuse(handle, result, Home.Result.BAD_GOAL, 'max_speed is not finite')
+        if not 0 <= goal.index < count:
+            return self.refuse(
+                handle, result, Home.Result.BAD_INDEX, f'no snapshot {goal.index}: the map has snapshots 0..{count - 1}'
+            )
+        controller = Homer(goal.index, self.limits(goal.max_speed), self.settings)
+        peers = self.peer_settings(
+            path, {'reference': 'index', 'index': goal.index}, {'target': 'index', 'index': goal.index}
+        )
+        outcome, active = await self.run_goal(Home, handle, controller, peers)
+        if active is None:
+            return self.refuse(handle, result, Home.Result.BUSY, 'another follow or home goal is running')
+        return self.conclude(handle, result, outcome, active, Home.Result)
+
+    def refuse(self, handle: Any, result: Any, code: int, text: str) -> Any:
+        """Abort a goal before it drove: no command is published (nothing moved)."""
+        result.error_code, result.error_msg = code, text
+        self.get_logger().warning(f'goal refused: {text}')
+        handle.abort()
+        return result
+
+    def conclude(self, handle: Any, result: Any, outcome: str, goal: ActiveGoal, codes: type) -> Any:
+        """Fill a finished goal's result and end its handle by the outcome."""
+        result.driven_length = float(goal.driven)
+        texts = {
+            LOST: (codes.LOST, 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
+            STALE: (codes.STALE_INPUT, f'no usable frame for {self.values["input_timeout"]} s'),
+            TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {self.values["goal_timeout"]} s'),
+            SHUTDOWN: (codes.LOST, 'the route node shut down'),
+        }
+        if outcome == REACHED:
+            handle.succeed()
+        elif outcome == CANCELED:
+            handle.canceled()
+        else:
+            result.error_code, result.error_msg = texts[outcome]
+            handle.abort()
+        return result
+
+
+def main(args=None) -> int:
+    """Run the route node until Ctrl-C."""
+    return run_node(RouteNode, args)

@@ -1,0 +1,51 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The route node's parameters: names, defaults and meaning (skynav_core.parameters)."""
+
+from __future__ import annotations
+
+from skynav_core.parameters import Parameter
+
+from .controller import Limits, Settings
+
+_LIMITS, _SETTINGS = Limits(), Settings()
+
+PARAMETERS = {
+    'map': Parameter('', 'SQLite map file of the route (`skynav map build`, `skynav teach`); a goal may name another'),
+    'max_speed': Parameter(_LIMITS.max_speed, 'forward speed limit (m/s); a goal may ask for less or more'),
+    'max_acceleration': Parameter(_LIMITS.max_acceleration, 'limit of the change of forward speed (m/s^2)'),
+    'max_turn_rate': Parameter(_LIMITS.max_turn_rate, 'turn-rate limit (rad/s)'),
+    'max_turn_acceleration': Parameter(_LIMITS.max_turn_acceleration, 'limit of the change of turn rate (rad/s^2)'),
+    'heading_gain': Parameter(_SETTINGS.heading_gain, 'turn rate per heading error (rad/s per rad)'),
+    'homing_gain': Parameter(
+        _SETTINGS.homing_gain, 'route following: weight of a fully confident home vector against the route direction'
+    ),
+    'lookahead': Parameter(6, 'route following: how many snapshots beyond the matched one the warping node homes to'),
+    'unsure_residual': Parameter(
+        _SETTINGS.unsure_residual, 'home vectors with a larger residual are unsure (homing: several in a row = arrived)'
+    ),
+    'arrived_frames': Parameter(_SETTINGS.arrived_frames, 'homing: consecutive unsure home vectors that mean arrived'),
+    'arrive_creep': Parameter(
+        _SETTINGS.arrive_creep,
+        'homing: m the robot keeps its course straight on through unsure home vectors before it stops (arrived)',
+    ),
+    'lost_frames': Parameter(
+        _SETTINGS.lost_frames, 'consecutive unaccepted or unsure frames (after trying to recover) that end a goal LOST'
+    ),
+    'recover_speed': Parameter(
+        _SETTINGS.recover_speed, 'share of the speed limit at which the robot creeps on while recovering'
+    ),
+    'recover_distance': Parameter(
+        _SETTINGS.recover_distance, 'm of odometry driven while recovering that end a goal LOST'
+    ),
+    'input_timeout': Parameter(
+        1.0, 'inputs older than this (s) stop the robot and abort the goal with STALE_INPUT (the watchdog)'
+    ),
+    'frame_wait': Parameter(
+        0.5, 'a frame that gets no home vector is answered without one when a view this much newer (s) arrives'
+    ),
+    'goal_timeout': Parameter(600.0, 'a goal running longer than this (s) stops and aborts with TIMEOUT'),
+    'configure_peers': Parameter(
+        True, "set the compass and warping nodes' snapshot choice (and map) for each goal through their parameters"
+    ),
+    'peer_timeout': Parameter(5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s)"),
+}

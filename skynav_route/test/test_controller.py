@@ -1,0 +1,187 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The controller core on scripted inputs: steering, limits, states and endings, no ROS."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from skynav_route.controller import (
+    FOLLOWING,
+    LOCALIZING,
+    LOST,
+    REACHED,
+    RECOVERING,
+    Command,
+    Homer,
+    Limits,
+    RouteFollower,
+    Settings,
+    View,
+    limit,
+    route_direction,
+    steering_angle,
+)
+
+FRAME = 100_000_000  # ns: frames 0.1 s apart
+LIMITS = Limits(max_speed=0.4, max_acceleration=0.5, max_turn_rate=1.0, max_turn_acceleration=4.0)
+
+
+def compass_for(route_angle: float, tilt_deg: float = 0.0) -> np.ndarray:
+    """Return the compass R (d_snapshot = R d_current) of a robot turned -route_angle from the snapshot's heading."""
+    # the current camera is turned by -route_angle about z against the snapshot: the route runs at +route_angle here
+    current = Rotation.from_euler('z', -route_angle) * Rotation.from_euler('x', tilt_deg, degrees=True)
+    return current.as_matrix()
+
+
+def unit(angle: float) -> np.ndarray:
+    return np.array([math.cos(angle), math.sin(angle), 0.0])
+
+
+def test_route_direction_is_the_snapshots_forward_axis_in_the_current_view():
+    for angle in (-2.0, -0.3, 0.0, 0.7, 2.5):
+        direction = route_direction(compass_for(angle))
+        assert math.atan2(direction[1], direction[0]) == pytest.approx(angle, abs=1e-9)
+    # a camera tilted 15 deg about its forward axis moves the route's azimuth by about a degree only
+    direction = route_direction(compass_for(0.4, tilt_deg=15))
+    assert math.atan2(direction[1], direction[0]) == pytest.approx(
+        math.atan(math.tan(0.4) * math.cos(math.radians(15)))
+    )
+
+
+def test_the_home_vector_pulls_the_steering_in_proportion_to_its_confidence():
+    route, home = unit(0.0), unit(math.pi / 2)  # on course, but the route lies to the left
+    assert steering_angle(route, home, 0.0, 2.0) == pytest.approx(0.0)
+    assert steering_angle(route, None, 1.0, 2.0) == pytest.approx(0.0)
+    assert steering_angle(route, home, 0.5, 2.0) == pytest.approx(math.pi / 4)
+    assert steering_angle(route, home, 1.0, 2.0) == pytest.approx(math.atan2(2.0, 1.0))
+
+
+def test_limits_bound_speed_turn_rate_and_their_changes():
+    previous = Command(0.1, 0.0)
+    assert limit(Command(5.0, 5.0), previous, 0.1, LIMITS) == Command(pytest.approx(0.15), pytest.approx(0.4))
+    assert limit(Command(5.0, -5.0), previous, 10.0, LIMITS) == Command(0.4, -1.0)  # gaps count as 1 s at most
+    assert limit(Command(0.0, 0.0), Command(0.4, 1.0), 0.1, LIMITS) == Command(pytest.approx(0.35), pytest.approx(0.6))
+
+
+def follow_view(frame: int, index: int, route_angle: float, accepted: bool = True, home=None, residual=1.0) -> View:
+    return View(
+        stamp=frame * FRAME,
+        match_index=index,
+        match_accepted=accepted,
+        rotation=compass_for(route_angle),
+        rotation_index=index,
+        home_direction=home,
+        home_residual=residual,
+        home_index=index + 6,
+    )
+
+
+def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_end():
+    follower = RouteFollower(-1, 20, LIMITS, Settings())
+    steps = [follower.step(follow_view(f, 2 + f, 0.5)) for f in range(10)]
+    assert all(s.state == FOLLOWING and not s.outcome for s in steps)
+    linear = [s.command.linear for s in steps]
+    angular = [s.command.angular for s in steps]
+    # from rest (the first frame has no time step), 0.05 m/s more per 0.1 s frame up to cos(heading error) * 0.4
+    assert linear[0] == 0.0 and np.all(np.diff(linear) >= 0) and np.all(np.diff(linear) <= 0.05 + 1e-12)
+    assert linear[6] == pytest.approx(0.3) and 0.3 < linear[-1] < 0.4
+    assert all(0 < a <= LIMITS.max_turn_rate for a in angular[1:])  # the route runs to the left: turn left
+    assert steps[-1].matched_index == 11 and steps[-1].progress == pytest.approx(11 / 20)
+    # the route runs to the right here: it turns right
+    right = RouteFollower(-1, 20, LIMITS, Settings())
+    assert all(right.step(follow_view(f, 3, -0.5)).command.angular <= 0 for f in range(5))
+    # the end is matched: a zero command and success
+    end = follower.step(follow_view(10, 19, 0.0))
+    assert end.outcome == REACHED and end.command.is_zero and end.progress == 1.0
+
+
+def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
+    follower = RouteFollower(5, 30, LIMITS, Settings())
+    first = follower.step(follow_view(0, 25, 0.0))  # too far from start_index 5: not believed
+    assert first.state == LOCALIZING and first.command.is_zero and first.matched_index == -1
+    assert follower.step(follow_view(1, 6, 0.0)).matched_index == 6
+    assert follower.step(follow_view(2, 9, 0.0)).matched_index == 9
+    assert follower.step(follow_view(3, 7, 0.0)).matched_index == 9  # a match behind is taken, the place is kept
+    jump = follower.step(follow_view(4, 28, 0.0))  # a jump far ahead is not believed: unsure
+    assert jump.matched_index == 9 and jump.state == RECOVERING
+
+
+def test_follower_recovers_then_gives_up_lost_with_a_zero_command():
+    settings = Settings(lost_frames=4, recover_speed=0.25)
+    follower = RouteFollower(-1, 50, LIMITS, settings)
+    for f in range(10):
+        follower.step(follow_view(f, 3, 0.0))
+    cruising = follower.step(follow_view(10, 3, 0.0)).command.linear
+    assert cruising == pytest.approx(LIMITS.max_speed)
+    unsure = [follower.step(follow_view(11 + f, 3, 0.0, accepted=False)) for f in range(5)]
+    assert [s.state for s in unsure[:4]] == [RECOVERING] * 4 and not any(s.outcome for s in unsure[:4])
+    # slowing down towards 0.25 * 0.4 m/s within the deceleration limit (0.05 m/s per frame)
+    assert [s.command.linear for s in unsure[:4]] == pytest.approx([0.35, 0.3, 0.25, 0.2])
+    assert all(s.command.angular == 0.0 for s in unsure[1:4])
+    assert unsure[4].outcome == LOST and unsure[4].command.is_zero
+    # one good frame while recovering resumes following
+    again = RouteFollower(-1, 50, LIMITS, settings)
+    again.step(follow_view(0, 3, 0.0))
+    again.step(follow_view(1, 3, 0.0, accepted=False))
+    assert again.step(follow_view(2, 4, 0.0)).state == FOLLOWING
+
+
+def test_follower_gives_up_after_the_recover_distance_by_odometry():
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=100, recover_distance=0.5))
+    follower.step(follow_view(0, 3, 0.0))
+    outcomes = []
+    for f in range(1, 6):
+        view = follow_view(f, 3, 0.0, accepted=False)
+        view.odometry = 0.125
+        outcomes.append(follower.step(view).outcome)
+    assert outcomes == ['', '', '', '', LOST]  # 0.625 m driven unsure is more than 0.5
+
+
+def test_follower_never_localized_is_lost():
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=3))
+    steps = [follower.step(follow_view(f, 3, 0.0, accepted=False)) for f in range(4)]
+    assert [s.outcome for s in steps] == ['', '', '', LOST]
+    assert all(s.command.is_zero for s in steps)
+
+
+def home_view(frame: int, direction_angle: float, residual: float = 0.5, index: int = 0) -> View:
+    return View(stamp=frame * FRAME, home_direction=unit(direction_angle), home_residual=residual, home_index=index)
+
+
+def test_homer_turns_in_place_towards_home_behind_then_drives():
+    homer = Homer(0, LIMITS, Settings())
+    behind = [homer.step(home_view(f, 3.0)) for f in range(5)]
+    assert all(s.command.linear == 0.0 for s in behind)
+    assert [s.command.angular for s in behind] == pytest.approx([0.0, 0.4, 0.8, 1.0, 1.0])  # from rest, limited
+    ahead = [homer.step(home_view(5 + f, 0.1)) for f in range(10)]
+    assert ahead[-1].command.linear > 0.3 and ahead[-1].state == FOLLOWING
+
+
+def test_homer_slows_down_after_passing_home_and_arrives_when_unsure():
+    homer = Homer(0, LIMITS, Settings(arrived_frames=3, arrive_creep=0.05))
+    for f in range(10):
+        homer.step(home_view(f, 0.0))
+    full = homer.speed_share
+    homer.step(home_view(10, math.pi))  # home is behind now: passed
+    assert homer.speed_share == full / 2
+    for f in range(11, 30):
+        homer.step(home_view(f, 0.0))  # turned back towards home: on at half the speed
+    assert homer._motion.command.linear == pytest.approx(full / 2 * LIMITS.max_speed)
+    steps = [homer.step(home_view(30 + f, 1.0, residual=0.99)) for f in range(4)]
+    # unsure: straight on (never steering on a guess) at 0.2 m/s, 0.02 m a frame, until 0.05 m are crept; then a stop
+    assert [s.outcome for s in steps] == ['', '', '', REACHED]
+    assert [s.command.angular for s in steps] == [0.0] * 4 and steps[-1].command.is_zero
+    assert [s.command.linear for s in steps[:3]] == pytest.approx([full / 2 * LIMITS.max_speed] * 3)
+
+
+def test_homer_started_at_home_stops_without_driving():
+    homer = Homer(0, LIMITS, Settings(arrived_frames=3))
+    steps = [homer.step(home_view(f, 1.0, residual=0.99)) for f in range(3)]
+    assert [s.outcome for s in steps] == ['', '', REACHED] and all(s.command.is_zero for s in steps)
+
+
+def test_homer_is_lost_without_home_vectors_to_its_snapshot():
+    homer = Homer(4, LIMITS, Settings(lost_frames=2))
+    steps = [homer.step(home_view(f, 0.0, index=3)) for f in range(3)]  # home vectors to another snapshot
+    assert [s.outcome for s in steps] == ['', '', LOST] and all(s.command.is_zero for s in steps)
