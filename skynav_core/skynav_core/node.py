@@ -192,7 +192,7 @@ class SkynavNode(Node):
         if self.router is not None:
             self.router.subscribe(topic, receive)
         else:
-            self.create_subscription(message_type, topic, receive_live, qos)
+            self.create_subscription(message_type, topic, receive_live, qos)  # type: ignore[arg-type]  # rclpy passes MessageInfo to a 2-argument callback
 
     def _count_lost(self, topic: str, sequence: int) -> None:
         """Count the messages of `topic` lost before reaching the node: a gap in the publisher's sequence numbers."""

@@ -131,6 +131,7 @@ class LocalizeNode(SkynavNode):
             result.header = message.header
             result.index, result.distance, result.accepted = -1, math.inf, False
             if self.localizer is not None:
+                assert self.store is not None  # a localizer is built from the store
                 match = self.localizer.query(
                     coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
                     field_of_view=float(message.field_of_view),

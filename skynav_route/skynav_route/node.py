@@ -57,7 +57,7 @@ CANCELED, STALE, TIMED_OUT, SHUTDOWN = 'canceled', 'stale', 'timeout', 'shutdown
 class ActiveGoal:
     """The goal being driven: its handle, its controller and how it ends."""
 
-    kind: type  # FollowRoute or Home
+    kind: Any  # the action FollowRoute or Home
     handle: Any  # rclpy ServerGoalHandle
     controller: RouteFollower | Homer
     done: Future
@@ -314,7 +314,7 @@ class RouteNode(SkynavNode):
         self.destroy_timer(timer)
 
     async def run_goal(
-        self, kind: type, handle: Any, controller: RouteFollower | Homer, peers: dict
+        self, kind: Any, handle: Any, controller: RouteFollower | Homer, peers: dict
     ) -> tuple[str, ActiveGoal | None]:
         """Configure the graph for a goal, drive it and return how it ended ('busy' if another one runs)."""
         if self.active is not None:
@@ -392,7 +392,7 @@ class RouteNode(SkynavNode):
         handle.abort()
         return result
 
-    def conclude(self, handle: Any, result: Any, outcome: str, goal: ActiveGoal, codes: type) -> Any:
+    def conclude(self, handle: Any, result: Any, outcome: str, goal: ActiveGoal, codes: Any) -> Any:
         """Fill a finished goal's result and end its handle by the outcome."""
         result.driven_length = float(goal.driven)
         texts = {

@@ -41,7 +41,7 @@ from skynav_msgs.action import FollowRoute, Home
 
 from .mower import Mower, Pose2D
 from .recording import CAMERA_FRAME, start_stamp
-from .render import Renderer
+from .render import CameraPose, Renderer
 from .robot import bump, camera_pose
 from .sensor import Sensor
 from .sky import Sky
@@ -167,7 +167,7 @@ class Simulation:
         self.frames = 0
         self.hours = hours
 
-    def capture(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray, object]:
+    def capture(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray, CameraPose]:
         """Render the robot's view at (x, y) facing `heading`; return UV, green and the camera pose."""
         rng = np.random.default_rng([self.seed, self.frames, 97])
         pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt))
@@ -209,6 +209,7 @@ def drive_goal(
 ) -> Run:
     """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run."""
     robot = graph.nodes[-1]
+    assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
     context = robot.context
     executor = SingleThreadedExecutor(context=context)
     client_node = Node('sim_goal_client', context=context)
@@ -226,6 +227,11 @@ def drive_goal(
         result = sent.result().get_result_async()
         # the first feedback says the graph is set up for the goal (before any frame)
         spin_until(executor, lambda: bool(feedback) or result.done(), GOAL_WAIT)
+
+        def answered_since(heard: int) -> Callable[[], bool]:
+            """Return whether feedback beyond the first `heard` messages, or the result, came."""
+            return lambda: len(feedback) > heard or result.done()
+
         for _ in range(max_frames):
             if result.done():
                 break
@@ -239,7 +245,7 @@ def drive_goal(
             run.commands = len(robot.commands)
             linear, angular = robot.command(stamp)
             if len(robot.commands) > answered:  # lockstep: its feedback too before the next frame
-                spin_until(executor, lambda h=heard: len(feedback) > h or result.done(), RESULT_WAIT)
+                spin_until(executor, answered_since(heard), RESULT_WAIT)
                 run.stopped_frames += linear == 0.0 and angular == 0.0
             executor.spin_once(timeout_sec=0)
             if result.done():
@@ -333,7 +339,8 @@ def snapshot_map(
     with in_process(specs, ros_args) as graph:
         graph.keep_outputs = True
         robot = graph.nodes[-1]
-        uv, green, pose = simulation.capture(*place, heading)
+        assert isinstance(robot, SimMowerNode)  # the last node of the graph built here
+        uv, green, pose = simulation.capture(float(place[0]), float(place[1]), heading)
         stamp = simulation.stamp()
         robot.publish_frame(stamp, uv, green, simulation.encoding, camera)
         sh = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
@@ -351,7 +358,7 @@ def random_starts(
     world: World, goal: np.ndarray, count: int, min_distance: float, max_distance: float, rng: np.random.Generator
 ) -> list[tuple[np.ndarray, float]]:
     """Return `count` free start places (and headings) between min and max distance (m) from the goal."""
-    starts = []
+    starts: list[tuple[np.ndarray, float]] = []
     for _ in range(count * 200):
         if len(starts) == count:
             break

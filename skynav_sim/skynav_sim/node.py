@@ -11,6 +11,7 @@ rate; `rate` caps it. Everything it publishes is synthetic.
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 from rclpy.node import Node
@@ -68,7 +69,7 @@ class SimCameraNode(Node):
             f'(seed {values["seed"]}, {self.camera.width}x{self.camera.height})'
         )
 
-    def _camera_info(self) -> object:
+    def _camera_info(self) -> Any:
         fields = self.camera.camera_info_fields()
         info = CAMERA_INFO()
         info.width, info.height = fields['width'], fields['height']

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from skynav_sim.errors import SimError
 
@@ -198,7 +199,7 @@ class World:
             float,
         )
 
-    def is_free(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    def is_free(self, x: npt.ArrayLike, y: npt.ArrayLike) -> np.ndarray:
         """Return whether the robot may stand at world points (x, y)."""
         n = self.free.shape[0]
         i = np.round((np.asarray(x) + YARD_RADIUS) / self.free_cell).astype(int)
