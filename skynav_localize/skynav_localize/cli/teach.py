@@ -43,10 +43,8 @@ def run(args: argparse.Namespace) -> int:
     """Teach until the goal ends; return the exit code."""
     import math
 
-    from skynav_core.actions import error_name
     from skynav_core.cli import CliError, open_map
-    from skynav_core.goals import run_goal
-    from skynav_core.ros import StopRequest, tool_node
+    from skynav_core.goals import RESULT_AFTER_CANCEL, ProgressLine, goal_result, send_goal
     from skynav_msgs.action import Teach
 
     from ..teach_server import TEACH_ACTION
@@ -62,25 +60,20 @@ def run(args: argparse.Namespace) -> int:
         max_length=args.max_length,
         overwrite=args.overwrite,
     )
-    live = sys.stderr.isatty()
+    line = ProgressLine(sys.stderr, period=0.0)  # a line per snapshot stored
 
     def show(feedback: Teach.Feedback) -> None:
         if feedback.snapshots == 0:  # the server's first feedback: the map can be taught
             print(f'skynav teach: teaching {args.map}: drive the route; Ctrl-C finishes the map', file=sys.stderr)
             return
-        line = progress_line(feedback.snapshots, feedback.route_length)
-        sys.stderr.write(f'\r{line}\x1b[K' if live else f'{line}\n')
-        sys.stderr.flush()
+        line.show(progress_line(feedback.snapshots, feedback.route_length))
 
-    with StopRequest() as stop, tool_node('skynav_teach') as (node, executor):
-        outcome = run_goal(node, executor, Teach, TEACH_ACTION, goal, stop, show, args.wait)
-    if live:
-        sys.stderr.write('\n')
-    if outcome is None:
-        return 130
-    result = outcome.result
-    if result.error_code != Teach.Result.NONE:
-        raise CliError(f'{error_name(result)}: {result.error_msg} ({result.snapshots} snapshots kept)')
+    try:
+        outcome = send_goal(Teach, TEACH_ACTION, goal, show, args.wait, 'skynav_teach', RESULT_AFTER_CANCEL)
+    finally:
+        line.end()
+    result = goal_result(outcome, cancel_finishes=True, detail=lambda result: f'{result.snapshots} snapshots kept')
+    assert outcome is not None  # goal_result raised otherwise
     with open_map(path) as store:
         info = store.info()
     driven = f', {result.route_length:.2f} m by odometry' if result.route_length > 0 else ''

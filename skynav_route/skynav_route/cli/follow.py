@@ -37,9 +37,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Send the goal and follow it to its end; return the exit code."""
     from skynav_core.cli import CliError
+    from skynav_core.goals import ProgressLine, goal_result, send_goal
     from skynav_msgs.action import FollowRoute
-
-    from .client import conclude, send_goal
 
     if args.start < -1 or args.end < -1:
         raise CliError('--from and --to must be snapshot indices (or -1)', exit_code=2)
@@ -50,13 +49,18 @@ def run(args: argparse.Namespace) -> int:
         max_speed=args.max_speed,
     )
 
-    def describe(feedback) -> str:
-        return (
+    line = ProgressLine()
+
+    def show(feedback) -> None:
+        line.show(
             f'snapshot {feedback.matched_index} -> {feedback.target_index}  progress {100 * feedback.progress:5.1f} %'
             f'  confidence {feedback.confidence:.2f}  {feedback.state}'
         )
 
-    result, status = send_goal(FollowRoute, '/skynav/follow_route', goal, describe, args.wait)
-    return conclude(
-        result, status, f'reached the end: snapshot {result.reached_index}, driven {result.driven_length:.2f} m'
-    )
+    try:
+        outcome = send_goal(FollowRoute, '/skynav/follow_route', goal, show, args.wait)
+    finally:
+        line.end()
+    result = goal_result(outcome)
+    print(f'reached the end: snapshot {result.reached_index}, driven {result.driven_length:.2f} m')
+    return 0

@@ -26,16 +26,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Send the goal and follow it to its end; return the exit code."""
     from skynav_core.cli import CliError
+    from skynav_core.goals import ProgressLine, goal_result, send_goal
     from skynav_msgs.action import Home
-
-    from .client import conclude, send_goal
 
     if args.index < 0:
         raise CliError('--index must be a snapshot index (0 or more)', exit_code=2)
     goal = Home.Goal(map_path=str(args.map.resolve()) if args.map else '', index=args.index, max_speed=args.max_speed)
 
-    def describe(feedback) -> str:
-        return f'homing to snapshot {args.index}: {feedback.steps} frames  confidence {feedback.confidence:.2f}'
+    line = ProgressLine()
 
-    result, status = send_goal(Home, '/skynav/home', goal, describe, args.wait)
-    return conclude(result, status, f'arrived at snapshot {args.index}: driven {result.driven_length:.2f} m')
+    def show(feedback) -> None:
+        line.show(f'homing to snapshot {args.index}: {feedback.steps} frames  confidence {feedback.confidence:.2f}')
+
+    try:
+        outcome = send_goal(Home, '/skynav/home', goal, show, args.wait)
+    finally:
+        line.end()
+    result = goal_result(outcome)
+    print(f'arrived at snapshot {args.index}: driven {result.driven_length:.2f} m')
+    return 0
