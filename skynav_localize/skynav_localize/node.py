@@ -9,9 +9,9 @@ A view without a skyline (all sky or all ground in its field of view) is matched
 nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
 only if it moves along the route with the robot (matching, the module notes).
 
-Live (not in `skynav run`), the node also serves the Teach action /skynav/teach (teach_server): while a goal
-runs, the views it takes (and /odom) become snapshots of a new map, which it and the nodes of `teach_map_nodes`
-use as soon as the goal ends.
+The node also serves the Teach action /skynav/teach (teach_server), in a live graph and in an in-process one
+(the simulator's) alike: while a goal runs, the views it takes (and /odom) become snapshots of a new map, which
+it and the nodes of `teach_map_nodes` use as soon as the goal ends.
 
 Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the node cannot use
 ('malformed', 'non_finite', 'degree': below the descriptors' degree, checked with a map;
@@ -21,6 +21,8 @@ skynav_core.sh_input) and 'out_of_order'.
 from __future__ import annotations
 
 import math
+
+from nav_msgs.msg import Odometry
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore, map_for_parameter
@@ -32,7 +34,7 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .parameters import PARAMETERS
-from .teach_server import TeachServer
+from .teach_server import ODOM_QOS, ODOM_TOPIC, TeachServer
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
@@ -43,7 +45,7 @@ class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (SH_TOPIC,)
+    INPUT_TOPICS = (SH_TOPIC, ODOM_TOPIC)
 
     needs_map = True
 
@@ -54,7 +56,8 @@ class LocalizeNode(SkynavNode):
         self.localizer: Localizer | None = None
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.output(MATCH_TOPIC, PlaceMatch)
-        self.teach = TeachServer(self) if self.router is None else None  # live graphs only (an action server)
+        self.teach = TeachServer(self)
+        self.input(ODOM_TOPIC, Odometry, self.teach.on_odometry, ODOM_QOS)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -69,8 +72,7 @@ class LocalizeNode(SkynavNode):
             raise ValueError('sequence_length and candidates must be at least 1')
         if values['max_self_similarity'] < 0:  # NaN (the method's) passes
             raise ValueError("max_self_similarity must be at least 0 (NaN: the method's)")
-        if self.teach is not None:
-            self.teach.configure(values)
+        self.teach.configure(values)
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -149,13 +151,11 @@ class LocalizeNode(SkynavNode):
                 result.candidate_indices = [int(i) for i in match.candidate_indices]
                 result.candidate_distances = [float(d) for d in match.candidate_distances]
         self.emit(MATCH_TOPIC, result)
-        if self.teach is not None:
-            self.teach.on_view(stamp, coefficients)
+        self.teach.on_view(stamp, coefficients)
 
     def destroy_node(self) -> None:
         """Close a map being taught, then the node."""
-        if self.teach is not None:
-            self.teach.close()
+        self.teach.close()
         super().destroy_node()
 
 

@@ -2,12 +2,13 @@
 """The Teach action server, /skynav/teach (docs/interfaces.md, "Driving: teach, follow, home"), hosted by the
 localize node: the rclpy glue around a RouteTeacher (teaching, the logic).
 
-A goal runs until it is canceled (the usual end, with success), until the odometry says `max_length` m were
-driven (success), or until no usable view arrived for `teach_input_timeout` s (NO_INPUT; the map keeps what was
-stored). Its first feedback (0 snapshots) says teaching has begun. The localize node hands it every view it
-takes; /odom is subscribed here. When the goal ends the map is closed into one file and the nodes switch to it:
-the localize node itself and those of `teach_map_nodes` (their `map` parameter is set through their parameter
-services), before the result is sent. One goal at a time: a second one ends at once with BUSY.
+A goal runs until it is canceled (the usual end, with success), until the odometry says `max_length` m were driven
+(success), or until no usable view arrived for `teach_input_timeout` s of the node's time (sim time in the
+simulator's in-process graph; NO_INPUT, the map keeps what was stored). Its first feedback (0 snapshots) says
+teaching has begun. The localize node hands it every view it takes and every /odom message (on_odometry). When the
+goal ends the map is closed into one file and the nodes switch to it: the localize node itself and those of
+`teach_map_nodes` (their `map` parameter is set through their parameter services), before the result is sent. One
+goal at a time: a second one ends at once with BUSY.
 """
 
 from __future__ import annotations
@@ -78,7 +79,6 @@ class TeachServer:
         self.server = ActionServer(
             node, Teach, TEACH_ACTION, execute_callback=self.execute, cancel_callback=self.on_cancel
         )
-        node.create_subscription(Odometry, ODOM_TOPIC, self.on_odometry, ODOM_QOS)
         node.create_timer(INPUT_CHECK_PERIOD, self.check_input)
 
     def configure(self, values: dict[str, Any]) -> None:
@@ -99,7 +99,7 @@ class TeachServer:
         goal = self.active
         if goal is None or goal.done.done():
             return
-        goal.last_view_ns = self.node.get_clock().now().nanoseconds
+        goal.last_view_ns = self.node.now_ns()
         try:
             stored = goal.teacher.offer(stamp, coefficients)
         except ValueError as exc:
@@ -125,7 +125,7 @@ class TeachServer:
         goal = self.active
         if goal is None or goal.done.done():
             return
-        silence = (self.node.get_clock().now().nanoseconds - goal.last_view_ns) * 1e-9
+        silence = (self.node.now_ns() - goal.last_view_ns) * 1e-9
         if silence > self.settings['teach_input_timeout']:
             goal.done.set_result(NoInput(f'no usable view on /skyline/sh for {silence:.1f} s'))
 
@@ -162,7 +162,7 @@ class TeachServer:
             return self.result(exc.code, str(exc))
         log = self.node.get_logger()
         log.info(f'teaching {teacher.path}: a snapshot every {spacing:g} m')
-        self.active = ActiveGoal(goal_handle, teacher, Future(), self.node.get_clock().now().nanoseconds)
+        self.active = ActiveGoal(goal_handle, teacher, Future(), self.node.now_ns())
         goal_handle.publish_feedback(Teach.Feedback(snapshots=0, route_length=0.0))  # teaching has begun
         outcome = await self.active.done
         self.active = None

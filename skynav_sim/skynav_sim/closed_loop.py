@@ -37,12 +37,13 @@ from skynav_core.maps import MapStore, Snapshot
 from skynav_core.node import SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_localize.mapping import build_map
-from skynav_msgs.action import FollowRoute, Home
+from skynav_msgs.action import FollowRoute, Home, Teach
 
 from .mower import Mower, Pose2D
 from .recording import CAMERA_FRAME, start_stamp
 from .render import CameraPose, Renderer
 from .robot import bump, camera_pose
+from .scenarios import route as planned_route
 from .sensor import Sensor
 from .sky import Sky
 from .world import World
@@ -382,13 +383,16 @@ def follow_route(
     ros_args: list[str] | None = None,
     base: Base = Base(),
     bump_tilt: float = 0.0,
+    route: np.ndarray | None = None,
 ) -> tuple[Run, np.ndarray]:
     """Follow the route of a map from `start` with a FollowRoute goal to its last snapshot.
 
-    Returns the run and the route (snapshot positions x, y in m: for scoring only, the loop never sees them).
+    Returns the run and the route (snapshot positions x, y in m: the map's poses unless `route` gives the true
+    ones of a taught map; for scoring only, the loop never sees them).
     """
-    with MapStore.open(map_path) as store:
-        route = store.positions()[:, :2]
+    if route is None:
+        with MapStore.open(map_path) as store:
+            route = store.positions()[:, :2]
     arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
     simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
     mower = Mower(
@@ -414,3 +418,129 @@ def route_deviation(run: Run, route: np.ndarray) -> np.ndarray:
     )
     nearest = a + t[..., None] * ab
     return np.min(np.linalg.norm(points[:, None] - nearest, axis=2), axis=1)
+
+
+TELEOP_SPEED = 0.3  # m/s: the scripted operator's driving speed while teaching
+TELEOP_LOOKAHEAD = 0.5  # m: the operator steers towards the planned path this far ahead of its nearest point
+TELEOP_GAIN = 2.0  # rad/s of turn rate per rad of heading error
+TELEOP_MAX_TURN = 1.0  # rad/s: the joystick's largest turn rate
+TELEOP_END = 0.2  # m before the planned path's end where the operator ends teaching
+TELEOP_FRAMES_PER_METRE = 20  # frames (4 s) per metre of route before a teach drive is given up
+
+
+def teleoperate(pose: Pose2D, spline: Callable, total: float, reached: float) -> tuple[float, float, float]:
+    """Return the operator's command (m/s, rad/s) towards the planned path and the arc length (m) reached on it.
+
+    The operator sees the mower and the planned path (the teacher, not skynav): it steers towards the path's
+    point TELEOP_LOOKAHEAD beyond the nearest one (searched near the arc length `reached` so far, in m), as a
+    person with a joystick would. Positions in the world's map frame.
+    """
+    arcs = np.linspace(max(reached - 0.5, 0.0), min(reached + 1.5, total), 41)
+    nearest = float(arcs[int(np.argmin(np.linalg.norm(spline(arcs) - pose.position, axis=1)))])
+    target = spline(min(nearest + TELEOP_LOOKAHEAD, total))
+    error = float(np.arctan2(target[1] - pose.y, target[0] - pose.x)) - pose.heading
+    error = float(np.arctan2(np.sin(error), np.cos(error)))
+    linear = TELEOP_SPEED * max(0.0, float(np.cos(error)))
+    return linear, float(np.clip(TELEOP_GAIN * error, -TELEOP_MAX_TURN, TELEOP_MAX_TURN)), nearest
+
+
+@dataclass
+class Teaching:
+    """What a simulated teach drive left: the Teach result and the true pose of every frame (for scoring only)."""
+
+    result: Any = None
+    status: int = 0  # the goal's end (action_msgs GoalStatus)
+    stamps: list[int] = field(default_factory=list)  # ns, one per camera frame
+    poses: list[np.ndarray] = field(default_factory=list)  # true (x, y, heading) per frame, m and rad (map frame)
+    feedback: list[Any] = field(default_factory=list)  # the goal's feedback
+
+
+def teach_route(
+    world: World,
+    camera: EquidistantCamera,
+    hours: float,
+    seed: int,
+    length: float,
+    map_path,
+    base: Base = Base(),
+    route_seed: int = 0,
+    ros_args: list[str] | None = None,
+) -> Teaching:
+    """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map.
+
+    The graph (skyline, SH, localize: it serves /skynav/teach) runs in process; the mower publishes /clock, /odom
+    and its camera each frame and obeys the operator (skynav_sim.mower: slip, odometry noise). At the route's end
+    the operator cancels the goal, which finishes the map (the usual end of teaching). RuntimeError when the graph
+    does not take the goal or the drive fails.
+    """
+    spline, total = planned_route(world, route_seed, length)
+    start, ahead = spline(0.0), spline(0.3) - spline(0.0)
+    mower = Mower(
+        world,
+        Pose2D(float(start[0]), float(start[1]), float(np.arctan2(ahead[1], ahead[0]))),
+        np.random.default_rng([base.seed, seed, 5]),
+        base.slip,
+        base.odometry_noise,
+    )
+    simulation = Simulation(world, camera, hours, seed)
+    teaching = Teaching()
+    with in_process(graph_specs(('skyline', 'sh', 'localize')), ros_args) as graph:
+        robot = graph.nodes[-1]
+        assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
+        executor = SingleThreadedExecutor(context=robot.context)
+        client_node = Node('sim_teach_client', context=robot.context)
+        for node in [*graph.nodes, client_node]:
+            executor.add_node(node)
+        client = ActionClient(client_node, Teach, '/skynav/teach')
+        try:
+            graph.advance(simulation.stamp())  # the goal starts at the first frame's time (sim time)
+            if not spin_until(executor, client.server_is_ready, GOAL_WAIT):
+                raise RuntimeError('no /skynav/teach action server in the simulated graph')
+            goal = Teach.Goal(map_path=str(map_path), map_name='', spacing=0.0, max_length=0.0, overwrite=True)
+            sent = client.send_goal_async(goal, feedback_callback=lambda m: teaching.feedback.append(m.feedback))
+            if not spin_until(executor, sent.done, GOAL_WAIT) or not sent.result().accepted:
+                raise RuntimeError('the localize node did not take the Teach goal')
+            result = sent.result().get_result_async()
+            # the first feedback (0 snapshots) says teaching has begun
+            spin_until(executor, lambda: bool(teaching.feedback) or result.done(), GOAL_WAIT)
+            end = min(length, total - TELEOP_END)  # m along the planned path
+            reached, frames = 0.0, int(TELEOP_FRAMES_PER_METRE * end)
+            while reached < end and not result.done():
+                if len(teaching.stamps) >= frames:
+                    raise RuntimeError(f'the scripted operator did not finish the {end:.1f} m route in {frames} frames')
+                stamp = simulation.stamp()
+                graph.advance(stamp)
+                robot.publish_clock(stamp)
+                robot.publish_odometry(stamp, mower.odometry)
+                uv, green, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+                robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
+                teaching.stamps.append(stamp)
+                teaching.poses.append(np.array([mower.pose.x, mower.pose.y, mower.pose.heading]))
+                executor.spin_once(timeout_sec=0)
+                linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
+                mower.drive(linear, angular, FRAME_PERIOD)
+                if mower.blocked:
+                    raise RuntimeError('the scripted teach drive hit an obstacle')
+            if not result.done():
+                sent.result().cancel_goal_async()  # the operator ends teaching: the map is finished
+            if not spin_until(executor, result.done, GOAL_WAIT):
+                raise RuntimeError('the Teach goal did not end after its cancel')
+            teaching.result, teaching.status = result.result().result, result.result().status
+        finally:
+            for node in [*graph.nodes, client_node]:
+                executor.remove_node(node)
+            client.destroy()
+            client_node.destroy_node()
+            executor.shutdown()
+    return teaching
+
+
+def truth_at(stamps: np.ndarray, frame_stamps: np.ndarray, frame_poses: np.ndarray) -> np.ndarray:
+    """Return the true pose of the frame stamped like each of `stamps` (ns); NaN rows for stamps of no frame."""
+    order = np.argsort(frame_stamps)
+    sorted_stamps = frame_stamps[order]
+    where = np.clip(np.searchsorted(sorted_stamps, stamps), 0, len(sorted_stamps) - 1)
+    found = sorted_stamps[where] == stamps
+    poses = np.full((len(stamps), frame_poses.shape[1]), np.nan)
+    poses[found] = frame_poses[order[where[found]]]
+    return poses

@@ -66,8 +66,8 @@ def test_route_following_stays_on_the_taught_route(camera, garden_map):
     from skynav_sim.closed_loop import follow_route, route_deviation
     from skynav_sim.sky import parse_time
 
-    world, seed, teach_camera = teach_world(TEACH)
-    assert teach_camera.width == camera.width and world.style == 'garden'
+    world, seed, teach_camera, truth = teach_world(TEACH)
+    assert teach_camera.width == camera.width and world.style == 'garden' and truth is None
     from skynav_core.maps import MapStore
 
     with MapStore.open(garden_map) as store:

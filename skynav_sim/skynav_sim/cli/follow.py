@@ -1,13 +1,14 @@
 # SPDX-License-Identifier: Apache-2.0
 """Closed-loop route following in the synthetic world of a teach drive: the graph drives the simulated mower.
 
-The map (`skynav map build TEACH.mcap`, or `skynav sim teach`) holds the snapshots of a synthetic teach drive;
-the world, its seed and the camera are read back from the teach recording. The simulated mower starts beside
-the route's first snapshot, off by --offset metres to the left and turned by --turn degrees. The graph
-(skyline, SH, localize, compass, warping and the route node) runs in this process; a FollowRoute goal goes to
-the route node's action server, and the mower obeys its /cmd_vel, one command per camera frame, on sim time
-(skynav_sim.closed_loop), until the goal's result. Reports how far the true path stayed from the taught
-route and plots both. Everything is synthetic.
+The map (`skynav map build TEACH.mcap`, or `skynav sim teach`) holds the snapshots of a synthetic teach drive; the
+world, its seed and the camera are read back from the teach recording (or from the description `skynav sim teach`
+wrote, TEACH.yaml, which also holds the true poses a taught map lacks, for scoring). The simulated mower starts
+beside the route's first snapshot, off by --offset metres to the left and turned by --turn degrees. The graph
+(skyline, SH, localize, compass, warping and the route node) runs in this process; a FollowRoute goal goes to the
+route node's action server, and the mower obeys its /cmd_vel, one command per camera frame, on sim time
+(skynav_sim.closed_loop), until the goal's result. Reports how far the true path stayed from the taught route and
+plots both. Everything is synthetic.
 """
 
 from __future__ import annotations
@@ -22,7 +23,10 @@ END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim follow`."""
     parser.add_argument(
-        'teach', type=Path, metavar='TEACH.mcap', help='the synthetic teach drive the map was built from'
+        'teach',
+        type=Path,
+        metavar='TEACH.mcap|TEACH.yaml',
+        help='the synthetic teach drive of the map: its recording, or the description `skynav sim teach` wrote',
     )
     parser.add_argument('--map', type=Path, required=True, metavar='MAP.db', help='its map (`skynav map build`)')
     parser.add_argument(
@@ -60,8 +64,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def teach_world(teach: Path):
-    """Return (world, seed, camera) of a synthetic teach recording; CliError when it is not one."""
+    """Return (world, seed, camera, truth) of a synthetic teach drive; CliError when it is not one.
+
+    `teach` is a teach recording (`skynav sim bag teach`: its map holds the true poses; truth None) or the
+    description `skynav sim teach` wrote (truth: the stamps in ns and true (x, y, heading) of its frames).
+    """
+    import numpy as np
     import yaml
+    from sensor_msgs.msg import CameraInfo
 
     from skynav_core.bag import BagError, open_bag
     from skynav_core.camera import EquidistantCamera
@@ -69,20 +79,31 @@ def teach_world(teach: Path):
 
     from ..world import STYLES, generate
 
+    truth = None
     try:
-        with open_bag(teach) as bag:
-            description = yaml.safe_load(bag.custom_data.get('skynav_sim', '')) or {}
-            info = next((bag.deserialize(raw) for raw in bag.messages(['/camera/uv/camera_info'])), None)
+        if teach.suffix in ('.yaml', '.yml'):
+            description = yaml.safe_load(teach.read_text()) or {}
+            info = CameraInfo(**description['camera_info'])
+            truth = (
+                np.asarray(description['truth']['stamps'], dtype=np.int64),
+                np.asarray(description['truth']['poses'], dtype=float),
+            )
+        else:
+            with open_bag(teach) as bag:
+                description = yaml.safe_load(bag.custom_data.get('skynav_sim', '')) or {}
+                info = next((bag.deserialize(raw) for raw in bag.messages(['/camera/uv/camera_info'])), None)
     except BagError as exc:
         raise CliError(str(exc)) from None
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError, AssertionError, ValueError) as exc:
+        raise CliError(f'{teach}: not a description written by `skynav sim teach` ({exc})') from None
     if description.get('scenario') != 'teach' or description.get('world') not in STYLES or info is None:
         raise CliError(f'{teach}: not a synthetic teach drive of skynav_sim (its world is needed to drive in)')
     seed = int(description['seed'])
-    return (
-        generate(description['world'], int(description.get('world_seed', seed))),
-        seed,
-        EquidistantCamera.from_camera_info(info),
-    )
+    try:
+        camera = EquidistantCamera.from_camera_info(info)
+    except ValueError as exc:
+        raise CliError(f'{teach}: {exc}') from None
+    return generate(description['world'], int(description.get('world_seed', seed))), seed, camera, truth
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
     from skynav_core.maps import MapError, MapStore
 
-    from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, route_deviation
+    from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, route_deviation, truth_at
     from ..sky import parse_time
 
     try:
@@ -103,16 +124,19 @@ def run(args: argparse.Namespace) -> int:
         raise CliError('--max-frames must not be negative', exit_code=2)
     if not (0 <= args.slip < 1 and 0 <= args.odometry_noise < 1 and 0 <= args.bump_tilt <= 90):
         raise CliError('--slip and --odometry-noise must be within 0..1, --bump-tilt within 0..90', exit_code=2)
-    world, seed, camera = teach_world(args.teach)
+    world, seed, camera, truth = teach_world(args.teach)
     try:
         with MapStore.open(args.map) as store:
-            poses = store.poses()
+            poses, stamps = store.poses(), store.stamps()
             count = len(store)
     except MapError as exc:
         raise CliError(str(exc)) from None
-    if count < 2 or not np.all(np.isfinite(poses[:, :2])):
-        raise CliError(f'{args.map}: route following needs a map of at least 2 snapshots with poses')
-    route = poses[:, :2]
+    # a taught map has no true poses: those of its snapshots' frames come from the teach drive's description
+    route = poses[:, :2] if truth is None else truth_at(np.asarray(stamps, dtype=np.int64), *truth)[:, :2]
+    if count < 2 or not np.all(np.isfinite(route)):
+        raise CliError(
+            f'{args.map}: route following needs a map of at least 2 snapshots with true poses ({args.teach})'
+        )
     forward = route[min(3, count - 1)] - route[0]
     route_heading = float(np.arctan2(forward[1], forward[0]))
     left = np.array([-np.sin(route_heading), np.cos(route_heading)])
@@ -136,6 +160,7 @@ def run(args: argparse.Namespace) -> int:
         max_frames,
         base=Base(args.slip, args.odometry_noise),
         bump_tilt=args.bump_tilt,
+        route=route,
     )
     deviation = route_deviation(run, route)
     end = float(np.linalg.norm(run.path[-1] - route[-1]))

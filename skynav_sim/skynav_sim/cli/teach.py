@@ -1,0 +1,111 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Teach a route in a synthetic world by scripted teleoperation, as an operator would, with a Teach goal.
+
+A scripted operator drives the simulated mower along a planned free route of about --length m (with turns) at
+0.3 m/s, steering as with a joystick (the mower slips and its odometry drifts, skynav_sim.mower), while the graph
+in this process (skyline, SH, localize, which serves /skynav/teach) stores a snapshot every `teach_spacing` m by
+/odom into DIR/teach.db. At the route's end the operator cancels the goal, which finishes the map. DIR/teach.yaml
+says which world, seed, camera and time of day it was and holds the true pose of every frame, for scoring only:
+`skynav sim follow DIR/teach.yaml --map DIR/teach.db` then follows the route. Everything is synthetic.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = 'teach a route in a synthetic world by scripted teleoperation (a Teach goal records the map)'
+DESCRIPTION_SOURCE = 'skynav sim teach (synthetic, scripted teleoperation)'
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Add the arguments of `skynav sim teach`."""
+    from ..world import STYLES
+    from .options import DEFAULT_DISTORTION
+
+    parser.add_argument('--world', choices=STYLES, default='garden', help='synthetic world style (default garden)')
+    parser.add_argument('--seed', type=int, default=1, help='world seed (default 1)')
+    parser.add_argument('--route-seed', type=int, default=0, help='which planned route of the world (default 0)')
+    parser.add_argument('--length', type=float, default=10.0, metavar='M', help='route length (default 10 m)')
+    parser.add_argument('--time', default='forenoon', help='time of day (default forenoon)')
+    parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
+    parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (default 200)')
+    parser.add_argument('--distortion', default=DEFAULT_DISTORTION, metavar='K1,K2,K3,K4', help=argparse.SUPPRESS)
+    parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
+    parser.add_argument(
+        '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
+    )
+    parser.add_argument(
+        '--out', type=Path, default=Path('sim_teach'), metavar='DIR', help='folder for teach.db and teach.yaml'
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Teach the route; return the exit code."""
+    import numpy as np
+    import yaml
+
+    from skynav_core.cli import CliError
+    from skynav_core.goals import GoalOutcome, goal_result
+
+    from ..closed_loop import Base, teach_route
+    from ..sky import parse_time
+    from ..world import generate
+    from . import options
+
+    if not 1.0 <= args.length <= 200.0:
+        raise CliError('--length must be within 1..200 m', exit_code=2)
+    if not (0 <= args.slip < 1 and 0 <= args.odometry_noise < 1):
+        raise CliError('--slip and --odometry-noise must be within 0..1', exit_code=2)
+    try:
+        hours = parse_time(args.time)
+        camera = options.camera(args)
+    except ValueError as exc:
+        raise CliError(str(exc), exit_code=2) from None
+    args.out.mkdir(parents=True, exist_ok=True)
+    world = generate(args.world, args.seed)
+    map_path = (args.out / 'teach.db').resolve()
+    print(
+        f'teaching a {args.length:g} m route by scripted teleoperation in the synthetic {args.world} world '
+        f'(seed {args.seed}) at {hours:.1f} h',
+        flush=True,
+    )
+    try:
+        teaching = teach_route(
+            world,
+            camera,
+            hours,
+            args.seed,
+            args.length,
+            map_path,
+            Base(args.slip, args.odometry_noise),
+            route_seed=args.route_seed,
+        )
+    except RuntimeError as exc:
+        raise CliError(str(exc)) from None
+    # the operator's cancel is the usual end of teaching: a canceled goal with no error finished the map
+    result = goal_result(GoalOutcome(teaching.status, teaching.result, True), cancel_finishes=True)
+    poses = np.array(teaching.poses)
+    driven = float(np.sum(np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)))
+    description = {
+        'scenario': 'teach',
+        'source': DESCRIPTION_SOURCE,
+        'world': args.world,
+        'world_seed': args.seed,
+        'seed': args.seed,
+        'hours': hours,
+        'camera_info': {
+            key: (list(value) if isinstance(value, (list, tuple)) else value)
+            for key, value in camera.camera_info_fields().items()
+        },
+        'map': str(map_path),
+        'truth': {'stamps': [int(s) for s in teaching.stamps], 'poses': poses.round(5).tolist()},
+    }
+    description_path = args.out / 'teach.yaml'
+    description_path.write_text(yaml.safe_dump(description, sort_keys=False))
+    print(
+        f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by odometry ({driven:.2f} m truly '
+        f'driven, {len(poses)} frames)'
+    )
+    print(f'map: {map_path}\ndescription (with the true poses, for scoring): {description_path}')
+    return 0
