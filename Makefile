@@ -53,7 +53,7 @@ lint: setup
 	$(BIN)/ruff format --check --quiet .
 	$(BIN)/mypy
 
-## demo: the node graph over bundled synthetic recordings, with a summary and plots in out/demo
+## demo: the node graph over bundled synthetic recordings, then teach and follow a route in the simulator; out/demo
 demo: setup
 	$(BIN)/skynav demo --out out/demo
 

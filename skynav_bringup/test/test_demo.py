@@ -1,10 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-"""`skynav demo` (what `make demo` runs) over the bundled garden drives: map build, `skynav run`, the summary, and
-the closed loop of `skynav sim follow`, each as a newcomer meets it, with its figures held to what the chain does.
+"""`skynav demo` (what `make demo` runs) over the bundled garden drives: map build, `skynav run`, the summary, then
+the whole story in the simulator (`skynav sim teach` by scripted teleoperation, `skynav sim follow` of the taught
+route), each as a newcomer meets it, with its figures held to what the chain does.
 
 Measured: 57 snapshots of 80 teach frames; on the repeat drive 89 of 89 views accepted, all within 1 m of their
-true place; compass error median 0.8 deg; the simulated robot reaches the route's end in 30 steps, median 0.14 m
-from the taught route. About 50 s.
+true place; compass error median 0.8 deg; in the simulator 69 snapshots taught over 8.16 m by odometry, and the
+mower reaches the taught route's end from 0.3 m beside its start in the morning, median 0.12 m from the route.
+About 60 s.
 """
 
 from __future__ import annotations
@@ -44,11 +46,15 @@ def test_demo_runs_the_chain_and_reports_what_it_did(tmp_path):
     views, accepted, right = figure(r'(\d+) views, (\d+) accepted, (\d+) of them within 1 m', out)
     assert views == 89 and accepted >= 85 and right == accepted
     assert figure(r'3D rotation error median ([\d.]+) deg', out)[0] < 2.0
-    assert 'stopped: end' in out and '(reached the end)' in out
+    # the simulator: a snapshot about every 0.1 m of odometry over the 8 m taught, then the route followed to its end
+    snapshots, taught = figure(r'taught (\d+) snapshots over ([\d.]+) m by odometry', out)
+    assert 7.0 < taught < 9.5 and 0.08 < taught / snapshots < 0.15
+    assert 'goal ended: reached' in out and '(reached the end)' in out
     assert figure(r'distance from the taught route: median ([\d.]+) m', out)[0] < 0.3
     # `skynav run` recorded one output of every kind per exposure of the repeat drive
     with open_bag(tmp_path / 'repeat_run.mcap') as bag:
         counts = Counter(raw.topic for raw in bag.messages(OUTPUT_TOPICS))
     assert counts == dict.fromkeys(OUTPUT_TOPICS, 89)
-    for name in ('localization_matches.png', 'route_following.png', 'skyline_sheet.png', 'synthetic_garden_teach.db'):
+    names = ('localization_matches.png', 'route_following.png', 'skyline_sheet.png', 'synthetic_garden_teach.db')
+    for name in (*names, 'sim_teach/teach.db', 'sim_teach/teach.yaml'):
         assert (tmp_path / name).stat().st_size > 0, name

@@ -8,8 +8,10 @@ Each step prints the command it runs, so every result can be reproduced by hand:
   3. what the nodes did, against the ground truth: the classification rate of every skyline mask
      and a contact sheet of inputs and masks; every place match, with a plot of the matches along
      the route; the compass's rotation errors and the home vectors' direction errors;
-  4. the whole chain in closed loop: a simulated robot follows the taught route in the synthetic
-     world of the teach drive, the nodes steering it (`skynav sim follow`), with a plot.
+  4. the whole story in the simulator: a scripted operator drives the simulated mower along a route
+     while a Teach goal records its map (`skynav sim teach`);
+  5. then the nodes drive the mower along that taught route on their own, from 0.3 m beside its start
+     and at another time of day (`skynav sim follow`), with a plot.
 
 Outputs go to the folder given with --out (default out/demo); earlier outputs there are replaced.
 Everything the demo shows is computed from synthetic recordings.
@@ -28,6 +30,8 @@ DEFAULT_REPEAT = Path('bags/synthetic_garden_repeat.mcap')
 TOLERANCE = 1.0  # m: a place match is correct when the snapshot lies this close to the true position
 HOMING_NEAR = 0.5  # m: home vectors to a snapshot nearer than this are reported apart (cf. skynav eval homing)
 HOMING_MISS = 30.0  # deg: a home vector off by more than this is a miss
+SIM_SEED = 1  # the synthetic garden world the simulator's route is taught in
+SIM_LENGTH = 8.0  # m of route taught in the simulator
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -82,9 +86,16 @@ def run(args: argparse.Namespace) -> int:
     poses = ground_truth_poses(args.repeat)
     localization_summary(args.repeat, poses, run_bag, map_file, args.out / 'localization_matches.png')
     navigation_summary(poses, run_bag, map_file)
+    taught = args.out / 'sim_teach'
     step(
-        '4. closed loop: a simulated robot follows the taught route, steered by the nodes',
-        ['skynav', 'sim', 'follow', str(args.teach), '--map', str(map_file), '--out', str(args.out)],
+        f'4. the simulator: a scripted operator drives a {SIM_LENGTH:g} m route while a Teach goal records its map',
+        ['skynav', 'sim', 'teach', '--world', 'garden', '--seed', str(SIM_SEED), '--length', f'{SIM_LENGTH:g}']
+        + ['--time', 'forenoon', '--out', str(taught)],
+    )
+    step(
+        '5. the nodes drive the mower along the taught route, from 0.3 m beside its start, in the morning',
+        ['skynav', 'sim', 'follow', str(taught / 'teach.yaml'), '--map', str(taught / 'teach.db')]
+        + ['--offset', '0.3', '--time', 'morning', '--out', str(args.out)],
     )
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
     return 0 if rates else 1
