@@ -44,7 +44,7 @@ def test_demo_runs_the_chain_and_reports_what_it_did(tmp_path):
     views, accepted, right = figure(r'(\d+) views, (\d+) accepted, (\d+) of them within 1 m', out)
     assert views == 89 and accepted >= 85 and right == accepted
     assert figure(r'3D rotation error median ([\d.]+) deg', out)[0] < 2.0
-    assert 'stopped: end' in out and '(reached the end)' in out
+    assert 'goal ended: reached' in out and '(reached the end)' in out
     assert figure(r'distance from the taught route: median ([\d.]+) m', out)[0] < 0.3
     # `skynav run` recorded one output of every kind per exposure of the repeat drive
     with open_bag(tmp_path / 'repeat_run.mcap') as bag:
