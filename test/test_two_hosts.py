@@ -13,7 +13,6 @@ node's work) where `skynav run` delivers the match first; that is a property of 
 or two, not of the link.
 """
 
-import dataclasses
 import signal
 import subprocess
 import sys
@@ -21,7 +20,6 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
 
@@ -38,12 +36,7 @@ ROBOT_NODES = ('skyline', 'sh')
 BASE_NODES = ('localize', 'compass', 'warping')
 # readers of each topic once the base station is up: localize, compass, warping, recorder, and the probe
 BASE_READERS = {CROSSING: 5, '/localization/match': 3, '/compass/orientation': 2}
-# The compass's and the warping node's searches end within this of `skynav run`'s result in another process
-# (quaternion components, unit vectors, residuals; measured: under 1e-9): they are iterative, and their
-# floating-point sums need not repeat bit for bit across processes. Everything else must be identical.
-SEARCH_TOLERANCE = 1e-8
-EXACT = (CROSSING, '/localization/match')
-REPLAY_RATE = 0.5  # half speed: every node keeps up on a loaded two-core machine, so no frame is dropped
+REPLAY_RATE = 0.2  # 2 Hz: the warping node (about 0.1 s a view, several times that on a loaded machine) keeps up
 
 
 @pytest.fixture(scope='module')
@@ -73,23 +66,6 @@ def by_stamp(path: Path, topics) -> dict[str, dict[int, object]]:
             message = bag.deserialize(raw)
             found[raw.topic][stamp_ns(message.header)] = message
     return found
-
-
-def float_difference(a: object, b: object) -> float:
-    """Return the largest difference of two messages' floats; AssertionError if anything else differs."""
-    if dataclasses.is_dataclass(a):
-        assert type(a).__name__ == type(b).__name__
-        return max((float_difference(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(a)), default=0)
-    if isinstance(a, float):
-        return abs(a - b)
-    if isinstance(a, np.ndarray | list):
-        a, b = np.asarray(a), np.asarray(b)
-        assert a.shape == b.shape
-        return (
-            float(np.abs(a - b).max(initial=0.0)) if a.dtype.kind == 'f' else float(not np.array_equal(a, b)) * np.inf
-        )
-    assert a == b, (a, b)
-    return 0.0
 
 
 def probe(host: netns.Host, env: dict, log: Path, *args: str) -> subprocess.Popen:
@@ -170,22 +146,94 @@ def test_base_station_over_udp_equals_one_process(tmp_path, unavailable):
             robot_env,
             logs['replay'],
         )
-        finished(replay, logs['replay'], 120)
+        finished(replay, logs['replay'], 180)
         finished(counter, logs['count'], 120)
         recorder.send_signal(signal.SIGINT)
         finished(recorder, logs['record'], 60)
-        sent = hosts.link_bytes()
 
     got = by_stamp(recorded, (CROSSING, *BASE_OUTPUTS))
     for topic in (CROSSING, *BASE_OUTPUTS):
         assert sorted(got[topic]) == sorted(expected[topic]), f'{topic}: other frames than one process'
-        if topic in EXACT:
-            differing = [s for s in expected[topic] if not messages_equal(expected[topic][s], got[topic][s])]
-            assert not differing, f'{topic}: {len(differing)} of {len(expected[topic])} frames differ'
-        else:
-            difference = max(float_difference(expected[topic][s], got[topic][s]) for s in expected[topic])
-            assert difference < SEARCH_TOLERANCE, f'{topic}: differs by up to {difference:g}'
-    # only coefficients (and discovery) crossed: under 1/100 of what the camera's frames would have been
-    with open_bag(bag) as source:
-        camera_bytes = sum(len(raw.data) for raw in source.messages(CAMERA))
-    assert sent < camera_bytes / 100, f'{sent} bytes crossed; the camera frames are {camera_bytes}'
+        differing = [s for s in expected[topic] if not messages_equal(expected[topic][s], got[topic][s])]
+        assert not differing, f'{topic}: {len(differing)} of {len(expected[topic])} frames differ'
+
+
+def logged(log: Path, topic: str) -> set[int]:
+    """Return the header stamps of a topic in a probe's --log file."""
+    if not log.exists():
+        return set()
+    return {int(line.split()[1]) for line in log.read_text().splitlines() if line.split()[0] == topic}
+
+
+def wait_logged(log: Path, stamps: dict[str, set[int]], timeout: float) -> None:
+    """Wait until a probe has logged every given stamp of every given topic, or `timeout` s pass."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and any(not s <= logged(log, t) for t, s in stamps.items()):
+        time.sleep(0.2)
+
+
+LATE_START = 10.0  # s the base station starts after the robot's camera
+LATE_RATE = 0.35  # the first drive lasts 25 s: the base station sees its last 15 s
+
+
+def test_base_station_starts_late_and_survives_a_robot_restart(tmp_path, unavailable):
+    if unavailable:
+        pytest.skip(f'two hosts on one machine: {unavailable}')
+    map_file = tmp_path / 'garden.db'
+    built = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(map_file))
+    assert built.returncode == 0, built.stderr
+    domain = 1 + int(tmp_path.stat().st_ino) % 200
+    match = '/localization/match'
+    with netns.TwoHosts(domain) as hosts:
+        robot, base = hosts.robot, hosts.base
+        robot_env, base_env = hosts.environment(robot, domain), hosts.environment(base, domain)
+        seen_on_base = tmp_path / 'base_seen.txt'
+
+        def start_robot(boot: int, drive: Path, rate: float) -> tuple[subprocess.Popen, Path]:
+            """Start the robot's nodes, a probe logging its coefficients, and the drive's replay."""
+            robot.start(skynav_command('launch', '--nodes', *ROBOT_NODES), robot_env, tmp_path / f'robot{boot}.log')
+            seen, log = tmp_path / f'robot_seen{boot}.txt', tmp_path / f'robot_probe{boot}.log'
+            local = probe(
+                robot, robot_env, log, '--timeout', '300', '--log', str(seen), '--messages', f'{CROSSING}=10000'
+            )
+            ready(local, log, 120)
+            replay = robot.start(
+                skynav_command(
+                    'replay', str(drive), '--rate', str(rate), '--wait-for-subscribers', '60', '--topics', *CAMERA
+                ),
+                robot_env,
+                tmp_path / f'replay{boot}.log',
+            )
+            return replay, seen
+
+        # the robot drives 10 s alone; then the base station starts
+        replay, robot_seen = start_robot(1, BAGS / 'synthetic_garden_repeat.mcap', LATE_RATE)
+        time.sleep(LATE_START)
+        assert replay.poll() is None, 'the first drive ended before the base station started'
+        base.start(
+            skynav_command('launch', '--map', str(map_file), '--nodes', 'localize'), base_env, tmp_path / 'base.log'
+        )
+        base_probe = probe(
+            base, base_env, tmp_path / 'base_probe.log', '--timeout', '600', '--log', str(seen_on_base),
+            '--messages', f'{CROSSING}=10000', f'{match}=10000',
+        )  # fmt: skip
+        finished(replay, tmp_path / 'replay1.log', 120)
+        sent = logged(robot_seen, CROSSING)
+        joined = min(logged(seen_on_base, CROSSING), default=None)
+        assert joined is not None, 'the base station received nothing of the first drive'
+        after = {s for s in sent if s >= joined}
+        wait_logged(seen_on_base, {CROSSING: after, match: after}, 30)
+        assert len(after) >= 20, f'the base station joined too late to tell: {len(after)} frames of {len(sent)}'
+        assert after <= logged(seen_on_base, CROSSING), 'coefficients lost after the base station joined'
+        assert after <= logged(seen_on_base, match), 'views not localized after the base station joined'
+
+        # the robot host crashes and reboots; the base station (still running) takes up its second drive
+        robot.crash()
+        replay, robot_seen = start_robot(2, BAGS / 'synthetic_garden_teach.mcap', 1.0)
+        finished(replay, tmp_path / 'replay2.log', 120)
+        sent = logged(robot_seen, CROSSING)
+        assert len(sent) >= 70
+        wait_logged(seen_on_base, {CROSSING: sent, match: sent}, 30)
+        assert sent <= logged(seen_on_base, CROSSING), 'coefficients lost after the robot restarted'
+        assert sent <= logged(seen_on_base, match), 'views not localized after the robot restarted'
+        assert base_probe.poll() is None and all(p.poll() is None for p in base.processes)

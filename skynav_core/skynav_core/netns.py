@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import time
 from dataclasses import dataclass, field
@@ -87,11 +88,25 @@ class Host:
             time.sleep(0.02)
         raise RuntimeError(f'host {self.namespace}: could not set up its /dev/shm')
 
+    def crash(self) -> None:
+        """Kill every process of this host at once (SIGKILL) and start it again with an empty /dev/shm: a reboot."""
+        self.halt(grace=0.0)
+        self.boot()
+
+    def kill_all(self) -> None:
+        """SIGKILL every process left in this host's network namespace (children of processes stopped already)."""
+        listed = subprocess.run(['ip', 'netns', 'pids', self.namespace], capture_output=True, text=True)
+        for pid in listed.stdout.split():
+            try:
+                os.kill(int(pid), signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
     def halt(self, grace: float = 10.0) -> None:
         """Stop every process of this host (SIGINT, then SIGKILL after `grace` s) and its holder."""
         for process in self.processes:
             if process.poll() is None:
-                process.send_signal(2)
+                process.send_signal(signal.SIGINT if grace > 0 else signal.SIGKILL)
         deadline = time.monotonic() + grace
         for process in self.processes:
             try:
@@ -100,6 +115,7 @@ class Host:
                 process.kill()
                 process.wait()
         self.processes.clear()
+        self.kill_all()
         if self.holder is not None:
             self.holder.kill()
             self.holder.wait()
