@@ -10,6 +10,7 @@ memory between processes of one machine (UDP between machines); 'udp' uses UDP o
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -68,10 +69,15 @@ def network_environment(
 def discovery_server_command(locator: str) -> tuple[list[str], dict[str, str]]:
     """Return the command line of a Fast DDS discovery server listening on 'ADDRESS[:PORT]', and its environment.
 
-    The server program comes with the Fast DDS wheel and finds its libraries in this environment's lib/.
+    The server program comes with the Fast DDS wheel; its libraries are in this environment's lib/ and in the
+    wheel's own library folder (ros_fastrtps.libs, next to the Python packages).
     """
     address, port = server_locator(locator)
     program = Path(sys.prefix) / 'bin' / DISCOVERY_SERVER
     if not program.is_file():
         raise NetworkError(f'{program}: no Fast DDS discovery server installed')
-    return [str(program), '-i', '0', '-l', address, '-p', str(port)], {'LD_LIBRARY_PATH': str(Path(sys.prefix) / 'lib')}
+    libraries = [str(Path(sys.prefix) / 'lib')] + [
+        str(Path(p) / 'ros_fastrtps.libs') for p in sys.path if (Path(p) / 'ros_fastrtps.libs').is_dir()
+    ]
+    path = os.pathsep.join([*libraries, *filter(None, os.environ.get('LD_LIBRARY_PATH', '').split(os.pathsep))])
+    return [str(program), '-i', '0', '-l', address, '-p', str(port)], {'LD_LIBRARY_PATH': path}
