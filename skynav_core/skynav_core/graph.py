@@ -82,13 +82,21 @@ class InProcessGraph:
         self._subscribers[topic].append(callback)
 
     def publish(self, topic: str, message: Any) -> None:
-        """Record an output and deliver it to its subscribers at once."""
+        """Record an output and deliver it to its subscribers at once, as they would receive it over DDS.
+
+        Subscribers get the message serialized and read back: a float32 field holds a Python float until it
+        is serialized, so a node handed the publisher's object would compute with more precision than it ever
+        gets live (and `skynav run` would differ from the running graph in the last digits).
+        """
+        data = serialize_message(message) if self._sink is not None or topic in self._subscribers else b''
         if self._sink is not None:
-            self._sink(topic, type_name(message), self._now, serialize_message(message))
+            self._sink(topic, type_name(message), self._now, data)
         if self.keep_outputs:
             self.outputs.append(Output(topic, message, self._now))
-        for callback in list(self._subscribers.get(topic, ())):
-            callback(message)
+        if callbacks := list(self._subscribers.get(topic, ())):
+            delivered = deserialize_message(data, type(message))
+            for callback in callbacks:
+                callback(delivered)
 
     def now_ns(self) -> int:
         """Return the log time of the input being processed."""

@@ -224,9 +224,12 @@ class RouteTeacher:
         """Return whether a view (amplitude descriptor, path length by odometry or None) becomes a snapshot."""
         if self._descriptor is None:
             return True
-        if travelled is not None and self._travelled is not None:
+        if travelled is not None:
+            # before the first snapshot with odometry (the first view may beat the first /odom sample) the
+            # distance counts from the first sample, which came after that view
+            since = travelled - (self._travelled if self._travelled is not None else 0.0)
             reached_end = self.max_length > 0 and self._start is not None and travelled - self._start >= self.max_length
-            return travelled - self._travelled >= self.spacing or reached_end
+            return since >= self.spacing or reached_end
         change = float(np.linalg.norm(descriptor - self._descriptor))
         return change >= self.spacing * self.change_per_metre
 

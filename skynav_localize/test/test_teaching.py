@@ -122,6 +122,26 @@ def test_a_view_ahead_of_its_odometry_uses_the_extrapolated_path_length(garden, 
     assert np.all(gaps >= 0.3 - 0.01) and np.all(gaps < 0.41)
 
 
+def test_after_a_first_view_without_odometry_the_spacing_counts_from_the_first_sample(garden, tmp_path):
+    # the first view may come before the first /odom sample; from then on odometry, not view change, spaces
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.5)
+    assert teacher.offer(int(drive.stamps[0]), drive.coefficients[0])
+    kept = [0] + [k for k in range(1, len(drive.stamps)) if teacher_takes(teacher, drive, k)]
+    travelled = path_length(drive.poses[:, :3]) - path_length(drive.poses[:, :3])[1]  # from the first sample
+    expected = [0]
+    for k in range(1, len(drive.stamps)):
+        if travelled[k] - (travelled[expected[-1]] if len(expected) > 1 else 0.0) >= 0.5:
+            expected.append(k)
+    assert kept == expected and len(kept) > 10
+
+
+def teacher_takes(teacher, recording, k):
+    """Give the teacher frame k's odometry, then its view; return whether the view became a snapshot."""
+    teacher.add_odometry(int(recording.stamps[k]), recording.poses[k])
+    return teacher.offer(int(recording.stamps[k]), recording.coefficients[k])
+
+
 def test_views_of_a_higher_degree_are_cut_and_of_a_lower_one_refused(garden, tmp_path):
     drive = garden['teach']
     teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.1)

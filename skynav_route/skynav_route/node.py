@@ -82,6 +82,7 @@ class RouteNode(SkynavNode):
     """Drives the robot along a taught route or home to a snapshot."""
 
     PARAMETERS = PARAMETERS
+    INPUT_TOPICS = ('/skyline/sh', '/localization/match', '/compass/orientation', '/homing/home_vector', '/odom')
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
     stops_on_signal = True
 

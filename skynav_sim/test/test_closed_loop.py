@@ -127,12 +127,12 @@ def test_home_command_refuses_bad_input_in_one_line(extra, tmp_path):
 def test_home_command_homes_and_reports_it(tmp_path):
     # small and short: two starts 1-2.5 m away, a 160x120 camera; the figures are the command's own report
     result = run_skynav(
-        'sim', 'home', '--starts', '2', '--min-distance', '1', '--max-distance', '2.5', '--max-steps', '15',
+        'sim', 'home', '--starts', '2', '--min-distance', '1', '--max-distance', '2.5', '--max-frames', '60',
         '--size', '160x120', '--out', str(tmp_path),
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     rows = [line.split() for line in result.stdout.splitlines() if re.match(r'\s+\d+\s+\d', line)]
-    assert [row[0] for row in rows] == ['0', '1'] and all(row[-1] == 'home' for row in rows)
+    assert [row[0] for row in rows] == ['0', '1'] and all(row[-1] == 'reached' for row in rows)
     assert all(1.0 <= float(row[1]) <= 2.5 and float(row[2]) <= 0.3 for row in rows)  # start, end distance (m)
     assert '2 of 2 runs (100 %) ended within 0.3 m of home' in result.stdout
     assert (tmp_path / 'homing_paths.png').stat().st_size > 0

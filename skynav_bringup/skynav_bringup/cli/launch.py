@@ -6,13 +6,22 @@ Parameters come from the defaults shipped in skynav_bringup/config, overridden b
 given with --params, in the ROS 2 format (`node_name: {ros__parameters: {...}}`); --map sets the
 map of the nodes that compare against one (localize, compass, warping). On a full ROS 2 install,
 `ros2 launch skynav_bringup skynav.launch.py` starts the same graph.
+
+Across machines (a robot and a base station, README 'Robot and base station'): --discovery-range
+subnet, --static-peers where multicast is blocked, or --discovery-server (with --serve-discovery on
+the one host that runs the server), and the transport (shm: shared memory between processes of this
+machine, UDP between machines; udp: UDP only).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
 import sys
 from pathlib import Path
+
+from skynav_core.network import DISCOVERY_RANGES, DISCOVERY_SERVER_PORT, TRANSPORTS
 
 HELP = 'start the whole node graph on live topics'
 
@@ -24,6 +33,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--nodes', nargs='+', metavar='NAME', help='start only these nodes')
+    parser.add_argument(
+        '--discovery-range',
+        choices=DISCOVERY_RANGES,
+        help='where to look for other nodes (ROS_AUTOMATIC_DISCOVERY_RANGE; default localhost)',
+    )
+    parser.add_argument(
+        '--static-peers', nargs='+', metavar='ADDRESS', help='other hosts to reach by unicast (ROS_STATIC_PEERS)'
+    )
+    parser.add_argument(
+        '--discovery-server',
+        metavar='ADDRESS[:PORT]',
+        help=f'find the other nodes through this Fast DDS discovery server (default port {DISCOVERY_SERVER_PORT})',
+    )
+    parser.add_argument(
+        '--serve-discovery',
+        action='store_true',
+        help='also run the discovery server of --discovery-server on this host (ADDRESS must be one of its own)',
+    )
+    parser.add_argument(
+        '--transport',
+        choices=tuple(TRANSPORTS),
+        help='shm (default): shared memory on this machine, UDP between machines; udp: UDP only',
+    )
 
 
 def default_params_file() -> Path | None:
@@ -38,6 +70,7 @@ def default_params_file() -> Path | None:
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
     from skynav_core.launcher import Launcher
+    from skynav_core.network import discovery_server_command, network_environment
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
 
@@ -57,7 +90,22 @@ def run(args: argparse.Namespace) -> int:
     if not specs:
         print('skynav launch: no skynav nodes are installed yet; nothing to start.', file=sys.stderr)
         return 0
+    if args.serve_discovery and args.discovery_server is None:
+        raise CliError('--serve-discovery needs --discovery-server ADDRESS[:PORT] (where to serve)')
+    os.environ.update(
+        network_environment(args.discovery_range, args.static_peers, args.discovery_server, args.transport)
+    )
+    server = None
+    if args.serve_discovery:
+        command, env = discovery_server_command(args.discovery_server)
+        server = subprocess.Popen(command, env={**os.environ, **env}, stdin=subprocess.DEVNULL, start_new_session=True)
+        print(f'[launch] discovery server on {args.discovery_server} (pid {server.pid})', flush=True)
     launcher = Launcher(specs, ros_args)
-    with StopRequest() as stop:
-        launcher.start()
-        return launcher.wait(lambda: stop.requested)
+    try:
+        with StopRequest() as stop:
+            launcher.start()
+            return launcher.wait(lambda: stop.requested)
+    finally:
+        if server is not None:
+            server.terminate()
+            server.wait(timeout=10)

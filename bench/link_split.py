@@ -1,0 +1,137 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Benchmark: what crosses the link between a robot and a base station, for two splits of the graph.
+
+    .venv/bin/python bench/link_split.py [--frames N] [--transport shm|udp]   (as root: network namespaces)
+
+Two hosts on one machine (skynav_core.netns: network namespaces joined by a veth pair, UDP between them). A
+synthetic 640x480 mono16 repeat drive of the garden at 10 Hz is replayed on the robot in real time, with
+
+- images across: only the camera on the robot; skyline, sh, localize, compass, warping on the base station;
+- coefficients across: camera, skyline and sh on the robot; localize, compass, warping on the base station.
+
+Prints, per split, the bytes per second sent from the robot to the base station over the link (discovery
+and acknowledgements included), the frames whose home vector reached the base station, and the latency
+from the camera frame's reception on the robot to its home vector's on the base station (both hosts read
+the same clock), median and 95th percentile: the link's share plus the base station's work.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from skynav_core import netns
+from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
+
+PROBE = Path(__file__).parents[1] / 'test' / 'graph_probe.py'
+CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+SPLITS = {
+    'images across': (('skyline', 'sh', 'localize', 'compass', 'warping'), '/camera/uv/image_raw', 1),
+    'coefficients across': (('localize', 'compass', 'warping'), '/skyline/sh', 3),
+}  # base station's nodes, the topic that crosses, how many base station readers it has
+
+
+def write_drive(out: Path, frames: int) -> Path:
+    """Render the synthetic 640x480 mono16 garden repeat drive of `frames` frames at 10 Hz."""
+    result = run_skynav(
+        'sim', 'bag', 'repeat', '--world', 'garden', '--seed', '1', '--size', '640x480', '--encoding', 'mono16',
+        '--length', f'{frames / 10:.1f}', '--speed', '1.0', '--time', 'morning', '--out', str(out), timeout=900,
+    )  # fmt: skip
+    if result.returncode != 0:
+        sys.exit(result.stderr)
+    return out
+
+
+def receptions(log: Path, topic: str) -> dict[int, int]:
+    """Return {header stamp: reception time ns} of one topic in a probe's log."""
+    found = {}
+    for line in log.read_text().splitlines():
+        name, stamp, received = line.split()
+        if name == topic:
+            found.setdefault(int(stamp), int(received))
+    return found
+
+
+def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, transport: str) -> dict:
+    """Run one split over the drive; return its figures."""
+    base_nodes, crossing, readers = SPLITS[split]
+    robot_nodes = [n for n in ('skyline', 'sh') if n not in base_nodes]
+    with netns.TwoHosts(domain) as hosts:
+        env = {h.namespace: hosts.environment(h, domain) for h in (hosts.robot, hosts.base)}
+        robot, base = hosts.robot, hosts.base
+        if robot_nodes:
+            launch = ['launch', '--transport', transport, '--nodes', *robot_nodes]
+            robot.start(skynav_command(*launch), env[robot.namespace], work / f'{split}_robot.log')
+        launch = ['launch', '--transport', transport, '--map', str(map_file), '--nodes', *base_nodes]
+        base.start(skynav_command(*launch), env[base.namespace], work / f'{split}_base.log')
+        wait = robot.start(
+            [sys.executable, str(PROBE), '--timeout', '120', '--subscribers', f'{crossing}={readers}'],
+            env[robot.namespace],
+            work / f'{split}_wait.log',
+        )
+        if wait.wait(timeout=150) != 0:
+            sys.exit(f'{split}: the hosts never connected')
+        camera_log, home_log = work / f'{split}_camera.txt', work / f'{split}_home.txt'
+        probe = [sys.executable, str(PROBE), '--timeout', '600']
+        robot.start([*probe, '--log', str(camera_log), '--messages', f'{CAMERA[0]}=1000000'], env[robot.namespace],
+                    work / f'{split}_camera.log')  # fmt: skip
+        base.start([*probe, '--log', str(home_log), '--messages', '/homing/home_vector=1000000'], env[base.namespace],
+                   work / f'{split}_home.log')  # fmt: skip
+        time.sleep(5.0)  # the probes join (a reliable reader of the camera on the robot: the replay waits for it)
+        before, start = hosts.link_bytes(), time.monotonic()
+        replay = robot.start(
+            skynav_command('replay', str(drive), '--topics', *CAMERA, '--wait-for-subscribers', '30'),
+            env[robot.namespace],
+            work / f'{split}_replay.log',
+        )
+        replay.wait(timeout=600)
+        time.sleep(2.0)  # the last frames' work on the base station
+        sent, seconds = hosts.link_bytes() - before, time.monotonic() - start
+    camera, home = receptions(camera_log, CAMERA[0]), receptions(home_log, '/homing/home_vector')
+    latency = np.array([home[s] - camera[s] for s in home if s in camera]) / 1e6
+    return {
+        'bytes_per_s': sent / seconds,
+        'frames': len(camera),
+        'home_vectors': len(home),
+        'latency_ms': (float(np.median(latency)), float(np.percentile(latency, 95))) if len(latency) else None,
+    }
+
+
+def main() -> int:
+    """Measure both splits and print the figures."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--frames', type=int, default=100, help='frames of the drive at 10 Hz (default 100)')
+    parser.add_argument('--transport', choices=('shm', 'udp'), default='shm', help='within each host (default shm)')
+    args = parser.parse_args()
+    if reason := netns.unavailable():
+        sys.exit(f'link_split: {reason}')
+    domain, _lock = claim_domain_id()
+    with tempfile.TemporaryDirectory(prefix='skynav-link-') as folder:
+        work = Path(folder)
+        drive = write_drive(work / 'synthetic_garden_repeat_640x480.mcap', args.frames)
+        map_file = work / 'garden.db'
+        if run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(map_file)).returncode:
+            sys.exit('link_split: map build failed')
+        figures = defaultdict(dict)
+        for split in SPLITS:
+            figures[split] = measure(split, drive, map_file, work, domain, args.transport)
+            f = figures[split]
+            latency = 'n/a' if f['latency_ms'] is None else '{:.0f} ms median, {:.0f} ms p95'.format(*f['latency_ms'])
+            print(
+                f'{split:20s} {f["bytes_per_s"] / 1e3:10.1f} kB/s  home vectors {f["home_vectors"]:4d} of '
+                f'{f["frames"]:4d} frames  camera -> home vector {latency}',
+                flush=True,
+            )
+        ratio = figures['coefficients across']['bytes_per_s'] / figures['images across']['bytes_per_s']
+        print(f'coefficients / images: {ratio:.4f} of the bytes (1/{1 / ratio:.0f})')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,83 @@
+# SPDX-License-Identifier: Apache-2.0
+"""How the nodes find each other and what carries their messages: discovery and transport for real networks.
+
+By default (skynav_core.environment) discovery stays on this machine and messages between processes go
+through shared memory. A robot and a base station on one network need wider discovery: the subnet
+(multicast), static peers (unicast to given addresses, where multicast is blocked, as on many Wi-Fi
+networks), or a Fast DDS discovery server that every participant asks. The transport 'shm' keeps shared
+memory between processes of one machine (UDP between machines); 'udp' uses UDP only.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from .environment import FASTDDS_PROFILE, PACKAGE, share_directory
+from .errors import SkynavError
+
+DISCOVERY_RANGES = ('localhost', 'subnet', 'off', 'system_default')
+TRANSPORTS = {'shm': FASTDDS_PROFILE, 'udp': Path('config') / 'fastdds_udp.xml'}
+DISCOVERY_SERVER_PORT = 11811  # Fast DDS's default discovery server port (UDP)
+DISCOVERY_SERVER = 'fast-discovery-server'  # the server program the Fast DDS wheel installs
+
+
+class NetworkError(SkynavError, ValueError):
+    """A discovery or transport setting that cannot be used."""
+
+
+def server_locator(text: str) -> tuple[str, int]:
+    """Return (address, UDP port) of 'ADDRESS[:PORT]' (NetworkError if malformed)."""
+    address, _, port = text.partition(':')
+    if not address or (port and not port.isdigit()) or not 0 < int(port or DISCOVERY_SERVER_PORT) < 65536:
+        raise NetworkError(f'discovery server {text!r}: expected ADDRESS or ADDRESS:PORT')
+    return address, int(port or DISCOVERY_SERVER_PORT)
+
+
+def network_environment(
+    discovery_range: str | None = None,
+    static_peers: list[str] | None = None,
+    discovery_server: str | None = None,
+    transport: str | None = None,
+) -> dict[str, str]:
+    """Return the environment variables that set discovery and transport as given (None: leave as is)."""
+    env: dict[str, str] = {}
+    if discovery_range is None and discovery_server is not None:
+        discovery_range = 'subnet'  # the server is on another host: discovery must leave this one
+    if discovery_range is not None:
+        if discovery_range not in DISCOVERY_RANGES:
+            raise NetworkError(f'discovery range must be one of {", ".join(DISCOVERY_RANGES)}')
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery_range.upper()
+    if static_peers:
+        if bad := [p for p in static_peers if not p or ';' in p or ' ' in p]:
+            raise NetworkError(f'static peers must be addresses or host names: {bad}')
+        env['ROS_STATIC_PEERS'] = ';'.join(static_peers)
+    if discovery_server is not None:
+        address, port = server_locator(discovery_server)
+        env['ROS_DISCOVERY_SERVER'] = f'{address}:{port}'
+    if transport is not None:
+        if transport not in TRANSPORTS:
+            raise NetworkError(f'transport must be one of {", ".join(TRANSPORTS)}')
+        share = share_directory(PACKAGE)
+        if share is None or not (share / TRANSPORTS[transport]).is_file():
+            raise NetworkError(f'the Fast DDS profile of transport {transport!r} is not installed (run make setup)')
+        env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(share / TRANSPORTS[transport])
+    return env
+
+
+def discovery_server_command(locator: str) -> tuple[list[str], dict[str, str]]:
+    """Return the command line of a Fast DDS discovery server listening on 'ADDRESS[:PORT]', and its environment.
+
+    The server program comes with the Fast DDS wheel; its libraries are in this environment's lib/ and in the
+    wheel's own library folder (ros_fastrtps.libs, next to the Python packages).
+    """
+    address, port = server_locator(locator)
+    program = Path(sys.prefix) / 'bin' / DISCOVERY_SERVER
+    if not program.is_file():
+        raise NetworkError(f'{program}: no Fast DDS discovery server installed')
+    libraries = [str(Path(sys.prefix) / 'lib')] + [
+        str(Path(p) / 'ros_fastrtps.libs') for p in sys.path if (Path(p) / 'ros_fastrtps.libs').is_dir()
+    ]
+    path = os.pathsep.join([*libraries, *filter(None, os.environ.get('LD_LIBRARY_PATH', '').split(os.pathsep))])
+    return [str(program), '-i', '0', '-l', address, '-p', str(port)], {'LD_LIBRARY_PATH': path}
