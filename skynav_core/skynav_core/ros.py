@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -95,19 +96,28 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
     return True
 
 
+SIGNAL_POLL_S = 0.1  # s: how often a node that takes the signals itself looks whether one came
+
+
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
     apply_ros_environment()
-    # A node that drives the robot stops it on the way out, which needs the context alive: it takes the signals as
-    # KeyboardInterrupt (SIGTERM too) instead of rclpy's handler, which shuts the context down first.
+    # A node that drives the robot stops it on the way out, which needs the context alive: it takes the signals
+    # itself (a flag its spin loop looks at) instead of rclpy's handler, which shuts the context down first. A flag,
+    # not KeyboardInterrupt, so that a signal never lands inside rclpy's own code and leaves it half done.
     own_signals = getattr(node_factory, 'stops_on_signal', False)
+    stop = threading.Event()
     if own_signals:
-        signal.signal(signal.SIGTERM, signal.default_int_handler)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda *_: stop.set())
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own_signals else SignalHandlerOptions.ALL)
     node = None
     try:
         node = node_factory()
-        rclpy.spin(node)
+        if own_signals:
+            spin_until_signal(node, stop)
+        else:
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -118,3 +128,14 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def spin_until_signal(node: Node, stop: threading.Event) -> None:
+    """Spin one node on an executor of its own until `stop` is set (looked at every SIGNAL_POLL_S s)."""
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=SIGNAL_POLL_S)
+    finally:
+        executor.remove_node(node)

@@ -127,3 +127,13 @@ def test_ctrl_c_cancels_and_the_robot_stops_and_shutdown_stops_it_too(route_map,
     assert route.returncode == 0, route_err
     assert len(commands) == 2 and commands[1].twist.linear.x == 0.0 and commands[1].twist.angular.z == 0.0
     assert 'Traceback' not in route_err
+
+
+@pytest.mark.parametrize('delay', [0.2, 1.0, 3.0])
+def test_a_signal_at_any_moment_of_the_start_ends_the_node_cleanly(route_map, delay):
+    # the node takes the signals itself (it must stop the robot first): one that comes while rclpy is creating
+    # something must not leave it half made (a Task without its fields printed a traceback at exit)
+    route = start_route_node(route_map)
+    time.sleep(delay)
+    out, err = stop(route)
+    assert route.returncode == 0 and 'Traceback' not in out + err and 'Exception ignored' not in err, err
