@@ -24,6 +24,7 @@ from functools import partial
 from typing import Any
 
 import foxglove
+from foxglove.websocket import ServerListener
 from rclpy.node import Node
 
 from skynav_core.cdr import rosbags_cdr
@@ -31,7 +32,7 @@ from skynav_core.qos import subscription_qos
 from skynav_core.ros import message_class
 from skynav_core.typestore import BadMessageType, UnknownMessageType, ros2msg_definition
 
-DISCOVERY_PERIOD = 1.0  # s between looks for topics that appeared
+DISCOVERY_PERIOD = 0.5  # s between looks for topics that appeared
 FORWARD_DEPTH = 10  # subscriber history per topic: a viewer that falls behind loses the oldest messages
 MESSAGE_ENCODING, SCHEMA_ENCODING = 'cdr', 'ros2msg'
 
@@ -57,7 +58,7 @@ def foxglove_channel(topic: str, msgtype: str, context: foxglove.Context | None 
     return foxglove.Channel(topic, schema=schema, message_encoding=MESSAGE_ENCODING, context=context)
 
 
-class Viewer:
+class Viewer(ServerListener):
     """Advertises the graph's topics to Foxglove clients and forwards those they subscribe to."""
 
     def __init__(
