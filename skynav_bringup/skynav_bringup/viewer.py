@@ -32,7 +32,8 @@ from skynav_core.qos import subscription_qos
 from skynav_core.ros import message_class
 from skynav_core.typestore import BadMessageType, UnknownMessageType, ros2msg_definition
 
-DISCOVERY_PERIOD = 0.5  # s between looks for topics that appeared
+DISCOVERY_PERIOD = 1.0  # s between looks for topics that appeared
+CLIENTS_PERIOD = 0.1  # s between looks at what the clients subscribe to (they are told within this)
 FORWARD_DEPTH = 10  # subscriber history per topic: a viewer that falls behind loses the oldest messages
 MESSAGE_ENCODING, SCHEMA_ENCODING = 'cdr', 'ros2msg'
 
@@ -79,9 +80,13 @@ class Viewer(ServerListener):
         self.forwarded: Counter = Counter()  # messages forwarded per topic
         self._clients: Counter = Counter()  # Foxglove subscriptions per topic (from the server's threads)
         self._lock = threading.Lock()
-        # the server's threads only note a change and wake the executor, which (un)subscribes
-        self._wake = node.create_guard_condition(self.follow_clients)
-        self._timer = node.create_timer(DISCOVERY_PERIOD, self.discover)
+        self._changed = False
+        # the server's threads only note a change; the executor (un)subscribes (the events executor of
+        # `skynav view` has no guard conditions)
+        self._timers = [
+            node.create_timer(DISCOVERY_PERIOD, self.discover),
+            node.create_timer(CLIENTS_PERIOD, self.follow_changed_clients),
+        ]
         self.discover()
 
     # --- the foxglove.websocket.ServerListener protocol (called from the server's threads) -------
@@ -90,13 +95,13 @@ class Viewer(ServerListener):
         """A client subscribed to a channel."""
         with self._lock:
             self._clients[channel.topic] += 1
-        self._wake.trigger()
+            self._changed = True
 
     def on_unsubscribe(self, client: Any, channel: Any) -> None:
         """A client unsubscribed from a channel (or went away)."""
         with self._lock:
             self._clients[channel.topic] = max(0, self._clients[channel.topic] - 1)
-        self._wake.trigger()
+            self._changed = True
 
     # --- in the executor ----------------------------------------------------------------------------
 
@@ -124,10 +129,16 @@ class Viewer(ServerListener):
         self.refused.add(topic)
         self.warn(f'skynav view: {topic} is not forwarded: {reason}')
 
+    def follow_changed_clients(self) -> None:
+        """Follow the clients' subscriptions if they changed."""
+        if self._changed:
+            self.follow_clients()
+
     def follow_clients(self) -> None:
         """Subscribe to the topics some client wants now, and unsubscribe from the others."""
         with self._lock:
             wanted = {topic for topic, count in self._clients.items() if count > 0}
+            self._changed = False
         for topic, forward in self.forwards.items():
             if topic in wanted and forward.subscription is None:
                 forward.subscription = self.node.create_subscription(

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     def warn(text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
-    with StopRequest() as stop, tool_node('skynav_view') as (node, executor):
+    with StopRequest() as stop, tool_node('skynav_view', events=True) as (node, executor):
         viewer = Viewer(node, args.topics, warn, say=warn)
         try:
             server = foxglove.start_server(name='skynav', host=args.host, port=args.port, server_listener=viewer)
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         )
         try:
             while not stop.requested:
-                executor.spin_once(timeout_sec=0.1)
+                executor.spin_once(timeout_sec=0.25)
         finally:
             server.stop()
     total = sum(viewer.forwarded.values())
