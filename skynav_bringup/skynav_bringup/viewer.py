@@ -26,11 +26,13 @@ from typing import Any
 import foxglove
 from foxglove.websocket import ServerListener
 from rclpy.node import Node
+from rosbags.typesys import TypesysError
 
 from skynav_core.cdr import rosbags_cdr
+from skynav_core.errors import SkynavError
 from skynav_core.qos import subscription_qos
 from skynav_core.ros import message_class
-from skynav_core.typestore import BadMessageType, UnknownMessageType, ros2msg_definition
+from skynav_core.typestore import ros2msg_definition
 
 DISCOVERY_PERIOD = 1.0  # s between looks for topics that appeared
 CLIENTS_PERIOD = 0.1  # s between looks at what the clients subscribe to (they are told within this)
@@ -117,11 +119,13 @@ class Viewer(ServerListener):
             if len(types) != 1:
                 self.refuse(topic, f'it carries several types ({", ".join(types)})')
                 continue
-            try:
+            try:  # the Python class first: a channel is advertised only for a topic that can be subscribed
+                msg_class = message_class(types[0])
                 channel = foxglove_channel(topic, types[0], self.context)
-                self.forwards[topic] = Forward(channel, types[0], message_class(types[0]))
-            except (UnknownMessageType, BadMessageType) as exc:
-                self.refuse(topic, str(exc))
+            except (SkynavError, TypesysError) as exc:  # no definition, a crafted name, one rosbags cannot parse
+                self.refuse(topic, ' '.join(str(exc).split()))
+                continue
+            self.forwards[topic] = Forward(channel, types[0], msg_class)
         self.follow_clients()
 
     def refuse(self, topic: str, reason: str) -> None:
