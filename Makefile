@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 STAMPS := $(VENV)/.skynav
 PIP := $(BIN)/python -m pip --disable-pip-version-check
 PY_PACKAGES := skynav_core skynav_bringup skynav_skyline skynav_sh skynav_localize \
-               skynav_compass skynav_warping skynav_sim skynav_route
+               skynav_compass skynav_warping skynav_sim skynav_route skynav_viz
 PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/setup.cfg $(p)/pyproject.toml $(p)/package.xml) \
                     $(shell find $(addsuffix /config,$(PY_PACKAGES)) \
                             $(addsuffix /launch,$(PY_PACKAGES)) -type f 2>/dev/null)

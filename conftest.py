@@ -32,6 +32,7 @@ PACKAGES = (
     'skynav_warping',
     'skynav_sim',
     'skynav_route',
+    'skynav_viz',
 )
 for _package in PACKAGES:
     importlib.import_module(_package)

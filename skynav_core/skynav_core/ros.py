@@ -18,6 +18,7 @@ from types import FrameType
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -65,8 +66,13 @@ class StopRequest:
 
 
 @contextmanager
-def tool_node(name: str, args: list[str] | None = None) -> Iterator[tuple[Node, SingleThreadedExecutor]]:
+def tool_node(
+    name: str, args: list[str] | None = None, events: bool = False
+) -> Iterator[tuple[Node, SingleThreadedExecutor]]:
     """Yield a node and its executor in a context of their own; signals are left to the caller.
+
+    `events` chooses rclpy's EventsExecutor (callbacks dispatched from C++: a fraction of the CPU per message of
+    the single-threaded executor; no guard conditions) for a tool that takes many messages.
 
     The node has no /rosout logger and no parameter services, so a recorder of
     every topic does not record its own chatter.
@@ -75,10 +81,10 @@ def tool_node(name: str, args: list[str] | None = None) -> Iterator[tuple[Node, 
     context = Context()
     rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)
-    executor = SingleThreadedExecutor(context=context)
+    executor = EventsExecutor(context=context) if events else SingleThreadedExecutor(context=context)
     executor.add_node(node)
     try:
-        yield node, executor
+        yield node, executor  # type: ignore[misc]  # the events executor passes for an Executor
     finally:
         executor.shutdown()
         node.destroy_node()

@@ -131,3 +131,14 @@ def ensure_type(msgtype: str, msgdef: str = '', store: Typestore | None = None) 
                 if desc[0] == Nodetype.NAME and desc[1] not in store.fielddefs:
                     pending.append(desc[1])
     return msgtype
+
+
+def ros2msg_definition(msgtype: str) -> str:
+    """Return the full ros2msg definition of `msgtype`: its fields, then each type it uses after a `MSG:` line.
+
+    This is the text an MCAP recording's schema carries and Foxglove reads; UnknownMessageType if not installed.
+    """
+    msgtype = ensure_type(msgtype)
+    if split_type(msgtype)[1] != 'msg':  # rosbags writes definitions of pkg/msg/ types only
+        raise UnknownMessageType(f'no ros2msg definition of {msgtype} (a message of an action)')
+    return typestore().generate_msgdef(msgtype, ros_version=2)[0]

@@ -1,0 +1,109 @@
+# SPDX-License-Identifier: Apache-2.0
+"""The viz node in an in-process graph on scripted frames: one set of outputs per frame, in any order of its parts."""
+
+import numpy as np
+import pytest
+from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Float64, Int32
+
+from skynav_core.camera import EquidistantCamera
+from skynav_core.graph import in_process
+from skynav_core.images import fill_image
+from skynav_core.maps import MapStore
+from skynav_core.nodes import NodeSpec
+from skynav_msgs.msg import HomeVector, PlaceMatch
+from skynav_viz import node as viz
+
+CAMERA = EquidistantCamera.for_field_of_view(64, 48, np.deg2rad(180.0))
+SPEC = NodeSpec('viz', 'skynav_viz', 'skynav_viz.node:VizNode')
+SECOND = 1_000_000_000
+VIZ_TOPICS = (viz.MARKERS_TOPIC, viz.OVERLAY_TOPIC, viz.CONFIDENCE_TOPIC, viz.STATE_TOPIC)
+
+
+def stamped(message, stamp: int):
+    """Stamp a message (ns) in camera_link; return it."""
+    return viz.header_of(message, stamp, 'camera_link')
+
+
+def image(stamp: int, pixels: np.ndarray) -> Image:
+    return stamped(fill_image(Image(), pixels, 'mono8'), stamp)
+
+
+def match(stamp: int, index: int, accepted: bool = True) -> PlaceMatch:
+    return stamped(PlaceMatch(index=index, accepted=accepted, distance=0.1), stamp)
+
+
+def home(stamp: int, index: int, residual: float) -> HomeVector:
+    message = stamped(HomeVector(snapshot_index=index, residual=residual), stamp)
+    message.direction.x, message.rotation.w = 1.0, 1.0
+    return message
+
+
+@pytest.fixture
+def graph(tmp_path):
+    with MapStore.create(tmp_path / 'route.db', 'route', 2) as store:
+        for i in range(4):
+            store.add_snapshot(np.zeros(9), i, np.array([i, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]))
+    with in_process([SPEC], ['-p', f'map:={tmp_path / "route.db"}']) as graph:
+        graph.keep_outputs = True
+        info = CameraInfo(**CAMERA.camera_info_fields())
+        graph.publish(viz.CAMERA_INFO_TOPIC, stamped(info, 0))
+        yield graph
+
+
+def published(graph) -> dict[str, list]:
+    """Return the viz outputs so far by topic, and forget them."""
+    outputs = {t: [o.message for o in graph.outputs if o.topic == t] for t in VIZ_TOPICS}
+    graph.outputs.clear()
+    return outputs
+
+
+def feed(graph, *messages) -> None:
+    for topic, message in messages:
+        graph.publish(topic, message)
+
+
+def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
+    sky = np.zeros((48, 64), np.uint8)
+    sky[:24] = 255
+    uv = np.full((48, 64), 100, np.uint8)
+    # skynav run's order: the match and home vector come before the frame's mask (depth first, sh reads it first)
+    feed(graph, (viz.UV_TOPIC, image(SECOND, uv)), (viz.MATCH_TOPIC, match(SECOND, 1)))
+    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.25)))
+    assert not any(published(graph).values())  # the mask is still to come
+    feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
+    first = published(graph)
+    assert {t: len(v) for t, v in first.items()} == dict.fromkeys(VIZ_TOPICS, 1)
+    assert first[viz.CONFIDENCE_TOPIC][0] == Float64(data=0.75)
+    assert first[viz.STATE_TOPIC][0] == Int32(data=2)
+    markers = {m.ns: m for m in first[viz.MARKERS_TOPIC][0].markers}
+    assert markers['matched'].points[0].x == 1.0 and markers['target'].points[0].x == 2.0
+    assert markers['snapshots'].header.frame_id == 'map' and len(markers['snapshots'].points) == 4
+    home_arrow = markers['home_vector'].points
+    assert (home_arrow[0].x, home_arrow[1].x) == (1.0, 2.0)  # from the match, along +x of snapshot 2 (1 m)
+    assert first[viz.OVERLAY_TOPIC][0].format == 'jpeg' and first[viz.OVERLAY_TOPIC][0].header.stamp.sec == 1
+
+    # a live order: the last part completes the frame
+    feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)), (viz.HOME_TOPIC, home(2 * SECOND, 3, 0.5)))
+    feed(graph, (viz.UV_TOPIC, image(2 * SECOND, uv)))
+    assert not any(published(graph).values())
+    feed(graph, (viz.MATCH_TOPIC, match(2 * SECOND, 2, accepted=False)))
+    second = published(graph)
+    assert second[viz.STATE_TOPIC] == [Int32(data=1)] and second[viz.CONFIDENCE_TOPIC] == [Float64(data=0.5)]
+    assert len(second[viz.OVERLAY_TOPIC]) == 1
+
+
+def test_a_frame_without_a_home_vector_goes_out_when_a_newer_mask_comes_and_late_parts_are_dropped(graph):
+    sky = np.zeros((48, 64), np.uint8)
+    sky[:24] = 255
+    feed(graph, (viz.UV_TOPIC, image(SECOND, sky)), (viz.MATCH_TOPIC, match(SECOND, -1, accepted=False)))
+    feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
+    assert not any(published(graph).values())
+    feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)))
+    outputs = published(graph)
+    assert outputs[viz.STATE_TOPIC] == [Int32(data=0)] and outputs[viz.CONFIDENCE_TOPIC] == [Float64(data=0.0)]
+    deleted = {m.ns for m in outputs[viz.MARKERS_TOPIC][0].markers if m.action == m.DELETE}
+    assert deleted == {'matched', 'target', 'home_vector', 'route_direction'}
+    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.1)))
+    assert not any(published(graph).values())
+    assert graph.nodes[0].dropped['late'] == 1
