@@ -69,6 +69,7 @@ class Run:
     headings: list[float] = field(default_factory=list)  # true headings (rad, map frame), one per position
     tilts: list[float] = field(default_factory=list)  # camera tilt from the vertical (degrees), one per camera frame
     confidences: list[float] = field(default_factory=list)  # the goal's feedback, one per processed frame
+    feedback: list[Any] = field(default_factory=list)  # the goal's feedback messages, the first before any frame
     stopped: str = ''  # why the run ended: 'reached', an error code's name (LOST, ...), 'blocked' or 'frames'
     result: Any = None  # the action's result
     commands: int = 0  # /cmd_vel messages the mower received
@@ -280,6 +281,7 @@ def drive_goal(
             spin_until(executor, cancel.done, RESULT_WAIT)
             spin_until(executor, result.done, RESULT_WAIT)
         run.confidences = [float(f.confidence) for f in feedback]
+        run.feedback = feedback
     finally:
         executor.remove_node(client_node)
         for node in graph.nodes:

@@ -118,3 +118,6 @@ class FollowScore:
     tilts: np.ndarray  # camera tilt of each followed view
     error: np.ndarray  # cross-track error of each position
     along: np.ndarray  # the route's arc length at each position's foot point
+    states: list[str]  # the goal's state on each answered frame (feedback: following, recovering, ...)
+    matched: np.ndarray  # the snapshot the controller believed passed on each answered frame (-1: none yet)
+    nearest: np.ndarray  # the snapshot truly nearest to the robot on each answered frame
