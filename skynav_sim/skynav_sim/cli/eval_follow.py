@@ -297,9 +297,10 @@ def draw_run(path: Path, world, route, driven, score) -> None:
 
     from ..preview import draw_world
 
-    figure = plt.figure(figsize=(15, 7), layout='constrained')
-    top = figure.add_subplot(1, 2, 1)
-    graph, places = figure.add_subplot(2, 2, 2), figure.add_subplot(2, 2, 4)
+    figure, axes = plt.subplot_mosaic(
+        [['top', 'error'], ['top', 'places']], figsize=(16, 8), layout='constrained', width_ratios=[1.2, 1]
+    )
+    top, graph, places = axes['top'], axes['error'], axes['places']
     both = np.vstack([route, driven])
     centre = (both.min(axis=0) + both.max(axis=0)) / 2
     half = float(np.max(both.max(axis=0) - both.min(axis=0))) / 2 + 1.5
