@@ -38,6 +38,19 @@ def time_stopped(poses: np.ndarray, period: float) -> float:
     return float(np.count_nonzero((moved < STILL_DISTANCE) & (turned < STILL_TURN)) * period)
 
 
+def turns(route: np.ndarray, step: float = 0.5) -> tuple[float, float]:
+    """Return how far (degrees) a route turns left and right in all, its heading sampled every `step` m."""
+    route = np.asarray(route, float).reshape(-1, 2)
+    arcs = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(route, axis=0), axis=1))])
+    if arcs[-1] < 2 * step:
+        return 0.0, 0.0
+    samples = np.arange(0.0, arcs[-1], step)
+    points = np.column_stack([np.interp(samples, arcs, route[:, 0]), np.interp(samples, arcs, route[:, 1])])
+    ahead = np.diff(points, axis=0)
+    change = np.degrees(np.diff(np.unwrap(np.arctan2(ahead[:, 1], ahead[:, 0]))))
+    return float(change[change > 0].sum()), float(-change[change < 0].sum())
+
+
 def _segments(route: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return the route's segment starts, vectors and the arc length (m) at each start."""
     route = np.asarray(route, float).reshape(-1, 2)
@@ -109,6 +122,7 @@ class FollowScore:
     route_seed: int  # which planned route of the world was taught
     snapshots: int  # in the taught map
     taught: float  # length of the taught route (its snapshots' true positions)
+    turns: tuple[float, float]  # degrees the taught route turns left and right in all
     driven: float  # length of the true driven path
     reached: bool  # the goal ended reached near the route's end
     ended: str  # how the goal ended: 'reached' or an error code's name

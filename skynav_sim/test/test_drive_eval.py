@@ -7,7 +7,7 @@ import pytest
 from skynav_bringup.cli import main
 from skynav_core.testing import one_line_error
 from skynav_sim.closed_loop import Run, route_deviation
-from skynav_sim.drive_eval import ErrorSummary, cross_track, path_length, time_stopped
+from skynav_sim.drive_eval import ErrorSummary, cross_track, path_length, time_stopped, turns
 
 PERIOD = 0.2  # s between frames
 
@@ -56,6 +56,20 @@ def test_cross_track_follows_progress_on_a_route_that_passes_near_itself():
     # the whole route's nearest point (route_deviation) takes the way back for it
     run = Run(driven[0], driven[-1], list(driven))
     assert route_deviation(run, route) == pytest.approx(np.full(26, 0.1))
+
+
+def test_turns_add_up_left_and_right_turns():
+    # a quarter circle to the left (radius 2 m), then a straight, then a half circle to the right
+    left = np.radians(np.linspace(-90, 0, 200))
+    right = np.radians(np.linspace(180, 0, 400))
+    route = np.vstack(
+        [
+            np.column_stack([2 * np.cos(left), 2 + 2 * np.sin(left)]),
+            [[2.0, 4.0]],
+            np.column_stack([4 + 2 * np.cos(right), 4 + 2 * np.sin(right)]),
+        ]
+    )
+    assert turns(route, 0.05) == pytest.approx((90.0, 180.0), abs=4.0)
 
 
 def test_error_summary():

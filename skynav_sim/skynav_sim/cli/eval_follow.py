@@ -140,7 +140,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
     from skynav_core.maps import MapStore
 
     from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, teach_route, truth_at
-    from ..drive_eval import FollowScore, cross_track, path_length, time_stopped
+    from ..drive_eval import FollowScore, cross_track, path_length, time_stopped, turns
     from ..errors import SimError
     from ..scenarios import route as planned_route
     from ..world import generate
@@ -201,6 +201,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
         route_seed=route_seed,
         snapshots=int(taught.snapshots),
         taught=length,
+        turns=turns(route),
         driven=path_length(path),
         reached=run.stopped == 'reached' and end <= END_RADIUS,
         ended=run.stopped,
@@ -231,6 +232,7 @@ def report(scores: list, planned: int) -> str:
         Column('seed', 4),
         Column('route', 5),
         Column('taught m', 8, '.1f'),
+        Column('turns L/R', 9),
         Column('reached', 7, align='<'),
         Column('end m', 5, '.2f'),
         Column('median', 6, '.2f'),
@@ -253,6 +255,7 @@ def report(scores: list, planned: int) -> str:
                 s.seed,
                 s.route_seed,
                 s.taught,
+                f'{s.turns[0]:.0f}/{s.turns[1]:.0f}',
                 'yes' if s.reached else f'NO {s.ended}',
                 s.end_distance,
                 e.median,
@@ -269,7 +272,8 @@ def report(scores: list, planned: int) -> str:
         )
     lines = [
         'cross-track error (m) of the true path from the taught route; route: the planned route seed; '
-        'end m: from the last snapshot; recov: frames recovering (no accepted match or compass estimate)',
+        'turns L/R: degrees the route turns left/right;\nend m: from the last snapshot; '
+        'recov: frames recovering (no accepted match or compass estimate)',
         text_table(columns, rows),
     ]
     if scores:
