@@ -39,6 +39,7 @@ from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home, Teach
 
+from .drive_eval import cross_track, path_length
 from .mower import Mower, Pose2D
 from .recording import CAMERA_FRAME, start_stamp
 from .render import CameraPose, Renderer
@@ -65,7 +66,10 @@ class Run:
     start: np.ndarray  # (2,) m
     goal: np.ndarray  # (2,) m
     path: list[np.ndarray] = field(default_factory=list)  # true mower positions (x, y), one per frame, start first
+    headings: list[float] = field(default_factory=list)  # true headings (rad, map frame), one per position
+    tilts: list[float] = field(default_factory=list)  # camera tilt from the vertical (degrees), one per camera frame
     confidences: list[float] = field(default_factory=list)  # the goal's feedback, one per processed frame
+    feedback: list[Any] = field(default_factory=list)  # the goal's feedback messages, the first before any frame
     stopped: str = ''  # why the run ended: 'reached', an error code's name (LOST, ...), 'blocked' or 'frames'
     result: Any = None  # the action's result
     commands: int = 0  # /cmd_vel messages the mower received
@@ -84,7 +88,7 @@ class Run:
     @property
     def driven(self) -> float:
         """Return the length (m) of the true path."""
-        return float(np.sum(np.linalg.norm(np.diff(np.array(self.path), axis=0), axis=1)))
+        return path_length(np.array(self.path))
 
     @property
     def path_ratio(self) -> float:
@@ -158,12 +162,14 @@ class Simulation:
         seed: int,
         encoding: str = 'mono8',
         bump_tilt: float = 0.0,
+        clouds: float = 0.0,
     ) -> None:
-        """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump)."""
+        """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump);
+        `clouds` is the cloud cover (0 clear .. 1 overcast)."""
         self.world, self.camera, self.encoding, self.seed = world, camera, encoding, seed
         self.bump_tilt = bump_tilt
         self.renderer = Renderer(world, camera)
-        self.sky = Sky(hours, 0.0, cloud_seed=seed)
+        self.sky = Sky(hours, clouds, cloud_seed=seed)
         self.sensor = Sensor()
         self.frames = 0
         self.hours = hours
@@ -207,8 +213,12 @@ def drive_goal(
     goal: Any,
     goal_place: np.ndarray,
     max_frames: int,
+    progress: Callable[[], None] | None = None,
 ) -> Run:
-    """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run."""
+    """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run.
+
+    `progress` is called once per camera frame.
+    """
     robot = graph.nodes[-1]
     assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
     context = robot.context
@@ -217,7 +227,7 @@ def drive_goal(
     for node in [*graph.nodes, client_node]:
         executor.add_node(node)
     client = ActionClient(client_node, action[0], action[1])
-    run = Run(mower.pose.position, np.asarray(goal_place, float), [mower.pose.position])
+    run = Run(mower.pose.position, np.asarray(goal_place, float), [mower.pose.position], [mower.pose.heading])
     feedback: list[Any] = []
     try:
         if not spin_until(executor, client.server_is_ready, GOAL_WAIT):
@@ -240,7 +250,8 @@ def drive_goal(
             graph.advance(stamp)
             robot.publish_clock(stamp)
             robot.publish_odometry(stamp, mower.odometry)
-            uv, green, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+            uv, green, pose = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+            run.tilts.append(float(np.degrees(np.arccos(np.clip(pose.rotation.as_matrix()[2, 2], -1.0, 1.0)))))
             answered, heard = len(robot.commands), len(feedback)
             robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
             run.commands = len(robot.commands)
@@ -253,6 +264,9 @@ def drive_goal(
                 break
             mower.drive(linear, angular, FRAME_PERIOD)
             run.path.append(mower.pose.position)
+            run.headings.append(mower.pose.heading)
+            if progress is not None:
+                progress()
             if mower.blocked:
                 run.stopped = 'blocked'
                 break
@@ -267,6 +281,7 @@ def drive_goal(
             spin_until(executor, cancel.done, RESULT_WAIT)
             spin_until(executor, result.done, RESULT_WAIT)
         run.confidences = [float(f.confidence) for f in feedback]
+        run.feedback = feedback
     finally:
         executor.remove_node(client_node)
         for node in graph.nodes:
@@ -299,12 +314,14 @@ def home_runs(
     ros_args: list[str] | None = None,
     bump_tilt: float = 0.0,
     base: Base = Base(),
+    clouds: float = 0.0,
 ) -> list[Run]:
-    """Home from each start to snapshot 0 of the map at `goal` with a Home goal (views bumped up to bump_tilt deg)."""
+    """Home from each start to snapshot 0 of the map at `goal` with a Home goal (views bumped up to bump_tilt deg,
+    under a sky of `clouds` cover)."""
     runs = []
     arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
     for k, (start, heading) in enumerate(starts):
-        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
+        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds)
         mower = Mower(
             world,
             Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -384,17 +401,20 @@ def follow_route(
     base: Base = Base(),
     bump_tilt: float = 0.0,
     route: np.ndarray | None = None,
+    clouds: float = 0.0,
+    progress: Callable[[], None] | None = None,
 ) -> tuple[Run, np.ndarray]:
     """Follow the route of a map from `start` with a FollowRoute goal to its last snapshot.
 
     Returns the run and the route (snapshot positions x, y in m: the map's poses unless `route` gives the true
-    ones of a taught map; for scoring only, the loop never sees them).
+    ones of a taught map; for scoring only, the loop never sees them). The sky has `clouds` cover; `progress` is
+    called once per camera frame.
     """
     if route is None:
         with MapStore.open(map_path) as store:
             route = store.positions()[:, :2]
     arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
-    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
+    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds)
     mower = Mower(
         world,
         Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -404,20 +424,15 @@ def follow_route(
     )
     goal = FollowRoute.Goal(map_path='', start_index=-1, end_index=-1, max_speed=SPEED)
     with in_process(graph_specs(), arguments) as graph:
-        run = drive_goal(graph, simulation, mower, (FollowRoute, '/skynav/follow_route'), goal, route[-1], max_frames)
+        run = drive_goal(
+            graph, simulation, mower, (FollowRoute, '/skynav/follow_route'), goal, route[-1], max_frames, progress
+        )
     return run, route
 
 
 def route_deviation(run: Run, route: np.ndarray) -> np.ndarray:
-    """Return each position's distance (m) to the nearest point of the route's polyline."""
-    points = np.array(run.path)
-    a, b = route[:-1], route[1:]
-    ab = b - a
-    t = np.clip(
-        np.einsum('pij,ij->pi', points[:, None] - a, ab) / np.maximum(np.einsum('ij,ij->i', ab, ab), 1e-12), 0, 1
-    )
-    nearest = a + t[..., None] * ab
-    return np.min(np.linalg.norm(points[:, None] - nearest, axis=2), axis=1)
+    """Return each position's distance (m) to the nearest point of the route's polyline (all of it)."""
+    return cross_track(np.array(run.path), route, np.inf, np.inf)[0]
 
 
 TELEOP_SPEED = 0.3  # m/s: the scripted operator's driving speed while teaching
@@ -465,13 +480,14 @@ def teach_route(
     base: Base = Base(),
     route_seed: int = 0,
     ros_args: list[str] | None = None,
+    progress: Callable[[], None] | None = None,
 ) -> Teaching:
     """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map.
 
     The graph (skyline, SH, localize: it serves /skynav/teach) runs in process; the mower publishes /clock, /odom
     and its camera each frame and obeys the operator (skynav_sim.mower: slip, odometry noise). At the route's end
     the operator cancels the goal, which finishes the map (the usual end of teaching). RuntimeError when the graph
-    does not take the goal or the drive fails.
+    does not take the goal or the drive fails. `progress` is called once per camera frame.
     """
     spline, total = planned_route(world, route_seed, length)
     start, ahead = spline(0.0), spline(0.3) - spline(0.0)
@@ -519,6 +535,8 @@ def teach_route(
                 executor.spin_once(timeout_sec=0)
                 linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
                 mower.drive(linear, angular, FRAME_PERIOD)
+                if progress is not None:
+                    progress()
                 if mower.blocked:
                     raise RuntimeError('the scripted teach drive hit an obstacle')
             if not result.done():

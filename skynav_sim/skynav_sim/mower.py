@@ -6,7 +6,8 @@ the ground moves the robot a little less (slip: each step loses a random share o
 travel and its turn is off by a random share of up to `slip`), and the wheel odometry integrates what the wheels
 did, with its own noise (`odometry_noise`, a share of each step's travel and turn), so it drifts as real
 odometry does. Positions (x, y) and headings are in the world's map frame (m, rad); odometry is in its own frame
-`odom`, which starts where the mower starts. An obstacle stops the mower where it is (blocked).
+`odom`, which starts where the mower starts. An obstacle stops the mower where it is (blocked): its body touches an
+object, or it crossed the yard's boundary wire (World.collides; routes are planned with more room to spare).
 
 Pure numpy: the simulation's node (skynav_sim.closed_loop) publishes what it says.
 """
@@ -76,7 +77,7 @@ class Mower:
         slip = self.rng.uniform(0.0, self.slip, 2) if self.slip > 0 else np.zeros(2)
         noise = self.rng.normal(0.0, self.odometry_noise, 2) if self.odometry_noise > 0 else np.zeros(2)
         true = self.pose.moved(distance * (1.0 - slip[0]), turn * (1.0 + (slip[1] - self.slip / 2)))
-        self.blocked = not self.world.is_free(true.x, true.y)
+        self.blocked = self.world.collides(true.x, true.y)
         if self.blocked:  # the bumper: it stays where it is, and so do the wheels
             return
         self.pose = true

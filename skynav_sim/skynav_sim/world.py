@@ -14,6 +14,7 @@ terrain and objects.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +34,8 @@ YARD_RADIUS = 10.0  # m: where the robot drives
 TERRAIN_EXTENT = 120.0  # m: half side of the terrain grid
 TERRAIN_CELL = 0.25  # m
 CLEARANCE = 0.7  # m: free space the robot keeps from any object footprint
+BODY_RADIUS = 0.35  # m: the mower's body (its bumper) reaches this far from its centre
+BOUNDARY_WIRE = YARD_RADIUS + 0.5  # m from the yard's centre: the mower's boundary wire stops it beyond this
 
 
 @dataclass(frozen=True)
@@ -198,6 +201,25 @@ class World:
             ],
             float,
         )
+
+    def collides(self, x: float, y: float) -> bool:
+        """Return whether the mower at (x, y) (m) touches an object with its body or is beyond the boundary wire.
+
+        Routes are planned with CLEARANCE to spare (is_free); the bumper only hits at BODY_RADIUS.
+        """
+        if math.hypot(x, y) > BOUNDARY_WIRE:
+            return True
+        for f in self.footprints:
+            dx, dy = x - f.center[0], y - f.center[1]
+            if f.disc:
+                outside = math.hypot(dx, dy) - f.half_sizes[0]
+            else:
+                c, s = math.cos(f.yaw), math.sin(f.yaw)
+                u, v = abs(c * dx + s * dy), abs(-s * dx + c * dy)
+                outside = math.hypot(max(u - f.half_sizes[0], 0.0), max(v - f.half_sizes[1], 0.0))
+            if outside < BODY_RADIUS:
+                return True
+        return False
 
     def is_free(self, x: npt.ArrayLike, y: npt.ArrayLike) -> np.ndarray:
         """Return whether the robot may stand at world points (x, y)."""

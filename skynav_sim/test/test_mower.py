@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from skynav_sim.mower import Mower, Pose2D
-from skynav_sim.world import generate
+from skynav_sim.world import BODY_RADIUS, BOUNDARY_WIRE, CLEARANCE, generate
 
 
 @pytest.fixture(scope='module')
@@ -63,11 +63,21 @@ def test_obstacles_block_the_mower(world):
     for _ in range(10000):  # a free place next to an obstacle, facing it
         x, y, heading = rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-math.pi, math.pi)
         ahead = Pose2D(x, y, heading).moved(0.1, 0.0)
-        if world.is_free(x, y) and not world.is_free(ahead.x, ahead.y):
+        if not world.collides(x, y) and world.collides(ahead.x, ahead.y):
             break
     mower = Mower(world, Pose2D(x, y, heading), np.random.default_rng(0), slip=0.0, odometry_noise=0.0)
     mower.drive(0.5, 0.0, 0.2)
     assert mower.blocked and (mower.pose.x, mower.pose.y) == (x, y) and mower.odometry == Pose2D()
+
+
+def test_the_bumper_hits_at_the_body_not_at_the_planning_clearance(world):
+    trunk = next(f for f in world.footprints if f.disc and np.hypot(*f.center) < 7)
+    outward = trunk.center / np.hypot(*trunk.center)  # towards the yard's edge, away from the middle
+    near = trunk.center + (trunk.half_sizes[0] + (BODY_RADIUS + CLEARANCE) / 2) * outward
+    touching = trunk.center + (trunk.half_sizes[0] + BODY_RADIUS / 2) * outward
+    assert not world.is_free(*near) and not world.collides(*near)  # no route is planned there; it is no crash
+    assert world.collides(*touching)
+    assert world.collides(0.0, BOUNDARY_WIRE + 0.1)  # the boundary wire
 
 
 def test_bad_shares_are_refused(world):

@@ -43,7 +43,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Teach the route; return the exit code."""
     import numpy as np
-    import yaml
 
     from skynav_core.cli import CliError
     from skynav_core.goals import GoalOutcome, goal_result
@@ -87,12 +86,28 @@ def run(args: argparse.Namespace) -> int:
     result = goal_result(GoalOutcome(teaching.status, teaching.result, True), cancel_finishes=True)
     poses = np.array(teaching.poses)
     driven = float(np.sum(np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)))
+    description_path = args.out / 'teach.yaml'
+    write_description(description_path, args.world, args.seed, hours, camera, map_path, teaching)
+    print(
+        f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by odometry ({driven:.2f} m truly '
+        f'driven, {len(poses)} frames)'
+    )
+    print(f'map: {map_path}\ndescription (with the true poses, for scoring): {description_path}')
+    return 0
+
+
+def write_description(path: Path, world: str, seed: int, hours: float, camera, map_path: Path, teaching) -> None:
+    """Write what `skynav sim follow` needs of a teach drive: world, seed, camera, time and every frame's true pose."""
+    import numpy as np
+    import yaml
+
+    poses = np.array(teaching.poses)
     description = {
         'scenario': 'teach',
         'source': DESCRIPTION_SOURCE,
-        'world': args.world,
-        'world_seed': args.seed,
-        'seed': args.seed,
+        'world': world,
+        'world_seed': seed,
+        'seed': seed,
         'hours': hours,
         'camera_info': {
             key: (list(value) if isinstance(value, (list, tuple)) else value)
@@ -101,11 +116,4 @@ def run(args: argparse.Namespace) -> int:
         'map': str(map_path),
         'truth': {'stamps': [int(s) for s in teaching.stamps], 'poses': poses.round(5).tolist()},
     }
-    description_path = args.out / 'teach.yaml'
-    description_path.write_text(yaml.safe_dump(description, sort_keys=False))
-    print(
-        f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by odometry ({driven:.2f} m truly '
-        f'driven, {len(poses)} frames)'
-    )
-    print(f'map: {map_path}\ndescription (with the true poses, for scoring): {description_path}')
-    return 0
+    path.write_text(yaml.safe_dump(description, sort_keys=False))
