@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from .environment import apply_ros_environment
+from .network import make_super_client
 from .typestore import UnknownMessageType, action_part, split_type
 
 
@@ -68,9 +69,11 @@ def tool_node(name: str, args: list[str] | None = None) -> Iterator[tuple[Node, 
     """Yield a node and its executor in a context of their own; signals are left to the caller.
 
     The node has no /rosout logger and no parameter services, so a recorder of
-    every topic does not record its own chatter.
+    every topic does not record its own chatter. With a discovery server it is a
+    super client, which learns of every topic of the graph.
     """
     apply_ros_environment()
+    make_super_client()
     context = Context()
     rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)
