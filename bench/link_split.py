@@ -1,13 +1,18 @@
 # SPDX-License-Identifier: Apache-2.0
 """Benchmark: what crosses the link between a robot and a base station, for two splits of the graph.
 
-    .venv/bin/python bench/link_split.py [--frames N] [--transport shm|udp]   (as root: network namespaces)
+    .venv/bin/python bench/link_split.py [--frames N] [--transport shm|udp] [--discovery peers|server]
+    (as root: network namespaces)
 
 Two hosts on one machine (skynav_core.netns: network namespaces joined by a veth pair, UDP between them). A
 synthetic 640x480 mono16 repeat drive of the garden at 10 Hz is replayed on the robot in real time, with
 
-- images across: only the camera on the robot; skyline, sh, localize, compass, warping on the base station;
-- coefficients across: camera, skyline and sh on the robot; localize, compass, warping on the base station.
+- images across: only the camera on the robot; skyline, sh, localize, compass, warping, route on the base station;
+- coefficients across: camera, skyline and sh on the robot; localize, compass, warping, route on the base station
+  (the route controller idle: it has no goal).
+
+The hosts find each other by static peers (--discovery peers, the default) or, with multicast blocked, through the
+Fast DDS discovery server the base station's `skynav launch --serve-discovery` runs (--discovery server).
 
 Prints, per split, the bytes per second sent from the robot to the base station over the link (discovery
 and acknowledgements included), the frames whose home vector reached the base station, and the latency
@@ -27,13 +32,14 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core import netns
+from skynav_core.network import DISCOVERY_SERVER_PORT
 from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 PROBE = Path(__file__).parents[1] / 'test' / 'graph_probe.py'
 CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
 SPLITS = {
-    'images across': (('skyline', 'sh', 'localize', 'compass', 'warping'), '/camera/uv/image_raw', 1),
-    'coefficients across': (('localize', 'compass', 'warping'), '/skyline/sh', 3),
+    'images across': (('skyline', 'sh', 'localize', 'compass', 'warping', 'route'), '/camera/uv/image_raw', 1),
+    'coefficients across': (('localize', 'compass', 'warping', 'route'), '/skyline/sh', 4),
 }  # base station's nodes, the topic that crosses, how many base station readers it has
 
 
@@ -58,18 +64,26 @@ def receptions(log: Path, topic: str) -> dict[int, int]:
     return found
 
 
-def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, transport: str) -> dict:
-    """Run one split over the drive; return its figures."""
+def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, transport: str, served: bool) -> dict:
+    """Run one split over the drive (`served`: discovery through a server, multicast blocked); return its figures."""
     base_nodes, crossing, readers = SPLITS[split]
     robot_nodes = [n for n in ('skyline', 'sh') if n not in base_nodes]
-    with netns.TwoHosts(domain) as hosts:
-        env = {h.namespace: hosts.environment(h, domain) for h in (hosts.robot, hosts.base)}
+    with netns.TwoHosts(domain, multicast=not served) as hosts:
         robot, base = hosts.robot, hosts.base
+        server = f'{base.address}:{DISCOVERY_SERVER_PORT}' if served else None
+        env = {h.namespace: hosts.environment(h, domain, discovery_server=server) for h in (robot, base)}
+        launch = ['launch', '--transport', transport, '--map', str(map_file), '--nodes', *base_nodes]
+        if served:  # the base station first, serving discovery (nodes started before their server may never match)
+            launch += ['--discovery-server', str(server), '--serve-discovery']
+        log = work / f'{split}_base.log'
+        base_launch = base.start(skynav_command(*launch), env[base.namespace], log)
+        while served and '[launch] route: started' not in log.read_text():
+            if base_launch.poll() is not None:
+                sys.exit(f'{split}: the base station did not start:\n{log.read_text()}')
+            time.sleep(0.1)
         if robot_nodes:
             launch = ['launch', '--transport', transport, '--nodes', *robot_nodes]
             robot.start(skynav_command(*launch), env[robot.namespace], work / f'{split}_robot.log')
-        launch = ['launch', '--transport', transport, '--map', str(map_file), '--nodes', *base_nodes]
-        base.start(skynav_command(*launch), env[base.namespace], work / f'{split}_base.log')
         wait = robot.start(
             [sys.executable, str(PROBE), '--timeout', '120', '--subscribers', f'{crossing}={readers}'],
             env[robot.namespace],
@@ -86,7 +100,7 @@ def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, tr
         time.sleep(5.0)  # the probes join (a reliable reader of the camera on the robot: the replay waits for it)
         before, start = hosts.link_bytes(), time.monotonic()
         replay = robot.start(
-            skynav_command('replay', str(drive), '--topics', *CAMERA, '--wait-for-subscribers', '30'),
+            skynav_command('replay', str(drive), '--topics', *CAMERA),  # waits for skyline and sh
             env[robot.namespace],
             work / f'{split}_replay.log',
         )
@@ -108,6 +122,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--frames', type=int, default=100, help='frames of the drive at 10 Hz (default 100)')
     parser.add_argument('--transport', choices=('shm', 'udp'), default='shm', help='within each host (default shm)')
+    parser.add_argument(
+        '--discovery',
+        choices=('peers', 'server'),
+        default='peers',
+        help='static peers (default), or a discovery server on the base station with multicast blocked',
+    )
     args = parser.parse_args()
     if reason := netns.unavailable():
         sys.exit(f'link_split: {reason}')
@@ -120,7 +140,7 @@ def main() -> int:
             sys.exit('link_split: map build failed')
         figures = defaultdict(dict)
         for split in SPLITS:
-            figures[split] = measure(split, drive, map_file, work, domain, args.transport)
+            figures[split] = measure(split, drive, map_file, work, domain, args.transport, args.discovery == 'server')
             f = figures[split]
             latency = 'n/a' if f['latency_ms'] is None else '{:.0f} ms median, {:.0f} ms p95'.format(*f['latency_ms'])
             print(

@@ -119,3 +119,43 @@ def test_launch_starts_and_stops_a_node_cleanly(tmp_path, ros_context):
     assert launch.returncode == 0, out
     assert 'trivial: process ended with exit code 0' in out
     assert 'Traceback' not in out
+
+
+def test_replay_waits_for_a_best_effort_subscriber_to_take_the_last_message(tmp_path, ros_context):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image
+
+    from skynav_core.ros import spin_until
+
+    bag = tmp_path / 'sample.mcap'
+    frames = 5
+    write_sample_bag(bag, frames=frames)
+    topic = '/camera/uv/image_raw'
+    node = Node('last_frame_reader', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    stamps: dict[ReliabilityPolicy, list[int]] = {}
+    for reliability in (ReliabilityPolicy.BEST_EFFORT, ReliabilityPolicy.RELIABLE):
+        taken = stamps[reliability] = []
+        node.create_subscription(
+            Image,
+            topic,
+            lambda m, taken=taken: taken.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec),
+            QoSProfile(depth=frames, reliability=reliability),
+        )
+    try:
+        replay = start_skynav('replay', str(bag), '--topics', topic, '--rate', '0', '--wait-for-subscribers', '2')
+        spin_until(executor, lambda: replay.poll() is not None, 60)
+        _, err = replay.communicate(timeout=10)
+        spin_until(executor, lambda: all(len(t) == frames for t in stamps.values()), 2.0)
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    assert replay.returncode == 0, err
+    # the best-effort reader acknowledges nothing: the replay gave it (and only it) time to take the last frame
+    # before it ended; the reliable one acknowledged every frame
+    assert 'gave 1 best-effort subscribers 1 s to take the last messages' in err, err
+    for reliability, taken in stamps.items():
+        assert len(taken) == frames and taken == sorted(taken), (reliability, taken)

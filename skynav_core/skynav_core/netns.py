@@ -6,6 +6,8 @@ processes share memory among themselves (Fast DDS's shared-memory transport work
 not with the other host: between the hosts everything goes over UDP on the veth link, as between two
 machines. Every process of a host enters the namespaces of one holder process (`nsenter`), so they all
 see the same /dev/shm (Fast DDS participants of one address that cannot share memory exchange no data).
+Multicast can be blocked, as many Wi-Fi access points do: no socket of either host may then join a multicast
+group (net.ipv4.igmp_max_memberships = 0), so no multicast datagram is taken in.
 Needs root (`ip netns`, `unshare`, `nsenter`); :func:`unavailable` says why not, in one line.
 """
 
@@ -125,8 +127,9 @@ class Host:
 class TwoHosts:
     """A robot and a base station joined by a veth link; a context manager that removes everything it made."""
 
-    def __init__(self, tag: int) -> None:
+    def __init__(self, tag: int, multicast: bool = True) -> None:
         self.tag = tag % 250 + 1
+        self.multicast = multicast
         name = f'skynav{os.getpid()}'
         self.robot = Host(f'{name}-robot', f'skv{self.tag}r', SUBNET.format(tag=self.tag, host=1))
         self.base = Host(f'{name}-base', f'skv{self.tag}b', SUBNET.format(tag=self.tag, host=2))
@@ -143,6 +146,8 @@ class TwoHosts:
                 run(['ip', '-n', host.namespace, 'addr', 'add', f'{host.address}/24', 'dev', host.interface])
                 run(['ip', '-n', host.namespace, 'link', 'set', host.interface, 'up'])
                 run(['ip', '-n', host.namespace, 'link', 'set', 'lo', 'up'])
+                if not self.multicast:
+                    run(['ip', 'netns', 'exec', host.namespace, 'sysctl', '-qw', 'net.ipv4.igmp_max_memberships=0'])
                 host.boot()
         except BaseException:
             self.__exit__(None, None, None)
@@ -159,17 +164,20 @@ class TwoHosts:
         """Return the other host."""
         return self.base if host is self.robot else self.robot
 
-    def environment(self, host: Host, domain: int, base: dict[str, str] | None = None) -> dict[str, str]:
-        """Return the environment of a ROS process on `host`: subnet discovery with the other host as static peer."""
+    def environment(
+        self, host: Host, domain: int, base: dict[str, str] | None = None, discovery_server: str | None = None
+    ) -> dict[str, str]:
+        """Return the environment of a ROS process on `host`: subnet discovery with the other host as static peer.
+
+        With `discovery_server` ('ADDRESS:PORT'), discovery goes through that Fast DDS server instead.
+        """
         env = dict(os.environ if base is None else base)
-        env.update(
-            {
-                'ROS_DOMAIN_ID': str(domain),
-                'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET',
-                'ROS_STATIC_PEERS': self.peer(host).address,
-                'PYTHONUNBUFFERED': '1',
-            }
-        )
+        env.update({'ROS_DOMAIN_ID': str(domain), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'PYTHONUNBUFFERED': '1'})
+        if discovery_server is None:
+            env['ROS_STATIC_PEERS'] = self.peer(host).address
+        else:
+            env['ROS_DISCOVERY_SERVER'] = discovery_server
+            env.pop('ROS_STATIC_PEERS', None)
         return env
 
     def link_bytes(self) -> int:

@@ -6,13 +6,23 @@ through shared memory. A robot and a base station on one network need wider disc
 (multicast), static peers (unicast to given addresses, where multicast is blocked, as on many Wi-Fi
 networks), or a Fast DDS discovery server that every participant asks. The transport 'shm' keeps shared
 memory between processes of one machine (UDP between machines); 'udp' uses UDP only.
+
+With a discovery server, start it before the nodes: with the Fast DDS 2.14 of the wheels, participants that
+started before their server did may never find each other through it (README 'Robot and base station').
+A plain client learns only of the topics it reads or writes; the tools that list the graph (record, echo,
+replay) are made super clients (ROS_SUPER_CLIENT), which learn of every topic.
 """
 
 from __future__ import annotations
 
 import os
+import socket
+import subprocess
 import sys
+import threading
+from collections.abc import MutableMapping
 from pathlib import Path
+from typing import TextIO
 
 from .environment import FASTDDS_PROFILE, PACKAGE, share_directory
 from .errors import SkynavError
@@ -21,6 +31,8 @@ DISCOVERY_RANGES = ('localhost', 'subnet', 'off', 'system_default')
 TRANSPORTS = {'shm': FASTDDS_PROFILE, 'udp': Path('config') / 'fastdds_udp.xml'}
 DISCOVERY_SERVER_PORT = 11811  # Fast DDS's default discovery server port (UDP)
 DISCOVERY_SERVER = 'fast-discovery-server'  # the server program the Fast DDS wheel installs
+DISCOVERY_SERVER_READY = 'Server is running'  # what the server prints once it serves
+DISCOVERY_SERVER_START_TIMEOUT = 10.0  # s for the server to say it serves
 
 
 class NetworkError(SkynavError, ValueError):
@@ -81,3 +93,59 @@ def discovery_server_command(locator: str) -> tuple[list[str], dict[str, str]]:
     ]
     path = os.pathsep.join([*libraries, *filter(None, os.environ.get('LD_LIBRARY_PATH', '').split(os.pathsep))])
     return [str(program), '-i', '0', '-l', address, '-p', str(port)], {'LD_LIBRARY_PATH': path}
+
+
+def start_discovery_server(locator: str, out: TextIO) -> subprocess.Popen:
+    """Start a Fast DDS discovery server on 'ADDRESS[:PORT]' and return it once it serves; its output goes to `out`.
+
+    NetworkError (and no server left running) if ADDRESS is not one of this host's or the server does not
+    say it serves within DISCOVERY_SERVER_START_TIMEOUT s.
+    """
+    address, port = server_locator(locator)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind((address, 0))
+        except OSError as error:
+            raise NetworkError(
+                f'cannot serve discovery on {address}: not an address of this host ({error.strerror})'
+            ) from None
+    command, env = discovery_server_command(locator)
+    server = subprocess.Popen(
+        command,
+        env={**os.environ, **env},
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
+    )
+    serving = threading.Event()
+
+    def relay() -> None:
+        assert server.stdout is not None  # started with stdout=PIPE
+        for line in server.stdout:
+            if DISCOVERY_SERVER_READY in line:
+                serving.set()
+            out.write(f'[discovery] {line.rstrip()}\n')
+            out.flush()
+
+    threading.Thread(target=relay, daemon=True).start()
+    if not serving.wait(DISCOVERY_SERVER_START_TIMEOUT):
+        server.kill()
+        server.wait()
+        raise NetworkError(
+            f'the discovery server on {address}:{port} did not start within {DISCOVERY_SERVER_START_TIMEOUT:g} s '
+            f'(exit code {server.returncode})'
+        )
+    return server
+
+
+def make_super_client(environ: MutableMapping[str, str] | None = None) -> None:
+    """Make a tool that lists the graph a super client of the discovery server, if there is one (ROS_SUPER_CLIENT).
+
+    A plain client learns only of the topics it reads or writes; a recorder or `skynav echo` must see them all.
+    Only effective before the tool's participant is created; a user's own setting wins.
+    """
+    target = os.environ if environ is None else environ
+    if target.get('ROS_DISCOVERY_SERVER'):
+        target.setdefault('ROS_SUPER_CLIENT', 'TRUE')

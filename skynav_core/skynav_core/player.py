@@ -12,6 +12,7 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.qos import ReliabilityPolicy
 
 from .bag import BagReader, RawMessage
 from .qos import replay_qos
@@ -27,9 +28,9 @@ SLEEP_SLICE = 0.05
 # may match the publisher a little later; a best-effort one drops whatever comes before. Without it, about one
 # replay in three into a running graph lost its first exposure (test/test_replay_passes.py).
 SUBSCRIBER_SETTLE = 1.0
-# Time given to subscribers to take the last messages before the publishers go (s): best-effort subscribers
-# acknowledge nothing, and what they have not taken from shared memory when the publishing process ends is lost
-# (about one replay in three lost its last exposure so).
+# Time given to best-effort subscribers to take the last messages before the publishers go (s): they acknowledge
+# nothing, and what they have not taken from shared memory when the publishing process ends is lost (about one
+# replay in three lost its last exposure so). Reliable subscribers have acknowledged everything by then.
 SUBSCRIBER_LINGER = 1.0
 
 
@@ -41,6 +42,7 @@ class ReplayStats:
     loops: int = 0
     wall_time: float = 0.0
     unacknowledged: list[str] = field(default_factory=list)
+    best_effort: int = 0  # best-effort subscriptions given SUBSCRIBER_LINGER s to take the last messages
 
     @property
     def total(self) -> int:
@@ -134,6 +136,15 @@ class Player:
             for name, publisher in self.publishers.items()
             if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
         ]
-        if any(publisher.get_subscription_count() for publisher in self.publishers.values()):
+        stats.best_effort = self.best_effort_subscriptions()
+        if stats.best_effort:
             time.sleep(SUBSCRIBER_LINGER)
         return stats
+
+    def best_effort_subscriptions(self) -> int:
+        """Return the subscriptions to the replayed topics that take them best effort (they acknowledge nothing)."""
+        return sum(
+            info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+            for topic in self.publishers
+            for info in self.node.get_subscriptions_info_by_topic(topic)
+        )

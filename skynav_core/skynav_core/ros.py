@@ -23,6 +23,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from .environment import apply_ros_environment
+from .network import make_super_client
 from .typestore import UnknownMessageType, action_part, split_type
 
 
@@ -75,9 +76,11 @@ def tool_node(
     the single-threaded executor; no guard conditions) for a tool that takes many messages.
 
     The node has no /rosout logger and no parameter services, so a recorder of
-    every topic does not record its own chatter.
+    every topic does not record its own chatter. With a discovery server it is a
+    super client, which learns of every topic of the graph.
     """
     apply_ros_environment()
+    make_super_client()
     context = Context()
     rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = Node(name, context=context, enable_rosout=False, start_parameter_services=False)

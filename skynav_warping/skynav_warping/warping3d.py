@@ -59,7 +59,7 @@ class WarpingSettings:
     """Search settings of 3D-warping (angles in rad, ratios |t| / rho)."""
 
     degree: int = 16  # SH degree L of the local refinement and the reported cost
-    coarse_degree: int = 10  # SH degree of the coarse search
+    coarse_degree: int = 10  # SH degree of the coarse search; at most `degree` (a lower `degree` lowers it too)
     azimuth_steps: int = 48  # coarse directions per ring = yaw corrections per turn (7.5 degrees)
     ring_elevations: tuple[float, ...] = tuple(np.radians([-20.0, -10.0, 0.0, 10.0, 20.0]))
     ratios: tuple[float, ...] = field(default_factory=default_ratios)  # fine grid; ratios[0] must be 0
@@ -74,6 +74,10 @@ class WarpingSettings:
     min_step: float = np.radians(1.0)  # the pattern search stops below this step
     confidence_threshold: float = 0.03  # least relative cost reduction by a translation for a confident vector
     check_compass: bool = True  # with a start rotation, also search from the own pre-alignment where they disagree
+
+    def __post_init__(self) -> None:
+        """Search coarsely at no higher degree than the views are compared at (their terms end at `degree`)."""
+        object.__setattr__(self, 'coarse_degree', min(self.coarse_degree, self.degree))
 
 
 @dataclass(frozen=True)

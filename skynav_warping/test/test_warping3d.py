@@ -168,3 +168,20 @@ def test_a_compass_start_that_turns_the_camera_over_is_not_used(scene, snapshot)
     moved = render_equal_distance_view(scene, np.array([0.25, 0.1, 0.0]), tilted, degree=SETTINGS.degree)
     result = warp_home_vector(moved, snapshot, np.eye(3), tight)
     assert result.rotation[2, 2] >= np.cos(np.radians(5.0)) - 1e-9
+
+
+@pytest.mark.parametrize(('degree', 'bound'), [(4, None), (8, 12.0), (16, 8.0)])
+def test_each_degree_homes_searching_coarsely_at_no_higher_degree(scene, degree, bound):
+    # the coarse search's degree (10 by default) above the views' degree crashed (terms past the views' end).
+    # Measured best-direction errors: 4-7 and 3-5 degrees at degrees 8 and 16; degree 4 (25 terms) does not resolve
+    # this world (70 degrees off, not confident), so there only a valid answer is asked for
+    settings = WarpingSettings(degree=degree)
+    assert settings.coarse_degree == min(degree, WarpingSettings().coarse_degree)
+    snapshot = render_equal_distance_view(scene, np.zeros(3), np.eye(3), degree=degree)
+    current = render_equal_distance_view(scene, np.array([0.3, 0.0, 0.0]), np.eye(3), degree=degree)
+    for rotation in (np.eye(3), None):
+        result = warp_home_vector(current, snapshot, rotation, settings)
+        assert np.allclose(result.rotation @ result.rotation.T, np.eye(3)) and np.linalg.det(result.rotation) > 0
+        assert np.isfinite(result.residual) and 0.0 <= result.confidence <= 1.0
+        if bound is not None:
+            assert angular_errors(result.best_direction[None], np.array([[-1.0, 0.0, 0.0]]))[0] < bound

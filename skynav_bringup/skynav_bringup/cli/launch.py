@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 from pathlib import Path
 
@@ -49,7 +48,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--serve-discovery',
         action='store_true',
-        help='also run the discovery server of --discovery-server on this host (ADDRESS must be one of its own)',
+        help='also run the discovery server of --discovery-server on this host, started before the nodes '
+        '(ADDRESS must be one of its own); start this host before the others',
     )
     parser.add_argument(
         '--transport',
@@ -70,7 +70,7 @@ def default_params_file() -> Path | None:
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
     from skynav_core.launcher import Launcher
-    from skynav_core.network import discovery_server_command, network_environment
+    from skynav_core.network import network_environment, start_discovery_server
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
 
@@ -97,9 +97,9 @@ def run(args: argparse.Namespace) -> int:
     )
     server = None
     if args.serve_discovery:
-        command, env = discovery_server_command(args.discovery_server)
-        server = subprocess.Popen(command, env={**os.environ, **env}, stdin=subprocess.DEVNULL, start_new_session=True)
-        print(f'[launch] discovery server on {args.discovery_server} (pid {server.pid})', flush=True)
+        # before the nodes: participants that start before their server may never find each other through it
+        server = start_discovery_server(args.discovery_server, sys.stdout)
+        print(f'[launch] discovery server serving on {args.discovery_server} (pid {server.pid})', flush=True)
     launcher = Launcher(specs, ros_args)
     try:
         with StopRequest() as stop:

@@ -7,7 +7,9 @@ subscriber can match. BAG is a rosbag2 directory or a bare .mcap file.
 
 Before the first message it waits until every replayed topic has its subscribers
 (by default: the nodes of the skynav graph that read it), so that a graph
-started just before loses no message to discovery.
+started just before loses no message to discovery. After the last one it waits
+until reliable subscribers acknowledged everything (at most 5 s) and gives
+best-effort ones 1 s to take the last messages before its publishers go.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         topics = args.topics or list(bag.topics)
         if missing := [t for t in topics if t not in bag.topics]:
             raise CliError(f'{args.bag} has no topic {", ".join(missing)} (it has {", ".join(bag.topics)})')
-        from skynav_core.player import Player
+        from skynav_core.player import SUBSCRIBER_LINGER, Player
 
         with StopRequest() as stop, tool_node('skynav_replay') as (node, executor):
             player = Player(node, bag, topics)
@@ -83,7 +85,12 @@ def run(args: argparse.Namespace) -> int:
         f'skynav replay: published {stats.total} messages on {len(stats.published)} topics '
         f'in {stats.wall_time:.2f} s ({stats.total / max(stats.wall_time, 1e-9):.1f} msg/s)'
         + (f', {stats.loops} passes' if args.loop else '')
-        + (' (interrupted)' if stop.requested else ''),
+        + (' (interrupted)' if stop.requested else '')
+        + (
+            f'; gave {stats.best_effort} best-effort subscribers {SUBSCRIBER_LINGER:g} s to take the last messages'
+            if stats.best_effort
+            else ''
+        ),
         file=sys.stderr,
     )
     if stats.unacknowledged:
