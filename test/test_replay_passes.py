@@ -20,6 +20,7 @@ BAGS = Path(__file__).parents[1] / 'bags'
 CAMERA_TOPICS = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
 NODES = ('skyline', 'sh', 'localize', 'compass', 'warping')
 PASSES = 3
+SH_READERS = 3  # localize, compass, warping
 
 
 def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each_time(tmp_path, ros_context):
@@ -63,6 +64,13 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
     launch = start_skynav('launch', '--map', str(map_file))
     published = []  # per pass: outputs of each node so far
     try:
+        # the replay waits for the camera's readers only: wait until every node reports and the coefficients have
+        # their readers too (a localize node still loading its map on a busy machine lost a second of views)
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (
+            all(name in status for name in NODES) and node.count_subscribers('/skyline/sh') >= SH_READERS
+        ):
+            executor.spin_once(timeout_sec=0.05)
         for done in range(1, PASSES + 1):
             replay = start_skynav('replay', str(repeat), '--rate', '1', '--topics', *CAMERA_TOPICS)
             while replay.poll() is None:
