@@ -30,25 +30,10 @@ DEFAULT_SEEDS = (2, 4)  # world seeds not used to tune the controller (garden se
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval follow`."""
-    from ..world import STYLES
+    from .options import add_closed_loop_arguments
 
-    parser.add_argument(
-        '--worlds', nargs='+', default=list(STYLES), metavar='STYLE', help=f'world styles (default {" ".join(STYLES)})'
-    )
-    parser.add_argument(
-        '--seeds',
-        nargs='+',
-        type=int,
-        default=list(DEFAULT_SEEDS),
-        metavar='N',
-        help=f'world seeds (default {" ".join(map(str, DEFAULT_SEEDS))})',
-    )
+    add_closed_loop_arguments(parser, DEFAULT_SEEDS, 'follow')
     parser.add_argument('--length', type=float, default=50.0, metavar='M', help='route length (default 50 m)')
-    parser.add_argument('--teach-time', default='forenoon', metavar='TIME', help='time of the teach (forenoon)')
-    parser.add_argument('--time', default='morning', metavar='TIME', help='time of the follow (default morning)')
-    parser.add_argument(
-        '--clouds', type=float, default=0.5, metavar='COVER', help='cloud cover of the follow, 0-1 (default 0.5)'
-    )
     parser.add_argument(
         '--offset', type=float, default=0.3, metavar='M', help="start this far left of the route's start (0.3)"
     )
@@ -64,28 +49,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def check_arguments(args: argparse.Namespace) -> float:
-    """Raise CliError for a malformed choice; return the follow's time of day (h)."""
+def check_arguments(args: argparse.Namespace) -> tuple[float, float]:
+    """Raise CliError for a malformed choice; return the teach's and the follow's time of day (h)."""
     from skynav_core.cli import CliError
-    from skynav_core.evaluation import check_positive
 
-    from ..sky import parse_time
-    from ..world import STYLES
+    from .options import check_closed_loop_arguments
 
-    if unknown := [w for w in args.worlds if w not in STYLES]:
-        raise CliError(f'unknown world {", ".join(unknown)} (one of {", ".join(STYLES)})', exit_code=2)
+    hours = check_closed_loop_arguments(args)
     if not 2.0 <= args.length <= 200.0:
         raise CliError('--length must be within 2..200 m', exit_code=2)
-    if not 0 <= args.clouds <= 1:
-        raise CliError('--clouds must be a cover within 0..1', exit_code=2)
     if not 0 <= args.bump_tilt <= 90:
         raise CliError('--bump-tilt must be within 0..90 degrees', exit_code=2)
-    check_positive(len(args.seeds), '--seeds')
-    try:
-        parse_time(args.teach_time)
-        return parse_time(args.time)
-    except ValueError as exc:
-        raise CliError(str(exc), exit_code=2) from None
+    return hours
 
 
 def run(args: argparse.Namespace) -> int:
@@ -97,11 +72,9 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.evaluation import plots_folder
 
     from ..closed_loop import FRAME_PERIOD, SPEED, TELEOP_SPEED
-    from ..sky import parse_time
     from . import options
 
-    hours = check_arguments(args)
-    teach_hours = parse_time(args.teach_time)
+    teach_hours, hours = check_arguments(args)
     try:
         camera = options.camera(argparse.Namespace(size=args.size, fov=200.0, distortion=options.DEFAULT_DISTORTION))
     except ValueError as exc:

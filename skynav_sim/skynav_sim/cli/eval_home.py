@@ -22,27 +22,12 @@ DEFAULT_SEEDS = (2, 4)  # world seeds not used to tune the homing (park seed 3 w
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval home`."""
-    from ..world import STYLES
+    from .options import add_closed_loop_arguments
 
-    parser.add_argument(
-        '--worlds', nargs='+', default=list(STYLES), metavar='STYLE', help=f'world styles (default {" ".join(STYLES)})'
-    )
-    parser.add_argument(
-        '--seeds',
-        nargs='+',
-        type=int,
-        default=list(DEFAULT_SEEDS),
-        metavar='N',
-        help=f'world seeds (default {" ".join(map(str, DEFAULT_SEEDS))})',
-    )
+    add_closed_loop_arguments(parser, DEFAULT_SEEDS, 'homing')
     parser.add_argument('--starts', type=int, default=10, help='random starts per world and seed (default 10)')
     parser.add_argument('--min-distance', type=float, default=0.5, metavar='M', help='nearest start (0.5 m)')
     parser.add_argument('--max-distance', type=float, default=4.0, metavar='M', help='farthest start (4 m)')
-    parser.add_argument('--teach-time', default='forenoon', metavar='TIME', help='time of the snapshot (forenoon)')
-    parser.add_argument('--time', default='morning', metavar='TIME', help='time of the homing (default morning)')
-    parser.add_argument(
-        '--clouds', type=float, default=0.5, metavar='COVER', help='cloud cover of the homing, 0-1 (default 0.5)'
-    )
     parser.add_argument(
         '--max-frames', type=int, default=150, help='camera frames (0.2 s each) before a run is given up (150)'
     )
@@ -56,21 +41,14 @@ def check_arguments(args: argparse.Namespace) -> tuple[float, float]:
     """Raise CliError for a malformed choice; return the snapshot's and the homing's time of day (h)."""
     from skynav_core.cli import CliError
 
-    from ..sky import parse_time
-    from ..world import STYLES
+    from .options import check_closed_loop_arguments
 
-    if unknown := [w for w in args.worlds if w not in STYLES]:
-        raise CliError(f'unknown world {", ".join(unknown)} (one of {", ".join(STYLES)})', exit_code=2)
+    hours = check_closed_loop_arguments(args)
     if args.starts < 1 or args.max_frames < 1:
         raise CliError('--starts and --max-frames must be at least 1', exit_code=2)
     if not 0 < args.min_distance < args.max_distance:
         raise CliError('need 0 < --min-distance < --max-distance', exit_code=2)
-    if not 0 <= args.clouds <= 1:
-        raise CliError('--clouds must be a cover within 0..1', exit_code=2)
-    try:
-        return parse_time(args.teach_time), parse_time(args.time)
-    except ValueError as exc:
-        raise CliError(str(exc), exit_code=2) from None
+    return hours
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Arguments shared by `skynav sim bag` and `skynav sim preview`: world, scenario, camera, daylight."""
+"""Arguments shared by `skynav sim bag` and `skynav sim preview` (world, scenario, camera, daylight), and by
+`skynav eval follow|home` (worlds, seeds, times, clouds)."""
 
 from __future__ import annotations
 
@@ -163,3 +164,45 @@ def scenario(args: argparse.Namespace):
     world = generate(args.world, args.seed)
     frames = build(args.scenario, world, params, args.seed)
     return world, frames, describe(args.scenario, world, params, args.seed, frames)
+
+
+def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int, ...], what: str) -> None:
+    """Add the options of a closed-loop evaluation: world styles, seeds, the two times of day and the cloud cover."""
+    from ..world import STYLES
+
+    parser.add_argument(
+        '--worlds', nargs='+', default=list(STYLES), metavar='STYLE', help=f'world styles (default {" ".join(STYLES)})'
+    )
+    parser.add_argument(
+        '--seeds',
+        nargs='+',
+        type=int,
+        default=list(seeds),
+        metavar='N',
+        help=f'world seeds (default {" ".join(map(str, seeds))})',
+    )
+    parser.add_argument('--teach-time', default='forenoon', metavar='TIME', help='time of the teach (forenoon)')
+    parser.add_argument('--time', default='morning', metavar='TIME', help=f'time of the {what} (default morning)')
+    parser.add_argument(
+        '--clouds', type=float, default=0.5, metavar='COVER', help=f'cloud cover of the {what}, 0-1 (default 0.5)'
+    )
+
+
+def check_closed_loop_arguments(args: argparse.Namespace) -> tuple[float, float]:
+    """Raise CliError (exit 2) for unknown worlds, no seeds, a cloud cover or a time that is malformed; return the
+    teach's and the run's time of day (h)."""
+    from skynav_core.cli import CliError
+    from skynav_core.evaluation import check_positive
+
+    from ..sky import parse_time
+    from ..world import STYLES
+
+    if unknown := [w for w in args.worlds if w not in STYLES]:
+        raise CliError(f'unknown world {", ".join(unknown)} (one of {", ".join(STYLES)})', exit_code=2)
+    check_positive(len(args.seeds), '--seeds')
+    if not 0 <= args.clouds <= 1:
+        raise CliError('--clouds must be a cover within 0..1', exit_code=2)
+    try:
+        return parse_time(args.teach_time), parse_time(args.time)
+    except ValueError as exc:
+        raise CliError(str(exc), exit_code=2) from None
