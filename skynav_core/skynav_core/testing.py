@@ -50,9 +50,11 @@ def skynav_command(*args: str) -> list[str]:
     return [sys.executable, '-m', 'skynav_bringup.cli', *args]
 
 
-def run_skynav(*args: str, timeout: float = 120, cwd: str | os.PathLike | None = None) -> subprocess.CompletedProcess:
+def run_skynav(
+    *args: str, timeout: float = 120, cwd: str | os.PathLike | None = None, env: dict | None = None
+) -> subprocess.CompletedProcess:
     """Run `skynav ARGS` to the end and return the finished process with its text output."""
-    return subprocess.run(skynav_command(*args), capture_output=True, text=True, timeout=timeout, cwd=cwd)
+    return subprocess.run(skynav_command(*args), capture_output=True, text=True, timeout=timeout, cwd=cwd, env=env)
 
 
 def start_skynav(*args: str, cwd: str | os.PathLike | None = None, env: dict | None = None) -> subprocess.Popen:

@@ -6,6 +6,7 @@ The bundled drives have no /odom, so snapshots come by view change; the map taug
 `skynav eval localization`.
 """
 
+import os
 import re
 import signal
 import time
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.maps import MapStore
-from skynav_core.testing import one_line_error, run_skynav, start_skynav, wait_text
+from skynav_core.testing import claim_domain_id, one_line_error, run_skynav, start_skynav, wait_text
 from skynav_localize.cli.eval import positions_at
 
 BAGS = Path(__file__).parents[2] / 'bags'
@@ -76,7 +77,10 @@ def test_teach_over_a_replayed_drive_makes_a_map_like_map_build(tmp_path):
 
 
 def test_teach_without_a_graph_fails_in_one_line(tmp_path):
-    result = run_skynav('teach', str(tmp_path / 'map.db'), '--wait', '1')
+    domain, lock = claim_domain_id()  # a domain of its own: no graph of an earlier test can linger there
+    with lock:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
+        result = run_skynav('teach', str(tmp_path / 'map.db'), '--wait', '1', env=env)
     assert result.returncode == 1 and one_line_error(result.stderr), result.stderr
     assert 'no /skynav/teach action server' in result.stderr
     assert not (tmp_path / 'map.db').exists()
