@@ -43,7 +43,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--bump-tilt', type=float, default=0.0, metavar='DEG', help='every followed view tilted up to DEG more (0)'
     )
-    parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument(
         '--out', type=Path, default=Path('eval_follow'), metavar='DIR', help='folder for maps and plots (eval_follow)'
     )
@@ -75,12 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from . import options
 
     teach_hours, hours = check_arguments(args)
-    try:
-        camera = options.camera(argparse.Namespace(size=args.size, fov=200.0, distortion=options.DEFAULT_DISTORTION))
-    except ValueError as exc:
-        from skynav_core.cli import CliError
-
-        raise CliError(str(exc), exit_code=2) from None
+    camera = options.closed_loop_camera(args)
     plots_folder(args.out)
     pairs = [(world, seed) for world in args.worlds for seed in args.seeds]
     frames = args.length / (TELEOP_SPEED * FRAME_PERIOD) + args.length / (SPEED * FRAME_PERIOD)

@@ -31,7 +31,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--max-frames', type=int, default=150, help='camera frames (0.2 s each) before a run is given up (150)'
     )
-    parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument(
         '--out', type=Path, default=Path('eval_home'), metavar='DIR', help='folder for maps and plots (eval_home)'
     )
@@ -58,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
-    from skynav_core.cli import CliError
     from skynav_core.evaluation import plots_folder
 
     from ..closed_loop import home_runs, random_starts, snapshot_map
@@ -68,10 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from .home import draw_paths
 
     teach_hours, hours = check_arguments(args)
-    try:
-        camera = options.camera(argparse.Namespace(size=args.size, fov=200.0, distortion=options.DEFAULT_DISTORTION))
-    except ValueError as exc:
-        raise CliError(str(exc), exit_code=2) from None
+    camera = options.closed_loop_camera(args)
     plots_folder(args.out)
     pairs = [(world, seed) for world in args.worlds for seed in args.seeds]
     print(

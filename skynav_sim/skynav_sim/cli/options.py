@@ -186,6 +186,7 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int,
     parser.add_argument(
         '--clouds', type=float, default=0.5, metavar='COVER', help=f'cloud cover of the {what}, 0-1 (default 0.5)'
     )
+    parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
 
 
 def check_closed_loop_arguments(args: argparse.Namespace) -> tuple[float, float]:
@@ -204,5 +205,16 @@ def check_closed_loop_arguments(args: argparse.Namespace) -> tuple[float, float]
         raise CliError('--clouds must be a cover within 0..1', exit_code=2)
     try:
         return parse_time(args.teach_time), parse_time(args.time)
+    except ValueError as exc:
+        raise CliError(str(exc), exit_code=2) from None
+
+
+def closed_loop_camera(args: argparse.Namespace):
+    """Return the camera of a closed-loop evaluation (--size, the default field of view and distortion); raise
+    CliError (exit 2) for a malformed size."""
+    from skynav_core.cli import CliError
+
+    try:
+        return camera(argparse.Namespace(size=args.size, fov=200.0, distortion=DEFAULT_DISTORTION))
     except ValueError as exc:
         raise CliError(str(exc), exit_code=2) from None
