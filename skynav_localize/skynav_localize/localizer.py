@@ -25,21 +25,26 @@ from skynav_localize.mapping import stored_settings
 from skynav_localize.matching import (
     DEFAULT_CANDIDATES,
     MOTION_SLACK,
+    TRACKING_VIEWS,
     Acceptance,
     Match,
     SequenceBuffer,
     SequenceParams,
     best_candidates,
+    distance_ratio,
     local_steps,
     motion_tests,
     motion_window,
+    odometry_window,
     runner_up,
     self_similarity,
     sequence_match,
     sequence_scores,
     single_frame,
+    tracking_window,
     view_in_place,
 )
+from skynav_localize.teaching import ODOM_POSE
 from skynav_sh.product import message_sky_share, shows_skyline
 
 
@@ -217,7 +222,14 @@ class Localizer:
         self._buffer = SequenceBuffer(self.sequence) if self.method.sequence else None
         # the last views' (matched snapshot, vouched) for the motion tests, and the map's self-similarity parts
         slack = MOTION_SLACK if self.acceptance.motion_slack is None else self.acceptance.motion_slack
+        self._motion_slack = slack
         self._history: deque[tuple[int, bool]] = deque(maxlen=motion_window(self.sequence, slack))
+        #: tracking (query() of sequence methods, while the robot follows the route): seek each view near the last
+        #: accepted match (matching, the module notes)
+        self.tracking = False
+        # tracking's anchor: the last accepted snapshot, views since, the odometry's path length then (m) or None
+        self._anchor: tuple[int, int, float | None] | None = None
+        self._route_odometry: np.ndarray | None = None
         self._local_step: np.ndarray | None = None
         self._look_alike: np.ndarray | None = None
 
@@ -297,6 +309,7 @@ class Localizer:
         if self._buffer is not None:
             self._buffer.clear()
         self._history.clear()
+        self._anchor = None
 
     def self_similarity(self, indices: np.ndarray) -> np.ndarray:
         """Return the self-similarity (matching.self_similarity) of the map's snapshots at indices (any shape).
@@ -355,8 +368,11 @@ class Localizer:
         uv: np.ndarray | None = None,
         field_of_view: float | None = None,
         fill: str = 'zero',
+        travelled: float | None = None,
     ) -> Match:
         """Return the match of the newest query (coefficients or UV image), using the history for sequences.
+
+        travelled: the odometry's path length at the view (m; None without odometry), for tracking's window.
 
         With the view's field of view (rad) and fill, a featureless view (no skyline: all sky or all ground in what
         it sees) is matched, and enters the history, but never accepted; nor is a match on a featureless snapshot.
@@ -365,22 +381,76 @@ class Localizer:
         if len(self.index) == 0:
             return Match.empty()
         distances = self.index.distances(self.describe(coefficients, uv))
+        window = self._tracking_window(travelled)
         sequences = None
         if self._buffer is not None:
             sequence_distances, choice = self._buffer.push(distances)
             sequences = (sequence_distances[None, :], choice[None, :])
-        best, best_distance, score, view_score, values = self._matches(distances[None, :], sequences)
+        if window is None or sequences is None:
+            best, best_distance, score, view_score, values = self._matches(distances[None, :], sequences)
+        else:
+            best, best_distance, score, view_score, values = self._matches_within(distances, sequences, window)
+        index = int(best[0])
         indices, candidate_values = best_candidates(values[0], self.candidates)
         blank = coefficients is not None and bool(self.featureless(coefficients, field_of_view, fill))
-        blank = blank or bool(self.featureless_snapshots(field_of_view, fill)[best[0]])
-        accepted = bool(np.asarray(self.acceptance.accepts(score, best_distance, view_score))[0]) and not blank
+        blank = blank or bool(self.featureless_snapshots(field_of_view, fill)[index])
+        if window is None:
+            accepted = bool(np.asarray(self.acceptance.accepts(score, best_distance, view_score))[0]) and not blank
+        else:  # tracking: the window stands in for the ratios and the tests of a route that looks alike
+            accepted = float(best_distance[0]) <= self.acceptance.max_distance and not blank
         if self._guards_place:
             vouched = bool(np.asarray(self.acceptance.vouches(score, view_score))[0])
-            history = list(self._history) + [(int(best[0]), vouched)]
-            passed = self._place_tests(np.array([h[0] for h in history]), np.array([h[1] for h in history]))
-            accepted = accepted and bool(passed[-1])
-            self._history.append((int(best[0]), vouched))
-        return Match(int(best[0]), float(best_distance[0]), float(score[0]), accepted, indices, candidate_values)
+            history = list(self._history) + [(index, vouched)]
+            if window is None:
+                passed = self._place_tests(np.array([h[0] for h in history]), np.array([h[1] for h in history]))
+                accepted = accepted and bool(passed[-1])
+            self._history.append((index, vouched))
+        if accepted:
+            self._anchor = (index, 0, travelled)
+        elif self._anchor is not None:
+            self._anchor = (self._anchor[0], self._anchor[1] + 1, self._anchor[2])
+        return Match(index, float(best_distance[0]), float(score[0]), accepted, indices, candidate_values)
+
+    def _matches_within(
+        self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray], window: tuple[int, int]
+    ) -> tuple[np.ndarray, ...]:
+        """Return what _matches() does for the newest view's distance row (N,) with the place and the snapshot chosen
+        within the tracking window (snapshots first..last); the ratios are measured against the whole route."""
+        values, choice = sequences
+        snapshots = np.arange(distances.size)
+        inside = (snapshots >= window[0]) & (snapshots <= window[1])
+        place = int(np.argmin(np.where(inside, choice[0], np.inf)))
+        exclusion = self.acceptance.exclusion
+        rows = np.where(inside & (np.abs(snapshots - place) <= exclusion), distances, np.inf)[None, :]
+        index = np.argmin(rows, axis=1)
+        score = distance_ratio(values[0, place], runner_up(values, np.array([place]), self._sequence_exclusion))
+        view_score = distance_ratio(distances[index], runner_up(distances[None, :], index, exclusion))
+        return index, distances[index], np.atleast_1d(score), view_score, rows
+
+    def _tracking_window(self, travelled: float | None) -> tuple[int, int] | None:
+        """Return the snapshots (first, last) the newest view is sought in while tracking; None: the whole route.
+
+        travelled: the drive's odometry path length at the view (m), None without odometry.
+        """
+        if not self.tracking or self._buffer is None or self._anchor is None or self._anchor[1] >= TRACKING_VIEWS:
+            return None
+        anchor, views, anchor_travelled = self._anchor
+        route = self.route_odometry()
+        if route is not None and travelled is not None and anchor_travelled is not None:
+            return odometry_window(route, anchor, travelled - anchor_travelled)
+        return tracking_window(anchor, views + 1, self.sequence, self._motion_slack)
+
+    def route_odometry(self) -> np.ndarray | None:
+        """Return the snapshots' distances along the route by the teach's odometry (N,) (m); None if it had none."""
+        if self._route_odometry is None:
+            poses = (
+                self.store.descriptor_matrix(ODOM_POSE)
+                if ODOM_POSE in self.store.descriptor_names()
+                else np.full((len(self.store), 7), np.nan)
+            )
+            steps = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
+            self._route_odometry = np.concatenate([[0.0], np.cumsum(steps)]) if len(poses) else np.zeros(0)
+        return self._route_odometry if np.all(np.isfinite(self._route_odometry)) else None
 
     def _matches(
         self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray] | None

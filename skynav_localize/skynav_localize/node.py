@@ -7,7 +7,8 @@ the acceptance test, and the runners-up. Setting `map` at run time switches maps
 be opened is refused (the old one stays). Without a usable map every match is index -1, distance +inf.
 A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
 nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
-only if it moves along the route with the robot (matching, the module notes).
+only if it moves along the route with the robot (matching, the module notes). With `tracking` (set by the route
+node while it follows the route) each view is sought near the last accepted match.
 
 The node also serves the Teach action /skynav/teach (teach_server), in a live graph and in an in-process one
 (the simulator's) alike: while a goal runs, the views it takes (and /odom) become snapshots of a new map, which
@@ -34,7 +35,8 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .parameters import PARAMETERS
-from .teach_server import ODOM_QOS, ODOM_TOPIC, TeachServer
+from .teach_server import ODOM_QOS, ODOM_TOPIC, TeachServer, odometry_pose
+from .teaching import OdometryTrack
 
 SH_TOPIC = '/skyline/sh'
 MATCH_TOPIC = '/localization/match'
@@ -57,7 +59,8 @@ class LocalizeNode(SkynavNode):
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.output(MATCH_TOPIC, PlaceMatch)
         self.teach = TeachServer(self)
-        self.input(ODOM_TOPIC, Odometry, self.teach.on_odometry, ODOM_QOS)
+        self.odometry = OdometryTrack()  # the drive's path length, for tracking's window
+        self.input(ODOM_TOPIC, Odometry, self.on_odometry, ODOM_QOS)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -73,6 +76,7 @@ class LocalizeNode(SkynavNode):
         if values['max_self_similarity'] < 0:  # NaN (the method's) passes
             raise ValueError("max_self_similarity must be at least 0 (NaN: the method's)")
         self.teach.configure(values)
+        self.odometry_tolerance_ns = int(values['odometry_tolerance'] * 1e9)
         store = map_for_parameter(self.store, values['map'])
         if store is None:
             self.store, self.localizer = None, None
@@ -102,6 +106,7 @@ class LocalizeNode(SkynavNode):
             if store is not self.store:
                 store.close()
             raise ValueError(str(exc)) from None
+        localizer.tracking = bool(values['tracking'])
         self.localizer = localizer
         if self.store is not None and self.store is not store:
             self.store.close()
@@ -110,9 +115,15 @@ class LocalizeNode(SkynavNode):
             f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, method {values["method"]}'
         )
 
+    def on_odometry(self, message: Odometry) -> None:
+        """Take one odometry sample (for tracking, and for the goal being taught)."""
+        self.odometry.add(stamp_ns(message.header), odometry_pose(message))
+        self.teach.on_odometry(message)
+
     def reset_time(self) -> None:
-        """Forget the last stamp and the sequence of views so far."""
+        """Forget the last stamp, the sequence of views so far and the odometry."""
         super().reset_time()
+        self.odometry = OdometryTrack()
         if self.localizer is not None:
             self.localizer.reset()
 
@@ -134,10 +145,12 @@ class LocalizeNode(SkynavNode):
             result.index, result.distance, result.accepted = -1, math.inf, False
             if self.localizer is not None:
                 assert self.store is not None  # a localizer is built from the store
+                odometry = self.odometry.at(stamp, self.odometry_tolerance_ns)
                 match = self.localizer.query(
                     coefficients=coefficients[: (self.localizer.degree + 1) ** 2],
                     field_of_view=float(message.field_of_view),
                     fill=message.fill,
+                    travelled=None if odometry is None else odometry[1],
                 )
                 result.map_name = self.store.name
                 result.index, result.distance, result.accepted = (

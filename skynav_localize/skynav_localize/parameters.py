@@ -31,6 +31,11 @@ PARAMETERS = {
         'only after views that vouched for a steady drive (sequences); NaN: '
         "the method's",
     ),
+    'tracking': Parameter(
+        False,
+        'seek each view near the last accepted match, as a robot following the route is (sequence methods; the '
+        'route node sets it for a FollowRoute goal)',
+    ),
     'candidates': Parameter(5, 'runners-up in each match'),
     'max_degree': Parameter(DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut to it)'),
     'teach_spacing': Parameter(DEFAULT_SPACING, 'Teach goals: m of travel between snapshots when the goal says <= 0'),
@@ -39,8 +44,9 @@ PARAMETERS = {
         'Teach goals without /odom: amplitude-descriptor change per metre of spacing that makes a snapshot '
         '(calibrated on the bundled synthetic teach drives)',
     ),
-    'teach_odometry_tolerance': Parameter(
-        DEFAULT_ODOMETRY_TOLERANCE_NS * 1e-9, 'Teach goals: s between a view and the /odom sample paired with it'
+    'odometry_tolerance': Parameter(
+        DEFAULT_ODOMETRY_TOLERANCE_NS * 1e-9,
+        's between a view and the /odom sample paired with it (teaching, tracking)',
     ),
     'teach_input_timeout': Parameter(10.0, 'Teach goals: s without a usable view before the goal ends with NO_INPUT'),
     'teach_map_nodes': Parameter(

@@ -85,8 +85,8 @@ class TeachServer:
         """Take the node's teach_* parameters (ValueError if unusable)."""
         if not (values['teach_spacing'] > 0 and values['teach_view_change'] > 0 and values['teach_input_timeout'] > 0):
             raise ValueError('teach_spacing, teach_view_change and teach_input_timeout must be positive')
-        if not values['teach_odometry_tolerance'] >= 0:
-            raise ValueError('teach_odometry_tolerance must be at least 0')
+        if not values['odometry_tolerance'] >= 0:
+            raise ValueError('odometry_tolerance must be at least 0')
         self.settings = values
         for name in values['teach_map_nodes']:
             if name and name not in self._clients:
@@ -155,7 +155,7 @@ class TeachServer:
                 max_length=max_length,
                 overwrite=request.overwrite,
                 change_per_metre=self.settings['teach_view_change'],
-                odometry_tolerance_ns=int(self.settings['teach_odometry_tolerance'] * 1e9),
+                odometry_tolerance_ns=int(self.settings['odometry_tolerance'] * 1e9),
             )
         except TeachError as exc:
             goal_handle.abort()

@@ -13,6 +13,7 @@ from skynav_core.maps import MapError, MapStore
 from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
 from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
 from skynav_localize.matching import Acceptance
+from skynav_localize.teaching import ODOM_POSE
 
 DEGREE = 10
 SNAPSHOTS = 150
@@ -235,3 +236,48 @@ def test_a_map_and_views_of_a_higher_degree_are_cut_to_the_descriptor_degree(rou
         np.testing.assert_array_equal(matches.accepted, reference.accepted)
         full = Localizer(MapStore.open(tmp_path / 'higher.db'), name, degree=64)
         assert full.degree == DEGREE + 2  # never above the map's
+
+
+@pytest.fixture
+def route_back(make_route, tmp_path):
+    """A taught route of 150 snapshots whose last 50 pass the places of snapshots 20-69 again, with its odometry."""
+    first = make_route(100, DEGREE, 0.4, seed=5)
+    coefficients = np.concatenate([first, first[20:70]])
+    with create_map(tmp_path / 'back.db', 'back', DEGREE) as writer:
+        for i, c in enumerate(coefficients):
+            writer.add_snapshot(c, i, None, {ODOM_POSE: np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0])})
+    return MapStore.open(writer.path), coefficients
+
+
+@pytest.mark.parametrize('odometry', [True, False], ids=['odometry', 'views'])
+def test_tracking_follows_a_route_past_its_look_alikes(route_back, odometry):
+    # driving snapshots 5..64 at one snapshot per view: from 20 on, every place has a twin 80 snapshots on, and the
+    # ratio tests cannot tell them apart. Tracking seeks each view near the last accepted match and stays on the drive
+    store, coefficients = route_back
+    rng = np.random.default_rng(4)
+    truth = np.arange(5, 65)
+    views = coefficients[truth] + 0.01 * rng.standard_normal((truth.size, coefficients.shape[1]))
+    travelled = SPACING * truth + 0.02 * rng.standard_normal(truth.size)  # the drive's own odometry, noisy
+
+    def drive(tracking: bool) -> list:
+        localizer = Localizer(store, 'amplitude-seq')
+        localizer.tracking = tracking
+        return [localizer.query(v, travelled=float(t) if odometry else None) for v, t in zip(views, travelled)]
+
+    twins = truth >= 20 + Localizer(store, 'amplitude-seq').sequence.length
+    untracked = drive(tracking=False)
+    assert not any(m.accepted for m, twin in zip(untracked, twins) if twin)
+    tracked = drive(tracking=True)
+    accepted = np.array([m.accepted for m in tracked])
+    index = np.array([m.index for m in tracked])
+    assert np.all(accepted[twins])
+    assert np.all(np.abs(index[accepted] - truth[accepted]) <= 2)
+
+
+def test_tracking_starts_only_from_an_accepted_match(route_back):
+    # on the look-alike stretch from the start, nothing was accepted yet: tracking has no place to seek near
+    store, coefficients = route_back
+    localizer = Localizer(store, 'amplitude-seq')
+    localizer.tracking = True
+    matches = [localizer.query(c, travelled=SPACING * i) for i, c in enumerate(coefficients[30:60], start=30)]
+    assert not any(m.accepted for m in matches)

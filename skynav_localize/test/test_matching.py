@@ -8,6 +8,8 @@ import pytest
 
 from skynav_localize.matching import (
     MOTION_SLACK,
+    TRACKING_SLACK,
+    TRACKING_SLIP,
     Acceptance,
     SequenceBuffer,
     SequenceParams,
@@ -17,6 +19,7 @@ from skynav_localize.matching import (
     local_steps,
     motion_tests,
     motion_window,
+    odometry_window,
     runner_up,
     self_similarity,
     sequence_match,
@@ -255,3 +258,25 @@ def test_acceptance_where_the_route_looks_alike():
     # a view vouches by its own ratio at the snapshot it chose (sequences), or by the match's ratio (single frames)
     np.testing.assert_array_equal(acceptance.vouches(np.array([0.1, 0.9]), np.array([0.5, 0.3])), [False, True])
     np.testing.assert_array_equal(Acceptance(0.45).vouches(np.array([0.1, 0.9])), [True, False])
+
+
+@pytest.mark.parametrize('driven', [0.0, 0.05, 0.5, 2.0, 8.0])
+def test_odometry_window_holds_the_place_odometry_expects_and_widens_with_the_distance(driven):
+    # snapshots every 0.12 m, unevenly in places; the window around anchor 30 after `driven` m of odometry
+    rng = np.random.default_rng(1)
+    route = np.concatenate([[0.0], np.cumsum(0.12 + 0.03 * rng.standard_normal(199).clip(-1, 1))])
+    first, last = odometry_window(route, 30, driven)
+    expected = route[30] + driven
+    reach = TRACKING_SLACK + TRACKING_SLIP * driven
+    assert route[first] >= expected - reach - 1e-12 and route[last] <= expected + reach + 1e-12
+    assert first == 0 or route[first - 1] < expected - reach  # every snapshot within reach is in it
+    assert last == route.size - 1 or route[last + 1] > expected + reach
+    assert first <= int(np.argmin(np.abs(route - expected))) <= last
+
+
+def test_odometry_window_ends_at_the_route_end():
+    route = 0.1 * np.arange(50)
+    reach = TRACKING_SLACK + TRACKING_SLIP * 0.6
+    assert odometry_window(route, 40, 0.6) == (int(np.searchsorted(route, 4.0 + 0.6 - reach)), 49)
+    assert odometry_window(route, 45, 3.0) == (49, 49)  # beyond the end: the last snapshot
+    assert odometry_window(route, 49, 10.0) == (49, 49)
