@@ -113,6 +113,7 @@ class LocalizeNode(SkynavNode):
         self.store = store
         self.get_logger().info(
             f'map {store.name!r}: {len(store)} snapshots, degree {store.max_degree}, method {values["method"]}'
+            + (', tracking the route' if localizer.tracking else '')
         )
 
     def on_odometry(self, message: Odometry) -> None:

@@ -372,6 +372,16 @@ def snapshot_map(
     )
 
 
+LINE_STEP = 0.05  # m between the places along a straight line looked at for an object in the way
+
+
+def clear_line(world: World, start: np.ndarray, goal: np.ndarray) -> bool:
+    """Return whether the mower's body could drive straight from start to goal (m) without touching an object."""
+    steps = max(int(np.ceil(np.linalg.norm(np.asarray(goal) - start) / LINE_STEP)), 1)
+    places = np.linspace(start, goal, steps + 1)
+    return not any(world.collides(float(x), float(y)) for x, y in places)
+
+
 def random_starts(
     world: World, goal: np.ndarray, count: int, min_distance: float, max_distance: float, rng: np.random.Generator
 ) -> list[tuple[np.ndarray, float]]:

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from skynav_sim.closed_loop import clear_line
 from skynav_sim.mower import Mower, Pose2D
 from skynav_sim.world import BODY_RADIUS, BOUNDARY_WIRE, CLEARANCE, generate
 
@@ -83,3 +84,12 @@ def test_the_bumper_hits_at_the_body_not_at_the_planning_clearance(world):
 def test_bad_shares_are_refused(world):
     with pytest.raises(ValueError, match='shares'):
         Mower(world, Pose2D(), np.random.default_rng(0), slip=1.5)
+
+
+def test_a_clear_line_is_one_the_body_drives_without_touching_an_object(world):
+    # across an object's footprint the line is blocked; beside it, in the free square, it is clear
+    inside = [f for f in world.footprints if math.hypot(*f.center) < BOUNDARY_WIRE - 3]
+    center = np.asarray(inside[0].center, dtype=float)
+    assert not clear_line(world, center + [2.5, 0.0], center - [2.5, 0.0])
+    x = free_place(world)
+    assert clear_line(world, np.array([x - 1.5, -1.5]), np.array([x + 1.5, 1.5]))
