@@ -14,10 +14,15 @@ synthetic 640x480 mono16 repeat drive of the garden at 10 Hz is replayed on the 
 The hosts find each other by static peers (--discovery peers, the default) or, with multicast blocked, through the
 Fast DDS discovery server the base station's `skynav launch --serve-discovery` runs (--discovery server).
 
-Prints, per split, the bytes per second sent from the robot to the base station over the link (discovery
-and acknowledgements included), the frames whose home vector reached the base station, and the latency
-from the camera frame's reception on the robot to its home vector's on the base station (both hosts read
-the same clock), median and 95th percentile: the link's share plus the base station's work.
+Prints, per split, the bytes sent from the robot to the base station over the link (discovery and
+acknowledgements included) per second while the drive plays (from the first camera frame to one frame
+period after the last, the link's byte counter read every LINK_SAMPLE_PERIOD s) and per camera frame
+(from the replay's start to 2 s after its end), the frames whose home vector reached the base station,
+and the latency from the camera frame's reception on the robot to its home vector's on the base station
+(both hosts read the same clock), median and 95th percentile: the link's share plus the base station's
+work; and the UDP datagrams dropped during the replay (/proc/net/snmp of each host): the base station's
+for a full socket receive buffer (Udp.RcvbufErrors), the robot's for a full send buffer (Udp.SndbufErrors),
+and the IP datagrams the base station could not reassemble from their fragments (Ip.ReasmFails).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -32,11 +38,14 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core import netns
-from skynav_core.network import DISCOVERY_SERVER_PORT
+from skynav_core.network import DISCOVERY_SERVER_PORT, socket_buffer_warning
 from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 PROBE = Path(__file__).parents[1] / 'test' / 'graph_probe.py'
 CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+FRAME_PERIOD_NS = 100_000_000  # the drive's 10 Hz
+LINK_SAMPLE_PERIOD = 0.1  # s between two readings of the link's byte counter
+DROPS = (('base', 'Udp.RcvbufErrors'), ('robot', 'Udp.SndbufErrors'), ('base', 'Ip.ReasmFails'))
 SPLITS = {
     'images across': (('skyline', 'sh', 'localize', 'compass', 'warping', 'route'), '/camera/uv/image_raw', 1),
     'coefficients across': (('localize', 'compass', 'warping', 'route'), '/skyline/sh', 4),
@@ -62,6 +71,21 @@ def receptions(log: Path, topic: str) -> dict[int, int]:
         if name == topic:
             found.setdefault(int(stamp), int(received))
     return found
+
+
+def sample_link(hosts: netns.TwoHosts, samples: list[tuple[int, int]], stop: threading.Event) -> None:
+    """Append (wall clock ns, bytes sent robot -> base station) every LINK_SAMPLE_PERIOD s until `stop` is set."""
+    while not stop.is_set():
+        samples.append((time.time_ns(), hosts.link_bytes()))
+        stop.wait(LINK_SAMPLE_PERIOD)
+
+
+def drive_rate(samples: list[tuple[int, int]], first_ns: int, last_ns: int) -> float:
+    """Return the bytes per second over the link from `first_ns` to a frame period after `last_ns` (wall clock)."""
+    times, sent = np.array(samples, dtype=float).T
+    end_ns = last_ns + FRAME_PERIOD_NS
+    start, end = np.interp([first_ns, end_ns], times, sent)
+    return float(end - start) / ((end_ns - first_ns) / 1e9)
 
 
 def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, transport: str, served: bool) -> dict:
@@ -98,22 +122,32 @@ def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, tr
         base.start([*probe, '--log', str(home_log), '--messages', '/homing/home_vector=1000000'], env[base.namespace],
                    work / f'{split}_home.log')  # fmt: skip
         time.sleep(5.0)  # the probes join (a reliable reader of the camera on the robot: the replay waits for it)
-        before, start = hosts.link_bytes(), time.monotonic()
-        replay = robot.start(
-            skynav_command('replay', str(drive), '--topics', *CAMERA),  # waits for skyline and sh
+        counters = {'robot': robot.snmp(), 'base': base.snmp()}
+        before, samples, stop = hosts.link_bytes(), [], threading.Event()
+        sampler = threading.Thread(target=sample_link, args=(hosts, samples, stop))
+        sampler.start()
+        replay = robot.start(  # the hosts are connected: wait for one reader a topic, not the viz node's too
+            skynav_command('replay', str(drive), '--topics', *CAMERA, '--wait-for-subscribers', '1'),
             env[robot.namespace],
             work / f'{split}_replay.log',
         )
         replay.wait(timeout=600)
         time.sleep(2.0)  # the last frames' work on the base station
-        sent, seconds = hosts.link_bytes() - before, time.monotonic() - start
+        stop.set()
+        sampler.join()
+        sent = hosts.link_bytes() - before
+        after = {'robot': robot.snmp(), 'base': base.snmp()}
+        drops = {f'{h} {name}': after[h][name] - counters[h][name] for h, name in DROPS}
     camera, home = receptions(camera_log, CAMERA[0]), receptions(home_log, '/homing/home_vector')
     latency = np.array([home[s] - camera[s] for s in home if s in camera]) / 1e6
     return {
-        'bytes_per_s': sent / seconds,
+        'bytes_per_s': drive_rate(samples, min(camera.values()), max(camera.values())) if camera else 0.0,
+        'bytes_per_frame': sent / max(1, len(camera)),
         'frames': len(camera),
         'home_vectors': len(home),
+        'missing': [i for i, s in enumerate(sorted(camera)) if s not in home],  # frames without a home vector
         'latency_ms': (float(np.median(latency)), float(np.percentile(latency, 95))) if len(latency) else None,
+        'drops': drops,
     }
 
 
@@ -131,6 +165,8 @@ def main() -> int:
     args = parser.parse_args()
     if reason := netns.unavailable():
         sys.exit(f'link_split: {reason}')
+    if warning := socket_buffer_warning():
+        print(f'link_split: warning: {warning}', flush=True)
     domain, _lock = claim_domain_id()
     with tempfile.TemporaryDirectory(prefix='skynav-link-') as folder:
         work = Path(folder)
@@ -144,8 +180,13 @@ def main() -> int:
             f = figures[split]
             latency = 'n/a' if f['latency_ms'] is None else '{:.0f} ms median, {:.0f} ms p95'.format(*f['latency_ms'])
             print(
-                f'{split:20s} {f["bytes_per_s"] / 1e3:10.1f} kB/s  home vectors {f["home_vectors"]:4d} of '
-                f'{f["frames"]:4d} frames  camera -> home vector {latency}',
+                f'{split:20s} {f["bytes_per_s"] / 1e3:10.1f} kB/s {f["bytes_per_frame"] / 1e3:8.1f} kB/frame  '
+                f'home vectors {f["home_vectors"]:4d} of {f["frames"]:4d} frames  camera -> home vector {latency}',
+                flush=True,
+            )
+            print(
+                f'{"":20s} frames without a home vector: {f["missing"] or "none"}; '
+                f'dropped: {", ".join(f"{name} {count}" for name, count in f["drops"].items())}',
                 flush=True,
             )
         ratio = figures['coefficients across']['bytes_per_s'] / figures['images across']['bytes_per_s']

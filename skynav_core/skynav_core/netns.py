@@ -90,6 +90,15 @@ class Host:
             time.sleep(0.02)
         raise RuntimeError(f'host {self.namespace}: could not set up its /dev/shm')
 
+    def snmp(self) -> dict[str, int]:
+        """Return this host's IP and UDP counters since its namespace was made, e.g. {'Udp.RcvbufErrors': 0}."""
+        lines = run(['ip', 'netns', 'exec', self.namespace, 'cat', '/proc/net/snmp']).splitlines()
+        counters = {}
+        for names, values in zip(lines[::2], lines[1::2]):  # a line of names, then one of values, per protocol
+            protocol, *fields = names.split()
+            counters.update({f'{protocol[:-1]}.{f}': int(v) for f, v in zip(fields, values.split()[1:])})
+        return counters
+
     def crash(self) -> None:
         """Kill every process of this host at once (SIGKILL) and start it again with an empty /dev/shm: a reboot."""
         self.halt(grace=0.0)

@@ -11,6 +11,10 @@ With a discovery server, start it before the nodes: with the Fast DDS 2.14 of th
 started before their server did may never find each other through it (README 'Robot and base station').
 A plain client learns only of the topics it reads or writes; the tools that list the graph (record, echo,
 replay) are made super clients (ROS_SUPER_CLIENT), which learn of every topic.
+
+Both profiles ask for UDP socket buffers of SOCKET_BUFFER bytes, so that a camera frame (a burst of 64 kB
+datagrams) is not dropped on its way to another host; Linux caps them at net.core.rmem_max and wmem_max,
+which must be raised on each host (:func:`socket_buffer_warning` says when they are too low).
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ DISCOVERY_SERVER_PORT = 11811  # Fast DDS's default discovery server port (UDP)
 DISCOVERY_SERVER = 'fast-discovery-server'  # the server program the Fast DDS wheel installs
 DISCOVERY_SERVER_READY = 'Server is running'  # what the server prints once it serves
 DISCOVERY_SERVER_START_TIMEOUT = 10.0  # s for the server to say it serves
+SOCKET_BUFFER = 4194304  # bytes: the UDP socket buffers the profiles ask for (<sendBufferSize>, <receiveBufferSize>)
+SOCKET_BUFFER_LIMITS = ('net.core.rmem_max', 'net.core.wmem_max')  # Linux's caps on them, bytes
 
 
 class NetworkError(SkynavError, ValueError):
@@ -76,6 +82,29 @@ def network_environment(
             raise NetworkError(f'the Fast DDS profile of transport {transport!r} is not installed (run make setup)')
         env['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(share / TRANSPORTS[transport])
     return env
+
+
+def socket_buffer_warning(proc_sys: Path = Path('/proc/sys')) -> str | None:
+    """Return one line naming the kernel limits that cap the UDP socket buffers below SOCKET_BUFFER, None if none.
+
+    Unreadable limits (not Linux) say nothing.
+    """
+    low = []
+    for name in SOCKET_BUFFER_LIMITS:
+        try:
+            value = int((proc_sys / name.replace('.', '/')).read_text())
+        except (OSError, ValueError):
+            continue
+        if value < SOCKET_BUFFER:
+            low.append(f'{name} is {value}')
+    if not low:
+        return None
+    raise_all = ' '.join(f'{name}={SOCKET_BUFFER}' for name in SOCKET_BUFFER_LIMITS)
+    return (
+        f'{" and ".join(low)} bytes, below the {SOCKET_BUFFER} of the UDP socket buffers the Fast DDS profile asks '
+        f'for: large messages to other hosts (camera images) will be lost; as root, sysctl -w {raise_all} '
+        "(README 'Robot and base station')"
+    )
 
 
 def discovery_server_command(locator: str) -> tuple[list[str], dict[str, str]]:

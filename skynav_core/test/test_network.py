@@ -5,18 +5,23 @@ import io
 import os
 import socket
 import subprocess
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
 from skynav_core.network import (
+    SOCKET_BUFFER,
     NetworkError,
     discovery_server_command,
     make_super_client,
     network_environment,
     server_locator,
+    socket_buffer_warning,
     start_discovery_server,
 )
+
+FASTDDS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
 
 
 def test_nothing_given_changes_nothing():
@@ -39,9 +44,32 @@ def test_a_discovery_server_widens_discovery_to_the_subnet_unless_told():
 
 @pytest.mark.parametrize('transport', ['shm', 'udp'])
 def test_each_transport_names_an_installed_profile_of_its_kind(transport):
-    profile = Path(network_environment(transport=transport)['FASTRTPS_DEFAULT_PROFILES_FILE'])
-    text = profile.read_text()
-    assert '<type>UDPv4</type>' in text and ('<type>SHM</type>' in text) == (transport == 'shm')
+    profile = ET.parse(network_environment(transport=transport)['FASTRTPS_DEFAULT_PROFILES_FILE']).getroot()
+    descriptors = {d.findtext(f'{FASTDDS}transport_id'): d for d in profile.iter(f'{FASTDDS}transport_descriptor')}
+    used = [t.text for users in profile.iter(f'{FASTDDS}userTransports') for t in users]
+    kinds = {descriptors[t].findtext(f'{FASTDDS}type') for t in used}
+    assert kinds == ({'UDPv4', 'SHM'} if transport == 'shm' else {'UDPv4'})
+    (udp,) = [d for d in descriptors.values() if d.findtext(f'{FASTDDS}type') == 'UDPv4']
+    # large enough for camera frames crossing to another host in bursts of 64 kB datagrams
+    assert int(udp.findtext(f'{FASTDDS}sendBufferSize')) == int(udp.findtext(f'{FASTDDS}receiveBufferSize'))
+    assert int(udp.findtext(f'{FASTDDS}receiveBufferSize')) == SOCKET_BUFFER
+
+
+def write_limits(proc_sys: Path, rmem_max: int, wmem_max: int) -> Path:
+    """Write the kernel's socket buffer limits as /proc/sys shows them, under `proc_sys`."""
+    (proc_sys / 'net' / 'core').mkdir(parents=True)
+    (proc_sys / 'net' / 'core' / 'rmem_max').write_text(f'{rmem_max}\n')
+    (proc_sys / 'net' / 'core' / 'wmem_max').write_text(f'{wmem_max}\n')
+    return proc_sys
+
+
+def test_kernel_limits_below_the_profiles_socket_buffers_are_named_in_one_line(tmp_path):
+    assert socket_buffer_warning(write_limits(tmp_path / 'big', SOCKET_BUFFER, 2 * SOCKET_BUFFER)) is None
+    warning = socket_buffer_warning(write_limits(tmp_path / 'stock', 212992, SOCKET_BUFFER))
+    assert warning is not None and '\n' not in warning
+    assert 'net.core.rmem_max is 212992' in warning and 'wmem_max is' not in warning
+    assert f'sysctl -w net.core.rmem_max={SOCKET_BUFFER} net.core.wmem_max={SOCKET_BUFFER}' in warning
+    assert socket_buffer_warning(tmp_path / 'not-linux') is None
 
 
 @pytest.mark.parametrize(

@@ -70,7 +70,7 @@ def default_params_file() -> Path | None:
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
     from skynav_core.launcher import Launcher
-    from skynav_core.network import network_environment, start_discovery_server
+    from skynav_core.network import network_environment, socket_buffer_warning, start_discovery_server
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
 
@@ -95,6 +95,9 @@ def run(args: argparse.Namespace) -> int:
     os.environ.update(
         network_environment(args.discovery_range, args.static_peers, args.discovery_server, args.transport)
     )
+    leaves_host = args.discovery_range in ('subnet', 'system_default') or args.static_peers or args.discovery_server
+    if leaves_host and (warning := socket_buffer_warning()):
+        print(f'skynav launch: warning: {warning}', file=sys.stderr, flush=True)
     server = None
     if args.serve_discovery:
         # before the nodes: participants that start before their server may never find each other through it
