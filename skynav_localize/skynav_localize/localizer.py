@@ -25,9 +25,9 @@ from skynav_localize.mapping import stored_settings
 from skynav_localize.matching import (
     DEFAULT_CANDIDATES,
     MOTION_SLACK,
-    TRACKING_VIEWS,
     Acceptance,
     Match,
+    RouteTracker,
     SequenceBuffer,
     SequenceParams,
     best_candidates,
@@ -35,13 +35,11 @@ from skynav_localize.matching import (
     local_steps,
     motion_tests,
     motion_window,
-    odometry_window,
     runner_up,
     self_similarity,
     sequence_match,
     sequence_scores,
     single_frame,
-    tracking_window,
     view_in_place,
 )
 from skynav_localize.teaching import ODOM_POSE
@@ -222,14 +220,12 @@ class Localizer:
         self._buffer = SequenceBuffer(self.sequence) if self.method.sequence else None
         # the last views' (matched snapshot, vouched) for the motion tests, and the map's self-similarity parts
         slack = MOTION_SLACK if self.acceptance.motion_slack is None else self.acceptance.motion_slack
-        self._motion_slack = slack
         self._history: deque[tuple[int, bool]] = deque(maxlen=motion_window(self.sequence, slack))
         #: tracking (query() of sequence methods, while the robot follows the route): seek each view near the last
         #: accepted match (matching, the module notes)
         self.tracking = False
-        # tracking's anchor: the last accepted snapshot, views since, the odometry's path length then (m) or None
-        self._anchor: tuple[int, int, float | None] | None = None
         self._route_odometry: np.ndarray | None = None
+        self.tracker = RouteTracker(self.sequence, self.route_odometry(), slack)
         self._local_step: np.ndarray | None = None
         self._look_alike: np.ndarray | None = None
 
@@ -309,7 +305,7 @@ class Localizer:
         if self._buffer is not None:
             self._buffer.clear()
         self._history.clear()
-        self._anchor = None
+        self.tracker.reset()
 
     def self_similarity(self, indices: np.ndarray) -> np.ndarray:
         """Return the self-similarity (matching.self_similarity) of the map's snapshots at indices (any shape).
@@ -372,7 +368,8 @@ class Localizer:
     ) -> Match:
         """Return the match of the newest query (coefficients or UV image), using the history for sequences.
 
-        travelled: the odometry's path length at the view (m; None without odometry), for tracking's window.
+        travelled: the odometry's path length at the view (m; None without odometry), for tracking's window. While
+        tracking with odometry an accepted match names the snapshot nearest the tracked place (RouteTracker).
 
         With the view's field of view (rad) and fill, a featureless view (no skyline: all sky or all ground in what
         it sees) is matched, and enters the history, but never accepted; nor is a match on a featureless snapshot.
@@ -381,7 +378,7 @@ class Localizer:
         if len(self.index) == 0:
             return Match.empty()
         distances = self.index.distances(self.describe(coefficients, uv))
-        window = self._tracking_window(travelled)
+        window = self.tracker.window(travelled) if self.tracking and self._buffer is not None else None
         sequences = None
         if self._buffer is not None:
             sequence_distances, choice = self._buffer.push(distances)
@@ -405,10 +402,10 @@ class Localizer:
                 passed = self._place_tests(np.array([h[0] for h in history]), np.array([h[1] for h in history]))
                 accepted = accepted and bool(passed[-1])
             self._history.append((index, vouched))
-        if accepted:
-            self._anchor = (index, 0, travelled)
-        elif self._anchor is not None:
-            self._anchor = (self._anchor[0], self._anchor[1] + 1, self._anchor[2])
+        self.tracker.update(index, accepted, travelled)
+        if window is not None and accepted and (tracked := self.tracker.nearest()) is not None:
+            index = tracked  # the place the odometry carries on and the views correct (candidates: the view's own)
+            best_distance = distances[[index]]
         return Match(index, float(best_distance[0]), float(score[0]), accepted, indices, candidate_values)
 
     def _matches_within(
@@ -426,19 +423,6 @@ class Localizer:
         score = distance_ratio(values[0, place], runner_up(values, np.array([place]), self._sequence_exclusion))
         view_score = distance_ratio(distances[index], runner_up(distances[None, :], index, exclusion))
         return index, distances[index], np.atleast_1d(score), view_score, rows
-
-    def _tracking_window(self, travelled: float | None) -> tuple[int, int] | None:
-        """Return the snapshots (first, last) the newest view is sought in while tracking; None: the whole route.
-
-        travelled: the drive's odometry path length at the view (m), None without odometry.
-        """
-        if not self.tracking or self._buffer is None or self._anchor is None or self._anchor[1] >= TRACKING_VIEWS:
-            return None
-        anchor, views, anchor_travelled = self._anchor
-        route = self.route_odometry()
-        if route is not None and travelled is not None and anchor_travelled is not None:
-            return odometry_window(route, anchor, travelled - anchor_travelled)
-        return tracking_window(anchor, views + 1, self.sequence, self._motion_slack)
 
     def route_odometry(self) -> np.ndarray | None:
         """Return the snapshots' distances along the route by the teach's odometry (N,) (m); None if it had none."""

@@ -38,18 +38,17 @@ place descriptors of skynav and the baselines share one code path.
   keeps a robot that rejoins a distinct route after a detour localized at once; the second refuses a sequence
   that stalls or jitters in place where the route looks alike, while a steady drive there still earns its matches.
 - Tracking (while the robot follows the route it was taught): the question is no longer which stretch of the whole
-  route the view shows but how far the robot has come along it since the last accepted match, the *anchor*. The
-  match is sought only in the tracking window (`tracking_window`: from MOTION_SLACK snapshots behind the anchor to
-  max_speed snapshots per view ahead of it, for TRACKING_VIEWS views without a new accepted match; with odometry
-  of the drive and of the teach, the snapshots within TRACKING_SLACK + TRACKING_SLIP x the distance driven since the
-  anchor of the place that distance leads to along the route: `odometry_window`). The window
-  stands in for the tests that tell the route from elsewhere (the ratios, the self-similarity): a look-alike
-  elsewhere on the route cannot take the match, and only the motion test (and a featureless view) still rejects.
-  A robot that leaves the route is caught by its compass and home vector, not by its place match. Why: under
-  another light than the teach's, a view's own ratio rises to the bound on the route too (on the synthetic follow
-  runs, taught at 8.5 h, followed at 6.2 h under clouds: 0.45-0.7 within 4 m of the start, the views resembling
-  snapshots 0.5 m behind them), and where the route comes back near its start the sequence's ratio does (0.57); a
-  follower without tracking lost its place within 5 m on 4 of 6 routes of 50 m.
+  route the view shows but how far the robot has come along it since the last accepted match. The match is sought
+  only in the tracking window (RouteTracker: with odometry of the drive and of the teach, around the place the
+  odometry carries on and the accepted matches correct, and an accepted match then names that place's snapshot;
+  without odometry, from MOTION_SLACK snapshots behind the last accepted match to max_speed snapshots per view
+  ahead of it). The window stands in for the tests that tell the route from elsewhere (the ratios, the
+  self-similarity): a look-alike elsewhere on the route cannot take the match, and only a featureless view is
+  still refused. A robot that leaves the route is caught by its compass and home vector, not by its place match.
+  Why: under another light than the teach's, a view's own ratio rises to the bound on the route too (on the
+  synthetic follow runs, taught at 8.5 h, followed at 6.2 h under clouds: 0.45-0.7 within 4 m of the start, the
+  views resembling snapshots 0.5 m behind them), and where the route comes back near its start the sequence's
+  ratio does (0.57); a follower without tracking lost its place within 5 m on 4 of 6 routes of 50 m.
 """
 
 from __future__ import annotations
@@ -81,6 +80,10 @@ TRACKING_SLACK = 0.4
 #: share of the distance driven since the anchor added to the window either side: wheel slip, odometry drift and a
 #: path beside the taught one (a corner cut or widened) make the distances along the two differ.
 TRACKING_SLIP = 0.25
+#: share of the odometry's step by which an accepted match may move the tracked place towards itself, either way:
+#: under a tree's crown, whose sky the crown fills, the views of a synthetic park resembled places up to 1.5 m
+#: behind them for 30 views, and a pull of 0.5 let them hold the place back that far.
+TRACKING_PULL = 0.25
 
 
 @dataclass(frozen=True)
@@ -384,19 +387,75 @@ def self_similarity(local_step: np.ndarray, look_alike: np.ndarray) -> np.ndarra
     return distance_ratio(local_step, look_alike)
 
 
-def tracking_window(anchor: int, views: int, params: SequenceParams, slack: float = MOTION_SLACK) -> tuple[int, int]:
-    """Return the first and last snapshot a drive can have reached `views` views after the anchor's (snapshots)."""
-    return anchor - math.ceil(slack), anchor + math.ceil(params.max_speed * views + slack)
+class RouteTracker:
+    """Where along the route a robot that follows it is, for tracking's window (see the module notes).
 
+    With the route's odometry (the snapshots' distances along it by the teach's odometry, m) and the drive's, the
+    *tracked place* (m along the route) is carried on by each view's odometry and pulled towards each accepted match
+    by at most TRACKING_PULL of that step: the matches correct the odometry's drift, while a match that stalls (a
+    view that keeps resembling a place behind) cannot hold the place back. The window holds the snapshots within
+    TRACKING_SLACK + TRACKING_SLIP x the distance driven since the last accepted match of the place. Without
+    odometry the window runs from MOTION_SLACK snapshots behind the last accepted match to max_speed snapshots per
+    view ahead of it. Either lasts TRACKING_VIEWS views without an accepted match.
+    """
 
-def odometry_window(route: np.ndarray, anchor: int, driven: float) -> tuple[int, int]:
-    """Return the first and last snapshot within reach of the anchor's after `driven` m of odometry, given the
-    snapshots' distances along the taught route (N,) by its odometry (m)."""
-    expected = route[anchor] + max(driven, 0.0)
-    reach = TRACKING_SLACK + TRACKING_SLIP * driven
-    first = min(int(np.searchsorted(route, expected - reach, side='left')), route.size - 1)
-    last = int(np.searchsorted(route, expected + reach, side='right')) - 1
-    return first, max(last, first)
+    def __init__(self, params: SequenceParams, route: np.ndarray | None, slack: float = MOTION_SLACK) -> None:
+        """Track along a route of snapshots at distances `route` (N,) (m; None: no odometry of the teach)."""
+        self.params, self.route, self.slack = params, route, slack
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget where the robot is: the next window is the whole route."""
+        self.anchor = -1  # the last accepted snapshot
+        self.views = 0  # views since
+        self.since = 0.0  # m of odometry since
+        self.place: float | None = None  # the tracked place, m along the route
+        self.travelled: float | None = None  # the drive's odometry path length at the previous view, m
+
+    def _step(self, travelled: float | None) -> float | None:
+        """Return the odometry's step (m) from the previous view to this one; None without odometry."""
+        if travelled is None or self.travelled is None:
+            return None
+        return max(travelled - self.travelled, 0.0)
+
+    def window(self, travelled: float | None) -> tuple[int, int] | None:
+        """Return the snapshots (first, last) to seek a view in (odometry path length then, m); None: everywhere."""
+        if self.anchor < 0 or self.views >= TRACKING_VIEWS:
+            return None
+        step = self._step(travelled)
+        if self.route is None or self.place is None or step is None:
+            return self.anchor - math.ceil(self.slack), self.anchor + math.ceil(
+                self.params.max_speed * (self.views + 1) + self.slack
+            )
+        expected = self.place + step
+        reach = TRACKING_SLACK + TRACKING_SLIP * (self.since + step)
+        last_snapshot = self.route.size - 1
+        first = min(int(np.searchsorted(self.route, expected - reach, side='left')), last_snapshot)
+        last = int(np.searchsorted(self.route, expected + reach, side='right')) - 1
+        return first, max(last, first)
+
+    def update(self, index: int, accepted: bool, travelled: float | None) -> None:
+        """Take the view's match (snapshot index, whether accepted) and odometry path length (m, None without)."""
+        step = self._step(travelled)
+        expected = None if self.place is None or step is None else self.place + step
+        if accepted:
+            if expected is None or self.route is None or step is None:
+                self.place = None if self.route is None or travelled is None else float(self.route[index])
+            else:
+                pull = TRACKING_PULL * step
+                self.place = expected + float(np.clip(self.route[index] - expected, -pull, pull))
+            self.anchor, self.views, self.since = index, 0, 0.0
+        else:
+            self.place = expected
+            self.views += 1
+            self.since += step or 0.0
+        self.travelled = travelled
+
+    def nearest(self) -> int | None:
+        """Return the snapshot nearest the tracked place; None without one (no odometry, nothing accepted)."""
+        if self.place is None or self.route is None:
+            return None
+        return int(np.argmin(np.abs(self.route - self.place)))
 
 
 def motion_window(params: SequenceParams, slack: float = MOTION_SLACK) -> int:

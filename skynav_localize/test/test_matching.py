@@ -3,14 +3,19 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from skynav_localize.matching import (
     MOTION_SLACK,
+    TRACKING_PULL,
     TRACKING_SLACK,
     TRACKING_SLIP,
+    TRACKING_VIEWS,
     Acceptance,
+    RouteTracker,
     SequenceBuffer,
     SequenceParams,
     best_candidates,
@@ -19,7 +24,6 @@ from skynav_localize.matching import (
     local_steps,
     motion_tests,
     motion_window,
-    odometry_window,
     runner_up,
     self_similarity,
     sequence_match,
@@ -260,23 +264,64 @@ def test_acceptance_where_the_route_looks_alike():
     np.testing.assert_array_equal(Acceptance(0.45).vouches(np.array([0.1, 0.9])), [True, False])
 
 
-@pytest.mark.parametrize('driven', [0.0, 0.05, 0.5, 2.0, 8.0])
-def test_odometry_window_holds_the_place_odometry_expects_and_widens_with_the_distance(driven):
-    # snapshots every 0.12 m, unevenly in places; the window around anchor 30 after `driven` m of odometry
+def uneven_route(count: int = 200) -> np.ndarray:
+    """Return the distances (m) along a taught route of snapshots about 0.12 m apart, unevenly in places."""
     rng = np.random.default_rng(1)
-    route = np.concatenate([[0.0], np.cumsum(0.12 + 0.03 * rng.standard_normal(199).clip(-1, 1))])
-    first, last = odometry_window(route, 30, driven)
-    expected = route[30] + driven
-    reach = TRACKING_SLACK + TRACKING_SLIP * driven
+    return np.concatenate([[0.0], np.cumsum(0.12 + 0.03 * rng.standard_normal(count - 1).clip(-1, 1))])
+
+
+@pytest.mark.parametrize('driven', [0.0, 0.05, 0.5, 2.0, 8.0])
+def test_tracking_window_holds_the_place_odometry_expects_and_widens_with_the_distance(driven):
+    # accepted at snapshot 30 at 10 m of the drive's odometry; `driven` m later, unaccepted views in between
+    route = uneven_route()
+    tracker = RouteTracker(SequenceParams(), route)
+    assert tracker.window(10.0) is None  # nothing accepted yet: the whole route
+    tracker.update(30, True, 10.0)
+    tracker.update(31, False, 10.0 + driven / 2)
+    first, last = tracker.window(10.0 + driven)
+    expected, reach = route[30] + driven, TRACKING_SLACK + TRACKING_SLIP * driven
     assert route[first] >= expected - reach - 1e-12 and route[last] <= expected + reach + 1e-12
     assert first == 0 or route[first - 1] < expected - reach  # every snapshot within reach is in it
     assert last == route.size - 1 or route[last + 1] > expected + reach
     assert first <= int(np.argmin(np.abs(route - expected))) <= last
 
 
-def test_odometry_window_ends_at_the_route_end():
+def test_a_match_that_stalls_cannot_hold_the_tracked_place_back():
+    # the robot drives 0.1 m per view; every view is matched (accepted) to snapshot 30, behind it
+    route = 0.1 * np.arange(200)
+    tracker = RouteTracker(SequenceParams(), route)
+    tracker.update(30, True, 0.0)
+    for k in range(1, 41):
+        tracker.update(30, True, 0.1 * k)
+    # pulled back by at most TRACKING_PULL of each step: the place moved on by at least the rest of the odometry
+    assert tracker.place == pytest.approx(route[30] + (1 - TRACKING_PULL) * 4.0)
+    first, _ = tracker.window(4.1)
+    assert first > 30  # the stalled snapshot has left the window: the next match must move on
+    assert tracker.nearest() == int(round(tracker.place / 0.1))
+    # matches at the true place (snapshot 30 + k after k views) pull it onto the drive within as many views as the
+    # gap takes at TRACKING_PULL x 0.1 m a view; standing still, nothing moves it
+    views = round((route[70] - tracker.place) / (TRACKING_PULL * 0.1))
+    for k in range(41, 41 + views):
+        tracker.update(30 + k, True, 0.1 * k)
+    assert tracker.place == pytest.approx(route[30 + 40 + views])
+    tracker.update(199, True, 0.1 * (40 + views))
+    assert tracker.place == pytest.approx(route[30 + 40 + views])
+
+
+def test_tracking_window_without_odometry_counts_views_and_ends():
+    params = SequenceParams()
+    tracker = RouteTracker(params, None)
+    tracker.update(40, True, None)
+    assert tracker.window(None) == (40 - MOTION_SLACK, 40 + math.ceil(params.max_speed + MOTION_SLACK))
+    for _ in range(TRACKING_VIEWS):
+        tracker.update(41, False, None)
+    assert tracker.window(None) is None  # too long without an accepted match: the whole route again
+    tracker.reset()
+    assert tracker.window(None) is None
+
+
+def test_tracking_window_ends_at_the_route_end():
     route = 0.1 * np.arange(50)
-    reach = TRACKING_SLACK + TRACKING_SLIP * 0.6
-    assert odometry_window(route, 40, 0.6) == (int(np.searchsorted(route, 4.0 + 0.6 - reach)), 49)
-    assert odometry_window(route, 45, 3.0) == (49, 49)  # beyond the end: the last snapshot
-    assert odometry_window(route, 49, 10.0) == (49, 49)
+    tracker = RouteTracker(SequenceParams(), route)
+    tracker.update(45, True, 0.0)
+    assert tracker.window(3.0) == (49, 49)  # beyond the end: the last snapshot
