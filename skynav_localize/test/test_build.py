@@ -147,9 +147,11 @@ def test_eval_localization_leaves_out_the_baselines_a_map_does_not_hold(featurel
 
 
 # Runs `skynav map build` with every snapshot write announced on stdout and followed by a pause, so that a signal
-# lands while the map is being written (the build itself is the real command).
+# lands while the map is being written (the build itself is the real command). SIGINT gets Python's own handler:
+# a test run started in the background of a shell inherits SIGINT ignored, and so would the build.
 SLOW_BUILD = """
-import sys, time
+import signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from skynav_bringup.cli import main
 from skynav_core import maps
 write = maps.MapStore.add_snapshot
