@@ -236,6 +236,8 @@ def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, 
     try:
         operator = Operator(ros_context)
         operator.send(map_path=str(path), spacing=0.1)
+        # the node's action server may answer before its view subscription is matched: views sent then are lost
+        wait(lambda: operator.views.get_subscription_count() > 0, what="the node's view subscription")
         operator.drive(drive, range(30), period=0.05)
         wait(lambda: len(operator.feedback) >= 11, what='ten snapshots')
         process.send_signal(signal.SIGKILL)
