@@ -185,6 +185,15 @@ class Matches:
         )
 
 
+def route_odometry(store: MapStore) -> np.ndarray | None:
+    """Return the snapshots' distances along the route by the teach's odometry (N,) (m); None if it had none."""
+    if len(store) == 0 or ODOM_POSE not in store.descriptor_names():
+        return None
+    positions = store.descriptor_matrix(ODOM_POSE)[:, :3]
+    route = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))])
+    return route if np.all(np.isfinite(route)) else None
+
+
 class Localizer:
     """Localizes views on one map with one method; feed queries to query() in recording order."""
 
@@ -224,8 +233,7 @@ class Localizer:
         #: tracking (query() of sequence methods, while the robot follows the route): seek each view near the last
         #: accepted match (matching, the module notes)
         self.tracking = False
-        self._route_odometry: np.ndarray | None = None
-        self.tracker = RouteTracker(self.sequence, self.route_odometry(), slack)
+        self.tracker = RouteTracker(self.sequence, route_odometry(store), slack)
         self._local_step: np.ndarray | None = None
         self._look_alike: np.ndarray | None = None
 
@@ -423,18 +431,6 @@ class Localizer:
         score = distance_ratio(values[0, place], runner_up(values, np.array([place]), self._sequence_exclusion))
         view_score = distance_ratio(distances[index], runner_up(distances[None, :], index, exclusion))
         return index, distances[index], np.atleast_1d(score), view_score, rows
-
-    def route_odometry(self) -> np.ndarray | None:
-        """Return the snapshots' distances along the route by the teach's odometry (N,) (m); None if it had none."""
-        if self._route_odometry is None:
-            poses = (
-                self.store.descriptor_matrix(ODOM_POSE)
-                if ODOM_POSE in self.store.descriptor_names()
-                else np.full((len(self.store), 7), np.nan)
-            )
-            steps = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
-            self._route_odometry = np.concatenate([[0.0], np.cumsum(steps)]) if len(poses) else np.zeros(0)
-        return self._route_odometry if np.all(np.isfinite(self._route_odometry)) else None
 
     def _matches(
         self, distances: np.ndarray, sequences: tuple[np.ndarray, np.ndarray] | None
