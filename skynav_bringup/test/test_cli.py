@@ -3,7 +3,7 @@
 
 import pytest
 
-from skynav_bringup.cli import build_parser
+from skynav_bringup.cli import build_parser, main
 from skynav_core.testing import one_line_error, run_skynav, write_sample_bag
 
 
@@ -16,13 +16,16 @@ def _commands(parser, path=()):
                 yield from _commands(sub, (*path, name))
 
 
-def test_every_command_has_help():
+def test_every_command_has_help(capsys):
     commands = list(_commands(build_parser()))
     assert {('replay',), ('record',), ('echo',), ('info',), ('launch',)} <= set(commands)
+    result = run_skynav('--help')  # the command itself, once; its subcommands' help in this process (as fast)
+    assert result.returncode == 0 and 'usage: skynav' in result.stdout, result.stderr
     for command in commands:
-        result = run_skynav(*command, '--help')
-        assert result.returncode == 0, command
-        assert 'usage: skynav' in result.stdout
+        with pytest.raises(SystemExit) as exited:
+            main([*command, '--help'])
+        assert exited.value.code == 0, command
+        assert f'usage: skynav {" ".join(command)}' in capsys.readouterr().out, command
 
 
 def test_usage_errors_exit_2():
