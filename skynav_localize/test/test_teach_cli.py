@@ -24,8 +24,11 @@ CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_
 
 
 def replay(bag, rate):
-    """Replay a bag's camera topics to the end; fail on a non-zero exit."""
-    done = run_skynav('replay', str(bag), '--rate', str(rate), '--wait-for-subscribers', '60', '--topics', *CAMERA)
+    """Replay a bag's camera topics to the end, once the graph's skyline node reads them; fail on a non-zero exit."""
+    # --wait-for-subscribers is a count (the skyline node; the default would wait for the viz node, not launched
+    # here); --wait-timeout the time a loaded machine may take to start the graph
+    wait = ('--wait-for-subscribers', '1', '--wait-timeout', '60')
+    done = run_skynav('replay', str(bag), '--rate', str(rate), *wait, '--topics', *CAMERA)
     assert done.returncode == 0, done.stderr
 
 
