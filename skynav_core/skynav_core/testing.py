@@ -199,6 +199,30 @@ def write_sample_bag(path: str | os.PathLike, frames: int = 5, width: int = 64, 
     return messages
 
 
+def write_first_frames(source: str | os.PathLike, path: str | os.PathLike, frames: int) -> Path:
+    """Copy the messages of a recording logged before its UV exposure number `frames` + 1 into a new bag at `path`.
+
+    The CDR bytes, offered QoS and custom data (the synthetic drive's frame list cut to the same frames) are kept,
+    so the copy stays marked synthetic and replays like the start of the original.
+    """
+
+    with open_bag(source) as bag:
+        exposures = [raw.log_time for raw in bag.messages(['/camera/uv/image_raw'])]
+        end = exposures[frames] if frames < len(exposures) else bag.end_time + 1  # log time (ns), not kept
+        with BagWriter(path) as writer:
+            for key, value in bag.custom_data.items():
+                described = yaml.safe_load(value) if key == 'skynav_sim' else None
+                if isinstance(described, dict) and isinstance(described.get('frames'), list):
+                    value = yaml.safe_dump({**described, 'frames': described['frames'][:frames]}, sort_keys=False)
+                writer.set_custom_data(key, value)
+            for topic in bag.topics.values():
+                writer.add_topic(topic.name, topic.msgtype, topic.offered_qos)
+            for raw in bag.messages():
+                if raw.log_time < end:
+                    writer.write(raw.topic, raw.log_time, raw.data)
+    return Path(path)
+
+
 def messages_equal(a: object, b: object) -> bool:
     """Return whether two rosbags messages hold the same values, field by field (NaN equals NaN)."""
 
