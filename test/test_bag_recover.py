@@ -50,7 +50,11 @@ def test_a_killed_recording_is_recovered_to_within_one_chunk(tmp_path):
     replay = None
     try:
         wait_text(recorder, 'ready', stream='stdout')
-        replay = start_skynav('replay', str(BAGS / 'synthetic_garden_repeat.mcap'), '--loop', '--topics', *TOPICS)
+        # the recorder is the one reader (the default would wait 30 s for the graph's nodes, none running here)
+        replay = start_skynav(
+            'replay', str(BAGS / 'synthetic_garden_repeat.mcap'), '--loop', '--wait-for-subscribers', '1',
+            '--topics', *TOPICS,
+        )  # fmt: skip
         received = [tuple(map(int, recorder.stdout.readline().split()))]
         while received[-1][1] - received[0][1] < RECORD_FOR * 1e9:
             received.append(tuple(map(int, recorder.stdout.readline().split())))
