@@ -20,7 +20,7 @@ from .ros import StopRequest, message_class, spin_until
 
 # History kept per replayed topic: the burst a slow subscriber may fall behind before losing messages.
 REPLAY_DEPTH = 100
-# Longest wait at the end for subscribers to acknowledge what was published (s).
+# Longest wait at the end for subscribers to acknowledge what was published (s), for all topics together.
 ACK_TIMEOUT = 5.0
 # Longest single sleep between checks for Ctrl-C while waiting for a message's time (s).
 SLEEP_SLICE = 0.05
@@ -131,10 +131,11 @@ class Player:
             if not loop:
                 break
         stats.wall_time = time.monotonic() - started
+        acked_by = time.monotonic() + ACK_TIMEOUT  # one deadline for every topic (a dead reader never acknowledges)
         stats.unacknowledged = [
             name
             for name, publisher in self.publishers.items()
-            if not publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT))
+            if not publisher.wait_for_all_acked(Duration(seconds=max(acked_by - time.monotonic(), 0.0)))
         ]
         stats.best_effort = self.best_effort_subscriptions()
         if stats.best_effort:
