@@ -199,7 +199,7 @@ def write_sample_bag(path: str | os.PathLike, frames: int = 5, width: int = 64, 
     return messages
 
 
-def write_first_frames(source: str | os.PathLike, path: str | os.PathLike, frames: int) -> Path:
+def write_first_frames(source: str | Path, path: str | os.PathLike, frames: int) -> Path:
     """Copy the messages of a recording logged before its UV exposure number `frames` + 1 into a new bag at `path`.
 
     The CDR bytes, offered QoS and custom data (the synthetic drive's frame list cut to the same frames) are kept,
