@@ -27,7 +27,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from rclpy.task import Future  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
-from skynav_route.controller import Homer, Limits, RouteFollower, Settings, View  # noqa: E402
+from skynav_route.controller import Homer, Limits, RouteFollower, Settings, TaughtRoute, View  # noqa: E402
 from skynav_route.node import ActiveGoal  # noqa: E402
 
 from skynav_core.graph import in_process  # noqa: E402
@@ -53,7 +53,7 @@ def bench_core(frames: int) -> None:
     directions = rng.normal(size=(frames, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     for name, controller in (
-        ('route following', RouteFollower(-1, 10**6, Limits(), Settings())),
+        ('route following', RouteFollower(-1, 10**6, Limits(), Settings(), TaughtRoute.straight(10**6 + 1))),
         ('homing', Homer(0, Limits(), Settings())),
     ):
         times = []
@@ -91,7 +91,7 @@ def bench_node(frames: int) -> None:
         specs = [s for s in installed_nodes() if s.name == 'route']
         with in_process(specs, ['-p', f'map:={path}', '-p', 'configure_peers:=false']) as graph:
             node = graph.nodes[0]
-            controller = RouteFollower(-1, 10**6, Limits(), Settings())
+            controller = RouteFollower(-1, 10**6, Limits(), Settings(), TaughtRoute.straight(10**6 + 1))
             node.active = ActiveGoal(FollowRoute, Handle(), controller, Future())
             coefficients = list(rng.normal(size=289))
             times = []

@@ -65,6 +65,8 @@ MAP_FORMAT = 'skynav-map'
 APPLICATION_ID = 0x736B6E76  # 'sknv'
 SQLITE_MAGIC = b'SQLite format 3\x00'
 POSE_COLUMNS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
+#: Per-snapshot descriptor of a map taught live: (x, y, z, qx, qy, qz, qw) of base_link in `odom` (m), NaN if none.
+ODOM_POSE = 'odom_pose'
 META_CHECKSUM = 'meta_checksum'  # meta key of the meta table's own CRC-32 (schema 3 on)
 RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from', META_CHECKSUM)
 CHECKS = ('none', 'quick', 'full')
@@ -706,6 +708,12 @@ class MapStore:
     def positions(self) -> np.ndarray:
         """Return the ground-truth positions (N, 3) of camera_link in map (m); NaN rows if none."""
         return self._poses[:, :3].copy()
+
+    def odometry_poses(self) -> np.ndarray | None:
+        """Return the teach's odometry poses (N, 7) of base_link in `odom` (ODOM_POSE); None if the map has none."""
+        if not len(self) or ODOM_POSE not in self.descriptor_names():
+            return None
+        return np.asarray(self.descriptor_matrix(ODOM_POSE), float).reshape(len(self), -1)
 
     @property
     def has_poses(self) -> bool:

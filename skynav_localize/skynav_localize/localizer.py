@@ -42,7 +42,6 @@ from skynav_localize.matching import (
     single_frame,
     view_in_place,
 )
-from skynav_localize.teaching import ODOM_POSE
 from skynav_sh.product import message_sky_share, shows_skyline
 
 
@@ -187,9 +186,10 @@ class Matches:
 
 def route_odometry(store: MapStore) -> np.ndarray | None:
     """Return the snapshots' distances along the route by the teach's odometry (N,) (m); None if it had none."""
-    if len(store) == 0 or ODOM_POSE not in store.descriptor_names():
+    poses = store.odometry_poses()
+    if poses is None:
         return None
-    positions = store.descriptor_matrix(ODOM_POSE)[:, :3]
+    positions = poses[:, :3]
     route = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))])
     return route if np.all(np.isfinite(route)) else None
 

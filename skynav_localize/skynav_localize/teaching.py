@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.errors import SkynavError
-from skynav_core.maps import MapError, MapStore
+from skynav_core.maps import ODOM_POSE, MapError, MapStore
 
 from .descriptors import describe
 from .mapping import DEFAULT_MIN_TRAVEL, create_map
@@ -40,7 +40,6 @@ DEFAULT_SPACING = DEFAULT_MIN_TRAVEL  # m between snapshots, as `skynav map buil
 VIEW_CHANGE_PER_METRE = 0.04
 DEFAULT_ODOMETRY_TOLERANCE_NS = 250_000_000  # the odometry sample nearest a view pairs with it within 0.25 s
 ODOMETRY_CAPACITY = 256  # odometry samples kept for pairing with views (about 5 s at 50 Hz)
-ODOM_POSE = 'odom_pose'  # per-snapshot descriptor: (x, y, z, qx, qy, qz, qw) of base_link in odom (m), NaN if none
 NO_POSE = np.full(7, np.nan)
 
 

@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_core.maps import MapError, MapStore
+from skynav_core.maps import ODOM_POSE, MapError, MapStore
 from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
 from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
 from skynav_localize.matching import Acceptance
-from skynav_localize.teaching import ODOM_POSE
 
 DEGREE = 10
 SNAPSHOTS = 150

@@ -18,8 +18,7 @@ import pytest
 from rclpy.parameter import Parameter
 
 from skynav_core.actions import error_name
-from skynav_core.maps import MapStore
-from skynav_localize.teaching import ODOM_POSE
+from skynav_core.maps import ODOM_POSE, MapStore
 
 TIMEOUT = 30.0  # s for discovery and results under load
 

@@ -9,9 +9,15 @@ its azimuth atan2(y, x) in the robot's x-y plane (rad, left positive).
 Route following (`RouteFollower`): where am I (the accepted place match, never moving backwards along the route),
 which way does the route run here (the compass rotation R, d_snapshot = R d_current, carries the snapshot's
 forward axis e_x into the current view as R^T e_x, the first row of R: that was the driving direction when the
-snapshot was taught), and how far off am I (the home vector to a snapshot a few places ahead pulls the robot back,
-weighted by its confidence 1 - residual). The steering direction is the sum of the two unit ground directions;
-a proportional turn-rate law on its ground angle (pure pursuit in spirit) with speed falling as cos(error).
+snapshot was taught), and how far off am I. The last is the *cross-track offset*, the robot's signed distance from
+the route (m, left positive), kept by `CrossTrack`, a complementary filter: from frame to frame it is carried on by
+the distance driven (odometry, else the last command) along the heading relative to the route, which the compass
+measures precisely; each home vector to a snapshot a few places ahead, with the taught route's shape (`TaughtRoute`:
+the teach's odometry poses, else a straight line), observes it, and pulls the estimate by a share that grows with the
+vector's confidence 1 - residual. One home vector is a noisy and, over metres, biased ruler of the offset (its error
+is a few decimetres); the filter averages it over about `offset_memory` m of driving. The steering law is Stanley's
+in spirit: head along the route's direction a little ahead (`TaughtRoute.turn`), turned towards the route by
+atan(offset / `approach`), with a proportional turn-rate law and the speed falling as cos(error).
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
@@ -36,6 +42,11 @@ LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recove
 # outcomes of a step: '' goes on, the others end the goal
 GOING, REACHED, LOST = '', 'reached', 'lost'
 MAX_FRAME_GAP = 1.0  # s: a longer gap between frames counts as this much for the acceleration limits
+STRAIGHT_SPACING = 0.1  # m between snapshots of a route taught without odometry, taken as a straight line
+START_OFFSET_SIGMA = 0.3  # m: the cross-track offset's standard deviation before the first home vector
+MIN_RULER = 0.2  # m: a home vector observes the offset only to a snapshot at least this far ahead along the route
+MAX_RULER_ANGLE = math.radians(60)  # ...and only when it points within this angle of the route's direction
+GATE_SIGMAS = 3.0  # an offset observation further than this many standard deviations from the estimate is ignored
 
 
 @dataclass(frozen=True)
@@ -53,7 +64,10 @@ class Settings:
     """The steering law's gains and the thresholds of the controller's states."""
 
     heading_gain: float = 1.5  # rad/s of turn rate per rad of heading error
-    homing_gain: float = 2.0  # weight of a fully confident home vector against the route direction
+    approach: float = 1.0  # m: route following turns towards the route by atan(cross-track offset / approach)
+    offset_noise: float = 0.4  # m: standard deviation of a fully confident home vector's cross-track observation
+    offset_drift: float = 0.03  # m: growth of the offset's standard deviation per square-root metre driven
+    route_lead: int = 3  # snapshots ahead of the matched one over which the route's curvature is felt forward
     unsure_residual: float = 0.97  # HomeVector.residual above this: no confident direction
     arrived_frames: int = 3  # homing: consecutive unsure home vectors that mean "arrived"...
     arrive_creep: float = 0.25  # m: ...once the robot has crept this far straight on through them (if it drove)
@@ -123,14 +137,6 @@ def ground_unit(direction: np.ndarray) -> np.ndarray:
     return flat / norm if norm > 1e-9 else np.array([1.0, 0.0])
 
 
-def steering_angle(route: np.ndarray, home: np.ndarray | None, confidence: float, homing_gain: float) -> float:
-    """Return the ground angle (rad) to steer along: the route direction pulled towards the home vector."""
-    steer = ground_unit(route)
-    if home is not None:
-        steer = steer + homing_gain * max(0.0, min(1.0, confidence)) * ground_unit(home)
-    return float(math.atan2(steer[1], steer[0]))
-
-
 def pursue(error: float, speed: float, limits: Limits, settings: Settings) -> Command:
     """Return the command that turns a heading error (rad) away: turn rate proportional, speed falling as cos."""
     angular = float(np.clip(settings.heading_gain * error, -limits.max_turn_rate, limits.max_turn_rate))
@@ -162,19 +168,126 @@ class _Motion:
         self.command, self.stamp = command, stamp
         return command
 
+    def travelled(self, view: View) -> float:
+        """Return the distance (m) driven since the last command's frame: odometry, else that command's speed."""
+        if view.odometry is not None:
+            return view.odometry
+        dt = 0.0 if self.stamp is None else min(max((view.stamp - self.stamp) / 1e9, 0.0), MAX_FRAME_GAP)
+        return self.command.linear * dt
+
     def stop(self, stamp: int) -> Command:
         """Return a zero command (a stop is never rate-limited) and remember it."""
         self.command, self.stamp = Command(), stamp
         return Command()
 
 
+def wrap_angle(angle: float) -> float:
+    """Return an angle (rad) wrapped into [-pi, pi)."""
+    return float((angle + math.pi) % (2 * math.pi) - math.pi)
+
+
+@dataclass(frozen=True)
+class TaughtRoute:
+    """The taught route's shape: each snapshot's ground position (m) and heading (rad) in the teach's odometry frame."""
+
+    positions: np.ndarray  # (N, 2)
+    headings: np.ndarray  # (N,)
+
+    @classmethod
+    def from_poses(cls, poses: np.ndarray) -> TaughtRoute | None:
+        """Return the route of (N, 7) poses (x, y, z, qx, qy, qz, qw) of base_link; None if any pose is missing."""
+        poses = np.asarray(poses, float)
+        if (
+            poses.ndim != 2
+            or poses.shape[1] != 7
+            or not len(poses)
+            or not np.all(np.isfinite(poses))
+            or np.any(np.linalg.norm(poses[:, 3:], axis=1) == 0)
+        ):
+            return None
+        x, y, z, w = poses[:, 3:].T
+        return cls(poses[:, :2].copy(), np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+    @classmethod
+    def straight(cls, count: int, spacing: float = STRAIGHT_SPACING) -> TaughtRoute:
+        """Return a straight route of `count` snapshots `spacing` m apart (a map taught without odometry)."""
+        return cls(np.column_stack([np.arange(count) * spacing, np.zeros(count)]), np.zeros(count))
+
+    def __len__(self) -> int:
+        return len(self.headings)
+
+    def relative(self, origin: int, index: int) -> np.ndarray:
+        """Return snapshot `index`'s ground position (m) in snapshot `origin`'s frame (x along its heading, y left)."""
+        c, s = math.cos(self.headings[origin]), math.sin(self.headings[origin])
+        dx, dy = self.positions[index] - self.positions[origin]
+        return np.array([c * dx + s * dy, -s * dx + c * dy])
+
+    def curvature(self, origin: int, span: int) -> float:
+        """Return the route's mean curvature (1/m, left positive) over `span` snapshots from `origin` on (0 if none)."""
+        index = min(origin + max(span, 1), len(self) - 1)
+        length = float(np.sum(np.linalg.norm(np.diff(self.positions[origin : index + 1], axis=0), axis=1)))
+        return self.turn(origin, index) / length if length > 1e-9 else 0.0
+
+    def turn(self, origin: int, index: int) -> float:
+        """Return how far (rad, left positive) the route's heading at snapshot `index` is turned from `origin`'s."""
+        index = min(max(index, 0), len(self) - 1)
+        return wrap_angle(float(self.headings[index] - self.headings[origin]))
+
+
+@dataclass
+class CrossTrack:
+    """The robot's signed distance from the route (m, left positive): a Kalman filter of one state.
+
+    Predict: the offset moves by the distance driven times the sine of the heading relative to the route, and its
+    variance grows by `drift`^2 per metre. Correct: an observation with standard deviation `noise` / sqrt(weight).
+    """
+
+    noise: float
+    drift: float
+    offset: float = 0.0
+    variance: float = START_OFFSET_SIGMA**2
+
+    def predict(self, distance: float, relative_heading: float) -> None:
+        """Carry the offset on over `distance` m driven at `relative_heading` (rad) to the route's direction."""
+        self.offset += distance * math.sin(relative_heading)
+        self.variance += self.drift**2 * abs(distance)
+
+    def correct(self, observed: float, weight: float) -> bool:
+        """Pull the offset towards an observation (m) of confidence `weight` in (0, 1]; False if it was gated out."""
+        if weight <= 0 or not math.isfinite(observed):
+            return False
+        noise = self.noise**2 / weight
+        innovation = observed - self.offset
+        if innovation**2 > GATE_SIGMAS**2 * (self.variance + noise):
+            return False
+        gain = self.variance / (self.variance + noise)
+        self.offset += gain * innovation
+        self.variance *= 1.0 - gain
+        return True
+
+
+def observed_offset(route: TaughtRoute, origin: int, index: int, bearing: float) -> float | None:
+    """Return the cross-track offset (m) at snapshot `origin` that puts snapshot `index` at `bearing` (rad, relative
+    to the route's direction at `origin`); None when that snapshot is too near or the bearing too far off the route.
+
+    The robot is taken to stand level with `origin` along the route (the matched snapshot).
+    """
+    ahead, left = route.relative(origin, index)
+    if ahead < MIN_RULER or abs(bearing) > MAX_RULER_ANGLE:
+        return None
+    return float(left - ahead * math.tan(bearing))
+
+
 class RouteFollower:
     """Drives along a taught route from `start_index` (or wherever the robot is matched) to `end_index`."""
 
-    def __init__(self, start_index: int, end_index: int, limits: Limits, settings: Settings) -> None:
-        """Follow snapshots start_index..end_index (start -1: the first accepted match places the robot)."""
+    def __init__(
+        self, start_index: int, end_index: int, limits: Limits, settings: Settings, route: TaughtRoute
+    ) -> None:
+        """Follow snapshots start_index..end_index of `route` (start -1: the first accepted match places the robot)."""
         self.start_index, self.end_index = start_index, end_index
-        self.limits, self.settings = limits, settings
+        self.limits, self.settings, self.route = limits, settings, route
+        self.cross_track = CrossTrack(settings.offset_noise, settings.offset_drift)
         self.matched = -1  # furthest snapshot believed passed
         self.unsure = 0
         self.recovered_distance = 0.0
@@ -216,12 +329,11 @@ class RouteFollower:
             if self.unsure > self.settings.lost_frames:
                 return self._answer(self._motion.stop(view.stamp), view, LOST)
             return self._answer(self._motion.stop(view.stamp), view)
-        if matched and view.rotation is not None:
+        if matched and 0 <= view.rotation_index < len(self.route) and view.rotation is not None:
             self.unsure, self.recovered_distance, self.state = 0, 0.0, FOLLOWING
-            angle = steering_angle(
-                route_direction(view.rotation), view.home_direction, confidence, self.settings.homing_gain
-            )
-            desired = pursue(angle, self.limits.max_speed, self.limits, self.settings)
+            error = self._track(view, confidence)
+            desired = pursue(error, self.limits.max_speed, self.limits, self.settings)
+            desired.angular += desired.linear * self.route.curvature(view.rotation_index, self.settings.route_lead)
             return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
         # unsure: creep straight on for a while, as a driver would, then give up
         self.unsure += 1
@@ -232,6 +344,20 @@ class RouteFollower:
         self.state = RECOVERING
         desired = Command(self.settings.recover_speed * self.limits.max_speed, 0.0)
         return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
+
+    def _track(self, view: View, confidence: float) -> float:
+        """Update the cross-track offset with one frame; return the heading error (rad) to steer away."""
+        assert view.rotation is not None
+        origin = view.rotation_index
+        relative = -ground_angle(route_direction(view.rotation))  # the robot's heading from the route's (rad)
+        self.cross_track.predict(self._motion.travelled(view), relative)
+        if view.home_direction is not None and 0 <= view.home_index < len(self.route):
+            observed = observed_offset(
+                self.route, origin, view.home_index, relative + ground_angle(view.home_direction)
+            )
+            if observed is not None:
+                self.cross_track.correct(observed, confidence)
+        return wrap_angle(-math.atan2(self.cross_track.offset, self.settings.approach) - relative)
 
     def _answer(self, command: Command, view: View, outcome: str = GOING) -> Step:
         sure = view.home_direction is not None and not self.unsure
@@ -264,8 +390,7 @@ class Homer:
         if view.home_residual > self.settings.unsure_residual:
             self.unsure += 1
             if self.unsure > 1:  # travel since the first unsure frame: odometry, else the last command
-                dt = (view.stamp - self._motion.stamp) / 1e9 if self._motion.stamp is not None else 0.0
-                self.crept += view.odometry if view.odometry is not None else self._motion.command.linear * dt
+                self.crept += self._motion.travelled(view)
             crept_enough = self.crept >= self.settings.arrive_creep or not self.driving
             if self.unsure >= self.settings.arrived_frames and crept_enough:
                 return Step(self._motion.stop(view.stamp), STOPPING, REACHED, confidence=confidence)

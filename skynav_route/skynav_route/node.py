@@ -43,7 +43,7 @@ from skynav_core.rotations import as_matrix
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
-from .controller import LOCALIZING, LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, View
+from .controller import LOCALIZING, LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, TaughtRoute, View
 from .parameters import PARAMETERS
 
 CMD_TOPIC = '/cmd_vel'
@@ -125,10 +125,15 @@ class RouteNode(SkynavNode):
             raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
         if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:
             raise ValueError('lost_frames and arrived_frames must be at least 1, lookahead not negative')
+        if values['approach'] <= 0 or values['offset_noise'] <= 0 or values['route_lead'] < 0:
+            raise ValueError('approach and offset_noise must be more than 0, route_lead not negative')
         self.values = values
         self.settings = Settings(
             heading_gain=values['heading_gain'],
-            homing_gain=values['homing_gain'],
+            approach=values['approach'],
+            offset_noise=values['offset_noise'],
+            offset_drift=values['offset_drift'],
+            route_lead=values['route_lead'],
             unsure_residual=values['unsure_residual'],
             arrived_frames=values['arrived_frames'],
             arrive_creep=values['arrive_creep'],
@@ -281,13 +286,21 @@ class RouteNode(SkynavNode):
 
     # --- goals ----------------------------------------------------------------------------------
 
-    def open_map(self, map_path: str) -> tuple[int, str]:
-        """Return the snapshot count and path of the goal's map (its own, or the node's); raise MapError."""
+    def open_map(self, map_path: str) -> tuple[TaughtRoute, str]:
+        """Return the taught route and path of the goal's map (its own, or the node's); raise MapError.
+
+        The route's shape is the teach's odometry where the map has it, else a straight line (logged).
+        """
         path = map_path or self.values['map']
         if not path:
             raise MapError('no map: the goal names none and the route node has no `map` parameter')
         with MapStore.open(path) as store:
-            return len(store), str(path)
+            count, poses = len(store), store.odometry_poses()
+        route = TaughtRoute.from_poses(poses) if poses is not None else None
+        if route is None:
+            self.get_logger().info(f'{path}: no odometry poses of the teach; the route is taken as a straight line')
+            route = TaughtRoute.straight(count)
+        return route, str(path)
 
     async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
         """Set parameters of other nodes ({node: {name: value}}); a node that does not answer is logged and skipped."""
@@ -343,9 +356,10 @@ class RouteNode(SkynavNode):
         """Drive along the route of a FollowRoute goal."""
         goal, result = handle.request, FollowRoute.Result()
         try:
-            count, path = self.open_map(goal.map_path)
+            route, path = self.open_map(goal.map_path)
         except MapError as exc:
             return self.refuse(handle, result, FollowRoute.Result.NO_MAP, str(exc))
+        count = len(route)
         end = count - 1 if goal.end_index < 0 else goal.end_index
         if not math.isfinite(goal.max_speed):
             return self.refuse(handle, result, FollowRoute.Result.BAD_GOAL, 'max_speed is not finite')
@@ -355,7 +369,7 @@ class RouteNode(SkynavNode):
             )
         if goal.start_index >= 0 and goal.start_index > end:
             return self.refuse(handle, result, FollowRoute.Result.BAD_INDEX, 'start_index lies beyond end_index')
-        controller = RouteFollower(goal.start_index, end, self.limits(goal.max_speed), self.settings)
+        controller = RouteFollower(goal.start_index, end, self.limits(goal.max_speed), self.settings, route)
         peers = self.peer_settings(
             path, {'reference': 'match'}, {'target': 'next', 'lookahead': self.values['lookahead']}
         )
@@ -372,9 +386,10 @@ class RouteNode(SkynavNode):
         """Drive to the place of the Home goal's snapshot."""
         goal, result = handle.request, Home.Result()
         try:
-            count, path = self.open_map(goal.map_path)
+            route, path = self.open_map(goal.map_path)
         except MapError as exc:
             return self.refuse(handle, result, Home.Result.NO_MAP, str(exc))
+        count = len(route)
         if not math.isfinite(goal.max_speed):
             return self.refuse(handle, result, Home.Result.BAD_GOAL, 'max_speed is not finite')
         if not 0 <= goal.index < count:

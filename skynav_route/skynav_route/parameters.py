@@ -16,8 +16,19 @@ PARAMETERS = {
     'max_turn_rate': Parameter(_LIMITS.max_turn_rate, 'turn-rate limit (rad/s)'),
     'max_turn_acceleration': Parameter(_LIMITS.max_turn_acceleration, 'limit of the change of turn rate (rad/s^2)'),
     'heading_gain': Parameter(_SETTINGS.heading_gain, 'turn rate per heading error (rad/s per rad)'),
-    'homing_gain': Parameter(
-        _SETTINGS.homing_gain, 'route following: weight of a fully confident home vector against the route direction'
+    'approach': Parameter(
+        _SETTINGS.approach, 'route following: turn towards the route by atan(cross-track offset / approach) (m)'
+    ),
+    'offset_noise': Parameter(
+        _SETTINGS.offset_noise,
+        "route following: standard deviation (m) of a fully confident home vector's cross-track offset observation",
+    ),
+    'offset_drift': Parameter(
+        _SETTINGS.offset_drift,
+        "route following: growth of the cross-track offset's standard deviation per square-root metre driven (m)",
+    ),
+    'route_lead': Parameter(
+        _SETTINGS.route_lead, 'route following: head along the route as it runs this many snapshots ahead of the match'
     ),
     'lookahead': Parameter(6, 'route following: how many snapshots beyond the matched one the warping node homes to'),
     'unsure_residual': Parameter(

@@ -13,18 +13,22 @@ from skynav_route.controller import (
     REACHED,
     RECOVERING,
     Command,
+    CrossTrack,
     Homer,
     Limits,
     RouteFollower,
     Settings,
+    TaughtRoute,
     View,
     limit,
+    observed_offset,
     route_direction,
-    steering_angle,
+    wrap_angle,
 )
 
 FRAME = 100_000_000  # ns: frames 0.1 s apart
 LIMITS = Limits(max_speed=0.4, max_acceleration=0.5, max_turn_rate=1.0, max_turn_acceleration=4.0)
+STRAIGHT = TaughtRoute.straight(60)
 
 
 def compass_for(route_angle: float, tilt_deg: float = 0.0) -> np.ndarray:
@@ -49,12 +53,111 @@ def test_route_direction_is_the_snapshots_forward_axis_in_the_current_view():
     )
 
 
-def test_the_home_vector_pulls_the_steering_in_proportion_to_its_confidence():
-    route, home = unit(0.0), unit(math.pi / 2)  # on course, but the route lies to the left
-    assert steering_angle(route, home, 0.0, 2.0) == pytest.approx(0.0)
-    assert steering_angle(route, None, 1.0, 2.0) == pytest.approx(0.0)
-    assert steering_angle(route, home, 0.5, 2.0) == pytest.approx(math.pi / 4)
-    assert steering_angle(route, home, 1.0, 2.0) == pytest.approx(math.atan2(2.0, 1.0))
+def yaw_poses(positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    """Return (N, 7) poses (x, y, z, qx, qy, qz, qw) of level robots at `positions` (N, 2) facing `headings`."""
+    quaternions = Rotation.from_euler('z', np.asarray(headings)[:, None]).as_quat()
+    return np.column_stack([positions, np.zeros(len(positions)), quaternions])
+
+
+def arc_route(count: int = 120, spacing: float = 0.1, curvature: float = 0.4) -> TaughtRoute:
+    """Return a taught route turning left at a constant curvature (1/m), `spacing` m between snapshots."""
+    along = np.arange(count) * spacing
+    headings = along * curvature
+    if curvature == 0:
+        positions = np.column_stack([along, np.zeros(count)])
+    else:
+        positions = np.column_stack([np.sin(headings), 1 - np.cos(headings)]) / curvature
+    return TaughtRoute.from_poses(yaw_poses(positions, headings))
+
+
+def test_taught_route_reads_headings_from_the_odometry_quaternions():
+    headings = np.array([0.0, 0.5, -2.0, 3.0])
+    route = TaughtRoute.from_poses(yaw_poses(np.zeros((4, 2)), headings))
+    assert route is not None and route.headings == pytest.approx(headings)
+    assert route.turn(1, 2) == pytest.approx(-2.5) and route.turn(2, 3) == pytest.approx(wrap_angle(5.0))
+    assert route.turn(0, 99) == pytest.approx(3.0)  # beyond the end: the last snapshot's heading
+    missing = yaw_poses(np.zeros((2, 2)), np.zeros(2))
+    missing[1, 0] = np.nan
+    assert TaughtRoute.from_poses(missing) is None  # a snapshot taught without odometry: no shape
+    assert TaughtRoute.from_poses(np.zeros((3, 5))) is None
+
+
+def test_taught_route_gives_positions_in_a_snapshots_frame():
+    route = TaughtRoute.from_poses(yaw_poses(np.array([[1.0, 1.0], [1.0, 2.0]]), np.array([math.pi / 2, 0.0])))
+    assert route.relative(0, 1) == pytest.approx([1.0, 0.0])  # facing +y, the next one lies straight ahead
+    assert route.relative(1, 0) == pytest.approx([0.0, -1.0])  # facing +x, the first lies to the right
+    assert STRAIGHT.relative(3, 9) == pytest.approx([0.6, 0.0])
+
+
+def test_a_home_vector_observes_the_offset_that_explains_it():
+    route = arc_route()
+    for offset in (-0.4, 0.0, 0.25):
+        for origin, index in ((10, 16), (40, 52)):
+            # the robot stands `offset` m left of snapshot `origin`; the true bearing of snapshot `index` from there
+            ahead, left = route.relative(origin, index)
+            bearing = math.atan2(left - offset, ahead)
+            assert observed_offset(route, origin, index, bearing) == pytest.approx(offset)
+    assert observed_offset(route, 10, 11, 0.0) is None  # 0.1 m ahead: too short a ruler
+    assert observed_offset(route, 10, 20, math.radians(80)) is None  # pointing across the route
+
+
+def test_cross_track_carries_the_offset_on_and_weighs_observations_by_confidence():
+    track = CrossTrack(noise=0.4, drift=0.03)
+    track.predict(1.0, math.radians(30))
+    assert track.offset == pytest.approx(0.5)
+    before = track.variance
+    assert track.correct(0.3, 0.5)
+    pulled = 0.5 - track.offset
+    assert 0 < pulled < 0.2 and track.variance < before
+    sure = CrossTrack(noise=0.4, drift=0.03, offset=0.5, variance=before)
+    sure.correct(0.3, 1.0)
+    assert 0.5 - sure.offset > pulled  # a more confident observation pulls harder
+    assert not track.correct(5.0, 1.0) and not track.correct(0.0, 0.0)  # far outside the estimate; no confidence
+
+
+def follow_curve(noise_deg: float, bias_deg: float, seed: int, offset: float = 0.3) -> np.ndarray:
+    """Drive the follower along an arc route with scripted, noisy home vectors; return the true offsets (m).
+
+    The home vectors' bias changes sign every 2 m along the route, as a scene's would from place to place.
+    """
+    route, rng = arc_route(), np.random.default_rng(seed)
+    follower = RouteFollower(-1, len(route) - 1, LIMITS, Settings(), route)
+    # start `offset` m left of the first snapshot, turned 20 degrees left
+    position = route.positions[0] + offset * np.array([0.0, 1.0])
+    heading, offsets = math.radians(20), []
+    for frame in range(400):
+        nearest = int(np.argmin(np.linalg.norm(route.positions - position, axis=1)))
+        frame_of = np.array([math.cos(route.headings[nearest]), math.sin(route.headings[nearest])])
+        away = position - route.positions[nearest]
+        offsets.append(float(frame_of[0] * away[1] - frame_of[1] * away[0]))
+        target = min(nearest + 6, len(route) - 1)
+        to_target = route.positions[target] - position
+        bearing = math.atan2(to_target[1], to_target[0]) - heading
+        bias = bias_deg if (nearest // 20) % 2 == 0 else -bias_deg
+        bearing += math.radians(rng.normal(bias, noise_deg))
+        view = follow_view(frame, nearest, route.headings[nearest] - heading, home=unit(bearing), residual=0.6)
+        view.home_index, view.odometry = target, None
+        step = follower.step(view)
+        if step.outcome:
+            break
+        heading += step.command.angular * FRAME / 1e9
+        position = position + step.command.linear * FRAME / 1e9 * np.array([math.cos(heading), math.sin(heading)])
+    assert step.outcome == REACHED
+    return np.abs(offsets)
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_follower_closes_a_start_offset_and_holds_the_route_through_noisy_home_vectors(seed):
+    offsets = follow_curve(noise_deg=20.0, bias_deg=0.0, seed=seed)
+    settled = offsets[len(offsets) // 3 :]  # a 0.3 m start offset closed within the first 4 m
+    assert offsets.max() <= 0.35 and np.median(settled) < 0.06 and settled.max() < 0.12
+
+
+def test_home_vectors_biased_from_place_to_place_move_the_robot_less_than_their_own_error():
+    # 10 degrees off, to the left then to the right every 2 m: taken alone, a home vector to the snapshot 0.6 m ahead
+    # puts the route 0.6 m * tan(10 deg) = 0.11 m aside
+    settled = follow_curve(noise_deg=5.0, bias_deg=10.0, seed=4)[100:]
+    assert np.median(settled) < 0.11 / 2
 
 
 def test_limits_bound_speed_turn_rate_and_their_changes():
@@ -78,18 +181,23 @@ def follow_view(frame: int, index: int, route_angle: float, accepted: bool = Tru
 
 
 def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_end():
-    follower = RouteFollower(-1, 20, LIMITS, Settings())
+    follower = RouteFollower(-1, 20, LIMITS, Settings(), STRAIGHT)
     steps = [follower.step(follow_view(f, 2 + f, 0.5)) for f in range(10)]
     assert all(s.state == FOLLOWING and not s.outcome for s in steps)
     linear = [s.command.linear for s in steps]
     angular = [s.command.angular for s in steps]
-    # from rest (the first frame has no time step), 0.05 m/s more per 0.1 s frame up to cos(heading error) * 0.4
-    assert linear[0] == 0.0 and np.all(np.diff(linear) >= 0) and np.all(np.diff(linear) <= 0.05 + 1e-12)
-    assert linear[6] == pytest.approx(0.3) and 0.3 < linear[-1] < 0.4
+    # from rest (the first frame has no time step), 0.05 m/s more per 0.1 s frame up to cos(heading error) * 0.4;
+    # the views say it never turns, so it drives off the route and turns and slows down more and more
+    assert (
+        linear[0] == 0.0
+        and np.all(np.diff(linear[:7]) == pytest.approx(0.05))
+        and np.all(np.diff(linear) <= 0.05 + 1e-12)
+    )
+    assert linear[6] == pytest.approx(0.3) and 0.25 < linear[-1] < 0.4 * math.cos(0.5)
     assert all(0 < a <= LIMITS.max_turn_rate for a in angular[1:])  # the route runs to the left: turn left
     assert steps[-1].matched_index == 11 and steps[-1].progress == pytest.approx(11 / 20)
     # the route runs to the right here: it turns right
-    right = RouteFollower(-1, 20, LIMITS, Settings())
+    right = RouteFollower(-1, 20, LIMITS, Settings(), STRAIGHT)
     assert all(right.step(follow_view(f, 3, -0.5)).command.angular <= 0 for f in range(5))
     # the end is matched: a zero command and success
     end = follower.step(follow_view(10, 19, 0.0))
@@ -97,7 +205,7 @@ def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_en
 
 
 def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
-    follower = RouteFollower(5, 30, LIMITS, Settings())
+    follower = RouteFollower(5, 30, LIMITS, Settings(), STRAIGHT)
     first = follower.step(follow_view(0, 25, 0.0))  # too far from start_index 5: not believed
     assert first.state == LOCALIZING and first.command.is_zero and first.matched_index == -1
     assert follower.step(follow_view(1, 6, 0.0)).matched_index == 6
@@ -109,7 +217,7 @@ def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
 
 def test_follower_recovers_then_gives_up_lost_with_a_zero_command():
     settings = Settings(lost_frames=4, recover_speed=0.25)
-    follower = RouteFollower(-1, 50, LIMITS, settings)
+    follower = RouteFollower(-1, 50, LIMITS, settings, STRAIGHT)
     for f in range(10):
         follower.step(follow_view(f, 3, 0.0))
     cruising = follower.step(follow_view(10, 3, 0.0)).command.linear
@@ -121,14 +229,14 @@ def test_follower_recovers_then_gives_up_lost_with_a_zero_command():
     assert all(s.command.angular == 0.0 for s in unsure[1:4])
     assert unsure[4].outcome == LOST and unsure[4].command.is_zero
     # one good frame while recovering resumes following
-    again = RouteFollower(-1, 50, LIMITS, settings)
+    again = RouteFollower(-1, 50, LIMITS, settings, STRAIGHT)
     again.step(follow_view(0, 3, 0.0))
     again.step(follow_view(1, 3, 0.0, accepted=False))
     assert again.step(follow_view(2, 4, 0.0)).state == FOLLOWING
 
 
 def test_follower_gives_up_after_the_recover_distance_by_odometry():
-    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=100, recover_distance=0.5))
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=100, recover_distance=0.5), STRAIGHT)
     follower.step(follow_view(0, 3, 0.0))
     outcomes = []
     for f in range(1, 6):
@@ -139,7 +247,7 @@ def test_follower_gives_up_after_the_recover_distance_by_odometry():
 
 
 def test_follower_never_localized_is_lost():
-    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=3))
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=3), STRAIGHT)
     steps = [follower.step(follow_view(f, 3, 0.0, accepted=False)) for f in range(4)]
     assert [s.outcome for s in steps] == ['', '', '', LOST]
     assert all(s.command.is_zero for s in steps)

@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 import yaml
 
-from skynav_core.maps import MapStore
+from skynav_core.maps import ODOM_POSE, MapStore
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.parameters import PARAMETERS
-from skynav_localize.teaching import ODOM_POSE
 from skynav_sim.closed_loop import truth_at
 
 LENGTH = 4.0  # m of route taught

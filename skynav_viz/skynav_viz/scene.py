@@ -2,7 +2,7 @@
 """The 3D scene of a camera frame: the taught route's snapshots, the matched one, the home vector, the route direction.
 
 Snapshot places come from the map (docs/interfaces.md, "Maps"): the odometry poses of base_link in `odom` that
-live teaching stored (the descriptor skynav_localize.teaching.ODOM_POSE) where the map has them, else the
+live teaching stored (the descriptor skynav_core.maps.ODOM_POSE) where the map has them, else the
 ground-truth poses of camera_link in `map` of a map built from a recording. base_link and camera_link share their
 axes, so a pose's rotation turns a direction of the snapshot's camera_link into the route's frame either way.
 
@@ -20,7 +20,6 @@ import numpy as np
 
 from skynav_core.maps import MapStore
 from skynav_core.rotations import as_matrix
-from skynav_localize.teaching import ODOM_POSE
 
 ODOM_FRAME, MAP_FRAME = 'odom', 'map'
 # state of a frame, as a plottable number (/skynav/viz/state)
@@ -70,10 +69,9 @@ class Scene:
 
 def route_of(store: MapStore) -> Route | None:
     """Return the poses of a map's snapshots: odometry where taught live, else ground truth; None without either."""
-    if ODOM_POSE in store.descriptor_names():
-        poses = np.asarray(store.descriptor_matrix(ODOM_POSE), float).reshape(len(store), -1)
-        if poses.shape[1] == 7 and np.isfinite(poses).all(axis=1).any():
-            return _route(ODOM_FRAME, poses)
+    poses = store.odometry_poses()
+    if poses is not None and poses.shape[1] == 7 and np.isfinite(poses).all(axis=1).any():
+        return _route(ODOM_FRAME, poses)
     poses = store.poses()
     if np.isfinite(poses).all(axis=1).any():
         return _route(MAP_FRAME, poses)

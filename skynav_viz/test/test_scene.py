@@ -5,9 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from skynav_core.maps import MapStore
+from skynav_core.maps import ODOM_POSE, MapStore
 from skynav_core.rotations import home_direction, relative_rotation
-from skynav_localize.teaching import ODOM_POSE
 from skynav_viz import scene
 
 DEGREE = 2
