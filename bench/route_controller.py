@@ -38,6 +38,7 @@ from skynav_msgs.action import FollowRoute  # noqa: E402
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients  # noqa: E402
 
 FRAME = 100_000_000  # ns between frames
+STRAIGHT = TaughtRoute(np.column_stack([np.arange(10**6 + 1) * 0.1, np.zeros(10**6 + 1)]), np.zeros(10**6 + 1))
 START = 1_750_000_000_000_000_000  # ns
 
 
@@ -53,7 +54,7 @@ def bench_core(frames: int) -> None:
     directions = rng.normal(size=(frames, 3))
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     for name, controller in (
-        ('route following', RouteFollower(-1, 10**6, Limits(), Settings(), TaughtRoute.straight(10**6 + 1))),
+        ('route following', RouteFollower(-1, 10**6, Limits(), Settings(), STRAIGHT)),
         ('homing', Homer(0, Limits(), Settings())),
     ):
         times = []
@@ -91,7 +92,7 @@ def bench_node(frames: int) -> None:
         specs = [s for s in installed_nodes() if s.name == 'route']
         with in_process(specs, ['-p', f'map:={path}', '-p', 'configure_peers:=false']) as graph:
             node = graph.nodes[0]
-            controller = RouteFollower(-1, 10**6, Limits(), Settings(), TaughtRoute.straight(10**6 + 1))
+            controller = RouteFollower(-1, 10**6, Limits(), Settings(), STRAIGHT)
             node.active = ActiveGoal(FollowRoute, Handle(), controller, Future())
             coefficients = list(rng.normal(size=289))
             times = []

@@ -13,11 +13,14 @@ snapshot was taught), and how far off am I. The last is the *cross-track offset*
 the route (m, left positive), kept by `CrossTrack`, a complementary filter: from frame to frame it is carried on by
 the distance driven (odometry, else the last command) along the heading relative to the route, which the compass
 measures precisely; each home vector to a snapshot a few places ahead, with the taught route's shape (`TaughtRoute`:
-the teach's odometry poses, else a straight line), observes it, and pulls the estimate by a share that grows with the
+the teach's odometry poses), observes it, and pulls the estimate by a share that grows with the
 vector's confidence 1 - residual. One home vector is a noisy and, over metres, biased ruler of the offset (its error
 is a few decimetres); the filter averages it over about `offset_memory` m of driving. The steering law is Stanley's
 in spirit: head along the route's direction a little ahead (`TaughtRoute.turn`), turned towards the route by
-atan(offset / `approach`), with a proportional turn-rate law and the speed falling as cos(error).
+atan(offset / `approach`), the route's curvature fed forward, with a proportional turn-rate law and the speed
+falling as cos(error). A map without the teach's odometry (built from a recording without /odom) has no shape to
+turn a home vector into an offset: there the robot steers along the sum of the route's direction and the home
+vector weighted by `homing_gain` times its confidence.
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
@@ -42,7 +45,6 @@ LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recove
 # outcomes of a step: '' goes on, the others end the goal
 GOING, REACHED, LOST = '', 'reached', 'lost'
 MAX_FRAME_GAP = 1.0  # s: a longer gap between frames counts as this much for the acceleration limits
-STRAIGHT_SPACING = 0.1  # m between snapshots of a route taught without odometry, taken as a straight line
 START_OFFSET_SIGMA = 0.3  # m: the cross-track offset's standard deviation before the first home vector
 MIN_RULER = 0.2  # m: a home vector observes the offset only to a snapshot at least this far ahead along the route
 MAX_RULER_ANGLE = math.radians(60)  # ...and only when it points within this angle of the route's direction
@@ -68,6 +70,7 @@ class Settings:
     offset_noise: float = 0.4  # m: standard deviation of a fully confident home vector's cross-track observation
     offset_drift: float = 0.03  # m: growth of the offset's standard deviation per square-root metre driven
     route_lead: int = 3  # snapshots ahead of the matched one over which the route's curvature is felt forward
+    homing_gain: float = 2.0  # without the route's shape: weight of a fully confident home vector against its direction
     unsure_residual: float = 0.97  # HomeVector.residual above this: no confident direction
     arrived_frames: int = 3  # homing: consecutive unsure home vectors that mean "arrived"...
     arrive_creep: float = 0.25  # m: ...once the robot has crept this far straight on through them (if it drove)
@@ -135,6 +138,14 @@ def ground_unit(direction: np.ndarray) -> np.ndarray:
     flat = np.asarray(direction, float)[:2]
     norm = float(np.linalg.norm(flat))
     return flat / norm if norm > 1e-9 else np.array([1.0, 0.0])
+
+
+def steering_angle(route: np.ndarray, home: np.ndarray | None, confidence: float, homing_gain: float) -> float:
+    """Return the ground angle (rad) to steer along: the route direction pulled towards the home vector."""
+    steer = ground_unit(route)
+    if home is not None:
+        steer = steer + homing_gain * max(0.0, min(1.0, confidence)) * ground_unit(home)
+    return float(math.atan2(steer[1], steer[0]))
 
 
 def pursue(error: float, speed: float, limits: Limits, settings: Settings) -> Command:
@@ -208,11 +219,6 @@ class TaughtRoute:
         x, y, z, w = poses[:, 3:].T
         return cls(poses[:, :2].copy(), np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
-    @classmethod
-    def straight(cls, count: int, spacing: float = STRAIGHT_SPACING) -> TaughtRoute:
-        """Return a straight route of `count` snapshots `spacing` m apart (a map taught without odometry)."""
-        return cls(np.column_stack([np.arange(count) * spacing, np.zeros(count)]), np.zeros(count))
-
     def __len__(self) -> int:
         return len(self.headings)
 
@@ -282,9 +288,10 @@ class RouteFollower:
     """Drives along a taught route from `start_index` (or wherever the robot is matched) to `end_index`."""
 
     def __init__(
-        self, start_index: int, end_index: int, limits: Limits, settings: Settings, route: TaughtRoute
+        self, start_index: int, end_index: int, limits: Limits, settings: Settings, route: TaughtRoute | None = None
     ) -> None:
-        """Follow snapshots start_index..end_index of `route` (start -1: the first accepted match places the robot)."""
+        """Follow snapshots start_index..end_index (start -1: the first accepted match places the robot) of a route
+        whose shape is `route` (None: unknown)."""
         self.start_index, self.end_index = start_index, end_index
         self.limits, self.settings, self.route = limits, settings, route
         self.cross_track = CrossTrack(settings.offset_noise, settings.offset_drift)
@@ -329,11 +336,9 @@ class RouteFollower:
             if self.unsure > self.settings.lost_frames:
                 return self._answer(self._motion.stop(view.stamp), view, LOST)
             return self._answer(self._motion.stop(view.stamp), view)
-        if matched and 0 <= view.rotation_index < len(self.route) and view.rotation is not None:
+        if matched and view.rotation is not None:
             self.unsure, self.recovered_distance, self.state = 0, 0.0, FOLLOWING
-            error = self._track(view, confidence)
-            desired = pursue(error, self.limits.max_speed, self.limits, self.settings)
-            desired.angular += desired.linear * self.route.curvature(view.rotation_index, self.settings.route_lead)
+            desired = self._steer(view, confidence)
             return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
         # unsure: creep straight on for a while, as a driver would, then give up
         self.unsure += 1
@@ -345,19 +350,26 @@ class RouteFollower:
         desired = Command(self.settings.recover_speed * self.limits.max_speed, 0.0)
         return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
 
-    def _track(self, view: View, confidence: float) -> float:
-        """Update the cross-track offset with one frame; return the heading error (rad) to steer away."""
+    def _steer(self, view: View, confidence: float) -> Command:
+        """Return the command of a frame with a compass estimate: by the cross-track offset where the route's shape
+        is known, else along the route's direction pulled towards the home vector."""
         assert view.rotation is not None
+        direction = route_direction(view.rotation)
         origin = view.rotation_index
-        relative = -ground_angle(route_direction(view.rotation))  # the robot's heading from the route's (rad)
+        if self.route is None or not 0 <= origin < len(self.route):
+            angle = steering_angle(direction, view.home_direction, confidence, self.settings.homing_gain)
+            return pursue(angle, self.limits.max_speed, self.limits, self.settings)
+        relative = -ground_angle(direction)  # the robot's heading from the route's (rad)
         self.cross_track.predict(self._motion.travelled(view), relative)
         if view.home_direction is not None and 0 <= view.home_index < len(self.route):
-            observed = observed_offset(
-                self.route, origin, view.home_index, relative + ground_angle(view.home_direction)
-            )
+            bearing = relative + ground_angle(view.home_direction)
+            observed = observed_offset(self.route, origin, view.home_index, bearing)
             if observed is not None:
                 self.cross_track.correct(observed, confidence)
-        return wrap_angle(-math.atan2(self.cross_track.offset, self.settings.approach) - relative)
+        error = wrap_angle(-math.atan2(self.cross_track.offset, self.settings.approach) - relative)
+        command = pursue(error, self.limits.max_speed, self.limits, self.settings)
+        command.angular += command.linear * self.route.curvature(origin, self.settings.route_lead)
+        return command
 
     def _answer(self, command: Command, view: View, outcome: str = GOING) -> Step:
         sure = view.home_direction is not None and not self.unsure

@@ -134,6 +134,7 @@ class RouteNode(SkynavNode):
             offset_noise=values['offset_noise'],
             offset_drift=values['offset_drift'],
             route_lead=values['route_lead'],
+            homing_gain=values['homing_gain'],
             unsure_residual=values['unsure_residual'],
             arrived_frames=values['arrived_frames'],
             arrive_creep=values['arrive_creep'],
@@ -286,21 +287,16 @@ class RouteNode(SkynavNode):
 
     # --- goals ----------------------------------------------------------------------------------
 
-    def open_map(self, map_path: str) -> tuple[TaughtRoute, str]:
-        """Return the taught route and path of the goal's map (its own, or the node's); raise MapError.
-
-        The route's shape is the teach's odometry where the map has it, else a straight line (logged).
-        """
+    def open_map(self, map_path: str) -> tuple[int, TaughtRoute | None, str]:
+        """Return the snapshot count, the route's shape (the teach's odometry; None without) and the path of the
+        goal's map (its own, or the node's); raise MapError."""
         path = map_path or self.values['map']
         if not path:
             raise MapError('no map: the goal names none and the route node has no `map` parameter')
         with MapStore.open(path) as store:
             count, poses = len(store), store.odometry_poses()
         route = TaughtRoute.from_poses(poses) if poses is not None else None
-        if route is None:
-            self.get_logger().info(f'{path}: no odometry poses of the teach; the route is taken as a straight line')
-            route = TaughtRoute.straight(count)
-        return route, str(path)
+        return count, route, str(path)
 
     async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
         """Set parameters of other nodes ({node: {name: value}}); a node that does not answer is logged and skipped."""
@@ -356,10 +352,9 @@ class RouteNode(SkynavNode):
         """Drive along the route of a FollowRoute goal."""
         goal, result = handle.request, FollowRoute.Result()
         try:
-            route, path = self.open_map(goal.map_path)
+            count, route, path = self.open_map(goal.map_path)
         except MapError as exc:
             return self.refuse(handle, result, FollowRoute.Result.NO_MAP, str(exc))
-        count = len(route)
         end = count - 1 if goal.end_index < 0 else goal.end_index
         if not math.isfinite(goal.max_speed):
             return self.refuse(handle, result, FollowRoute.Result.BAD_GOAL, 'max_speed is not finite')
@@ -369,6 +364,8 @@ class RouteNode(SkynavNode):
             )
         if goal.start_index >= 0 and goal.start_index > end:
             return self.refuse(handle, result, FollowRoute.Result.BAD_INDEX, 'start_index lies beyond end_index')
+        if route is None:
+            self.get_logger().info(f'{path}: no odometry of the teach: steering on the home vectors directly')
         controller = RouteFollower(goal.start_index, end, self.limits(goal.max_speed), self.settings, route)
         peers = self.peer_settings(
             path, {'reference': 'match'}, {'target': 'next', 'lookahead': self.values['lookahead']}
@@ -386,10 +383,9 @@ class RouteNode(SkynavNode):
         """Drive to the place of the Home goal's snapshot."""
         goal, result = handle.request, Home.Result()
         try:
-            route, path = self.open_map(goal.map_path)
+            count, _, path = self.open_map(goal.map_path)
         except MapError as exc:
             return self.refuse(handle, result, Home.Result.NO_MAP, str(exc))
-        count = len(route)
         if not math.isfinite(goal.max_speed):
             return self.refuse(handle, result, Home.Result.BAD_GOAL, 'max_speed is not finite')
         if not 0 <= goal.index < count:

@@ -27,6 +27,11 @@ PARAMETERS = {
         _SETTINGS.offset_drift,
         "route following: growth of the cross-track offset's standard deviation per square-root metre driven (m)",
     ),
+    'homing_gain': Parameter(
+        _SETTINGS.homing_gain,
+        "route following on a map without the teach's odometry: weight of a fully confident home vector against the "
+        "route's direction",
+    ),
     'route_lead': Parameter(
         _SETTINGS.route_lead, 'route following: head along the route as it runs this many snapshots ahead of the match'
     ),

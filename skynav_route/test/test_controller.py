@@ -23,12 +23,12 @@ from skynav_route.controller import (
     limit,
     observed_offset,
     route_direction,
+    steering_angle,
     wrap_angle,
 )
 
 FRAME = 100_000_000  # ns: frames 0.1 s apart
 LIMITS = Limits(max_speed=0.4, max_acceleration=0.5, max_turn_rate=1.0, max_turn_acceleration=4.0)
-STRAIGHT = TaughtRoute.straight(60)
 
 
 def compass_for(route_angle: float, tilt_deg: float = 0.0) -> np.ndarray:
@@ -59,6 +59,13 @@ def yaw_poses(positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
     return np.column_stack([positions, np.zeros(len(positions)), quaternions])
 
 
+def straight_route(count: int = 60, spacing: float = 0.1) -> TaughtRoute:
+    """Return a straight taught route along x, `spacing` m between snapshots."""
+    return TaughtRoute.from_poses(
+        yaw_poses(np.column_stack([np.arange(count) * spacing, np.zeros(count)]), np.zeros(count))
+    )
+
+
 def arc_route(count: int = 120, spacing: float = 0.1, curvature: float = 0.4) -> TaughtRoute:
     """Return a taught route turning left at a constant curvature (1/m), `spacing` m between snapshots."""
     along = np.arange(count) * spacing
@@ -86,7 +93,7 @@ def test_taught_route_gives_positions_in_a_snapshots_frame():
     route = TaughtRoute.from_poses(yaw_poses(np.array([[1.0, 1.0], [1.0, 2.0]]), np.array([math.pi / 2, 0.0])))
     assert route.relative(0, 1) == pytest.approx([1.0, 0.0])  # facing +y, the next one lies straight ahead
     assert route.relative(1, 0) == pytest.approx([0.0, -1.0])  # facing +x, the first lies to the right
-    assert STRAIGHT.relative(3, 9) == pytest.approx([0.6, 0.0])
+    assert straight_route().relative(3, 9) == pytest.approx([0.6, 0.0])
 
 
 def test_a_home_vector_observes_the_offset_that_explains_it():
@@ -160,6 +167,17 @@ def test_home_vectors_biased_from_place_to_place_move_the_robot_less_than_their_
     assert np.median(settled) < 0.11 / 2
 
 
+def test_without_the_routes_shape_the_home_vector_pulls_the_steering_by_its_confidence():
+    route, home = unit(0.0), unit(math.pi / 2)  # on course, but the route lies to the left
+    assert steering_angle(route, home, 0.0, 2.0) == pytest.approx(0.0)
+    assert steering_angle(route, None, 1.0, 2.0) == pytest.approx(0.0)
+    assert steering_angle(route, home, 0.5, 2.0) == pytest.approx(math.pi / 4)
+    assert steering_angle(route, home, 1.0, 2.0) == pytest.approx(math.atan2(2.0, 1.0))
+    follower = RouteFollower(-1, 20, LIMITS, Settings(homing_gain=2.0))  # a map without the teach's odometry
+    steps = [follower.step(follow_view(f, 3, 0.0, home=home, residual=0.5)) for f in range(3)]
+    assert steps[-1].command.angular == pytest.approx(min(1.5 * math.pi / 4, 2 * 0.4))  # within the turn acceleration
+
+
 def test_limits_bound_speed_turn_rate_and_their_changes():
     previous = Command(0.1, 0.0)
     assert limit(Command(5.0, 5.0), previous, 0.1, LIMITS) == Command(pytest.approx(0.15), pytest.approx(0.4))
@@ -181,7 +199,7 @@ def follow_view(frame: int, index: int, route_angle: float, accepted: bool = Tru
 
 
 def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_end():
-    follower = RouteFollower(-1, 20, LIMITS, Settings(), STRAIGHT)
+    follower = RouteFollower(-1, 20, LIMITS, Settings(), straight_route())
     steps = [follower.step(follow_view(f, 2 + f, 0.5)) for f in range(10)]
     assert all(s.state == FOLLOWING and not s.outcome for s in steps)
     linear = [s.command.linear for s in steps]
@@ -197,7 +215,7 @@ def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_en
     assert all(0 < a <= LIMITS.max_turn_rate for a in angular[1:])  # the route runs to the left: turn left
     assert steps[-1].matched_index == 11 and steps[-1].progress == pytest.approx(11 / 20)
     # the route runs to the right here: it turns right
-    right = RouteFollower(-1, 20, LIMITS, Settings(), STRAIGHT)
+    right = RouteFollower(-1, 20, LIMITS, Settings(), straight_route())
     assert all(right.step(follow_view(f, 3, -0.5)).command.angular <= 0 for f in range(5))
     # the end is matched: a zero command and success
     end = follower.step(follow_view(10, 19, 0.0))
@@ -205,7 +223,7 @@ def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_en
 
 
 def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
-    follower = RouteFollower(5, 30, LIMITS, Settings(), STRAIGHT)
+    follower = RouteFollower(5, 30, LIMITS, Settings(), straight_route())
     first = follower.step(follow_view(0, 25, 0.0))  # too far from start_index 5: not believed
     assert first.state == LOCALIZING and first.command.is_zero and first.matched_index == -1
     assert follower.step(follow_view(1, 6, 0.0)).matched_index == 6
@@ -217,7 +235,7 @@ def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
 
 def test_follower_recovers_then_gives_up_lost_with_a_zero_command():
     settings = Settings(lost_frames=4, recover_speed=0.25)
-    follower = RouteFollower(-1, 50, LIMITS, settings, STRAIGHT)
+    follower = RouteFollower(-1, 50, LIMITS, settings, straight_route())
     for f in range(10):
         follower.step(follow_view(f, 3, 0.0))
     cruising = follower.step(follow_view(10, 3, 0.0)).command.linear
@@ -229,14 +247,14 @@ def test_follower_recovers_then_gives_up_lost_with_a_zero_command():
     assert all(s.command.angular == 0.0 for s in unsure[1:4])
     assert unsure[4].outcome == LOST and unsure[4].command.is_zero
     # one good frame while recovering resumes following
-    again = RouteFollower(-1, 50, LIMITS, settings, STRAIGHT)
+    again = RouteFollower(-1, 50, LIMITS, settings, straight_route())
     again.step(follow_view(0, 3, 0.0))
     again.step(follow_view(1, 3, 0.0, accepted=False))
     assert again.step(follow_view(2, 4, 0.0)).state == FOLLOWING
 
 
 def test_follower_gives_up_after_the_recover_distance_by_odometry():
-    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=100, recover_distance=0.5), STRAIGHT)
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=100, recover_distance=0.5), straight_route())
     follower.step(follow_view(0, 3, 0.0))
     outcomes = []
     for f in range(1, 6):
@@ -247,7 +265,7 @@ def test_follower_gives_up_after_the_recover_distance_by_odometry():
 
 
 def test_follower_never_localized_is_lost():
-    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=3), STRAIGHT)
+    follower = RouteFollower(-1, 50, LIMITS, Settings(lost_frames=3), straight_route())
     steps = [follower.step(follow_view(f, 3, 0.0, accepted=False)) for f in range(4)]
     assert [s.outcome for s in steps] == ['', '', '', LOST]
     assert all(s.command.is_zero for s in steps)
