@@ -110,6 +110,14 @@ def tilt(rotation: RotationLike) -> np.ndarray | float:
     return float(angle) if np.ndim(angle) == 0 else angle
 
 
+def yaw(rotation: RotationLike) -> np.ndarray | float:
+    """Return the angle (rad, in [-pi, pi]) of rotations' twist about +z: the ZYZ alpha + gamma, the turn a tilt
+    disturbs least (a rotation Ta^-1 Rz(psi) Tb between cameras tilted by Ta and Tb gives psi to second order)."""
+    r = as_matrix(rotation)
+    angle = np.arctan2(r[..., 1, 0] - r[..., 0, 1], r[..., 0, 0] + r[..., 1, 1])
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
 def relative_rotation(snapshot_orientation: RotationLike, current_orientation: RotationLike) -> np.ndarray:
     """Return the compass rotations Q_s^-1 Q_c (..., 3, 3) from orientations of camera_link in map: d_s = R d_c."""
     return np.swapaxes(as_matrix(snapshot_orientation), -1, -2) @ as_matrix(current_orientation)

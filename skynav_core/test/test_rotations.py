@@ -17,6 +17,7 @@ from skynav_core.rotations import (
     relative_rotation,
     rotation_angle,
     tilt,
+    yaw,
     yaw_matrix,
     zyz_angles,
     zyz_matrix,
@@ -77,6 +78,36 @@ def test_tilt_is_the_zyz_beta_and_ignores_turns_about_z(seed):
         Rotation.from_euler('z', np.random.default_rng(seed).uniform(-np.pi, np.pi, (len(rotations), 1))) * rotations
     )
     np.testing.assert_allclose(tilt(turned), tilt(rotations), atol=1e-7)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seeds)
+def test_yaw_is_the_zyz_alpha_plus_gamma_and_a_turn_about_z_adds_to_it(seed):
+    rotations = random_rotations(seed, 20)
+    alpha, beta, gamma = zyz_angles(rotations)
+    keep = beta < np.radians(170)  # near beta = pi the twist about z is ill-defined
+    np.testing.assert_allclose(np.cos(yaw(rotations) - alpha - gamma)[keep], 1.0, atol=1e-9)
+    turns = np.random.default_rng(seed).uniform(-np.pi, np.pi, len(rotations))
+    turned = Rotation.from_euler('z', turns[:, None]) * rotations
+    np.testing.assert_allclose(np.cos(yaw(turned) - yaw(rotations) - turns)[keep], 1.0, atol=1e-9)
+
+
+def test_yaw_between_tilted_cameras_is_the_turn_to_second_order():
+    rng = np.random.default_rng(3)
+    for degrees in (5.0, 10.0, 20.0):
+        axes = rng.uniform(0, 2 * np.pi, (200, 2))
+        tilts = [
+            Rotation.from_rotvec(np.radians(degrees) * np.column_stack([np.cos(a), np.sin(a), np.zeros(200)]))
+            for a in axes.T
+        ]
+        turns = rng.uniform(-np.pi, np.pi, 200)
+        between = tilts[0].inv() * Rotation.from_euler('z', turns[:, None]) * tilts[1]
+        matrices = between.as_matrix()
+        error = np.abs(np.angle(np.exp(1j * (yaw(matrices) - turns))))
+        # the azimuth of the snapshot's forward axis seen from the tilted current camera, for comparison
+        projected = np.abs(np.angle(np.exp(1j * (-np.arctan2(matrices[:, 0, 1], matrices[:, 0, 0]) - turns))))
+        # both cameras tilted 20 degrees: 3.6 degrees at most, where the forward axis's azimuth is 8.9 degrees off
+        assert np.max(error) < 0.55 * np.radians(degrees) ** 2 and np.max(error) < np.max(projected) / 2
 
 
 @settings(max_examples=25, deadline=None)

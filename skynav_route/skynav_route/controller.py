@@ -7,20 +7,20 @@ Every direction is in base_link (= camera_link's axes: x forward, y left, z up).
 its azimuth atan2(y, x) in the robot's x-y plane (rad, left positive).
 
 Route following (`RouteFollower`): where am I (the accepted place match, never moving backwards along the route),
-which way does the route run here (the compass rotation R, d_snapshot = R d_current, carries the snapshot's
-forward axis e_x into the current view as R^T e_x, the first row of R: that was the driving direction when the
-snapshot was taught), and how far off am I. The last is the *cross-track offset*, the robot's signed distance from
-the route (m, left positive), kept by `CrossTrack`, a complementary filter: from frame to frame it is carried on by
-the distance driven (odometry, else the last command) along the heading relative to the route, which the compass
-measures precisely; each home vector to a snapshot a few places ahead, with the taught route's shape (`TaughtRoute`:
-the teach's odometry poses), observes it, and pulls the estimate by a share that grows with the
-vector's confidence 1 - residual. One home vector is a noisy and, over metres, biased ruler of the offset (its error
-is a few decimetres); the filter averages it over about `offset_memory` m of driving. The steering law is Stanley's
-in spirit: head along the route's direction a little ahead (`TaughtRoute.turn`), turned towards the route by
-atan(offset / `approach`), the route's curvature fed forward, with a proportional turn-rate law and the speed
-falling as cos(error). A map without the teach's odometry (built from a recording without /odom) has no shape to
-turn a home vector into an offset: there the robot steers along the sum of the route's direction and the home
-vector weighted by `homing_gain` times its confidence.
+which way does the route run here (the compass rotation R, d_snapshot = R d_current, against the matched snapshot:
+its twist about z, `yaw(R)`, is the robot's heading from the one the snapshot was taught with, the route's direction
+there), and how far off am I. The last is the *cross-track offset*, the robot's signed distance from the route
+(m, left positive), kept by `CrossTrack`, a Kalman filter of one state: from frame to frame it is carried on by the
+distance driven (odometry, else the last command) along the heading relative to the route, which the compass
+measures closely; each home vector to a snapshot a few places ahead, with the taught route's shape (`TaughtRoute`:
+the teach's odometry poses), observes it, with a weight that grows with the vector's confidence 1 - residual. One
+home vector is a noisy and, over metres, biased ruler of the offset (its error is a few decimetres); the filter
+averages it over metres of driving (`offset_noise` against `offset_drift`). The steering law is Stanley's in spirit:
+head along the route, turned towards it by atan(offset / `approach`), the route's curvature over `route_lead`
+snapshots fed forward, with a proportional turn-rate law and the speed falling as cos(error). A map without the
+teach's odometry (built from a recording without /odom) has no shape to turn a home vector into an offset: there
+the robot steers along the sum of the route's direction (the snapshot's forward axis R^T e_x, the first row of R,
+in the current view) and the home vector weighted by `homing_gain` times its confidence.
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
@@ -39,6 +39,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from skynav_core.rotations import yaw
 
 # states of the FollowRoute feedback (docs/interfaces.md)
 LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recovering', 'stopping'
@@ -359,7 +361,7 @@ class RouteFollower:
         if self.route is None or not 0 <= origin < len(self.route):
             angle = steering_angle(direction, view.home_direction, confidence, self.settings.homing_gain)
             return pursue(angle, self.limits.max_speed, self.limits, self.settings)
-        relative = -ground_angle(direction)  # the robot's heading from the route's (rad)
+        relative = float(yaw(view.rotation))  # the robot's heading from the route's (rad): R's twist about z
         self.cross_track.predict(self._motion.travelled(view), relative)
         if view.home_direction is not None and 0 <= view.home_index < len(self.route):
             bearing = relative + ground_angle(view.home_direction)
