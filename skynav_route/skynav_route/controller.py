@@ -356,9 +356,9 @@ class RouteFollower:
         """Return the command of a frame with a compass estimate: by the cross-track offset where the route's shape
         is known, else along the route's direction pulled towards the home vector."""
         assert view.rotation is not None
-        direction = route_direction(view.rotation)
         origin = view.rotation_index
         if self.route is None or not 0 <= origin < len(self.route):
+            direction = route_direction(view.rotation)
             angle = steering_angle(direction, view.home_direction, confidence, self.settings.homing_gain)
             return pursue(angle, self.limits.max_speed, self.limits, self.settings)
         relative = float(yaw(view.rotation))  # the robot's heading from the route's (rad): R's twist about z

@@ -33,7 +33,8 @@ PARAMETERS = {
         "route's direction",
     ),
     'route_lead': Parameter(
-        _SETTINGS.route_lead, 'route following: head along the route as it runs this many snapshots ahead of the match'
+        _SETTINGS.route_lead,
+        "route following: the route's curvature over this many snapshots from the match on is fed forward (turn rate)",
     ),
     'lookahead': Parameter(6, 'route following: how many snapshots beyond the matched one the warping node homes to'),
     'unsure_residual': Parameter(
