@@ -39,8 +39,8 @@ def test_translation_equals_resampling(ratio, record_property):
     # on the grid of degree L itself the reference is aliased; this is what a same-size resampling would cost
     coarse = resampled_translation(f, tau, DEGREE)
     aliased = np.linalg.norm(coarse - fine) / np.linalg.norm(fine)
-    record_property('relative_error', error)
-    record_property('same_grid_resampling_error', aliased)
+    record_property('relative_error', float(error))
+    record_property('same_grid_resampling_error', float(aliased))
     assert error < 1e-10
     assert aliased > 100 * error  # the operator is the better of the two
 
