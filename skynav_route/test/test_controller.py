@@ -67,13 +67,9 @@ def straight_route(count: int = 60, spacing: float = 0.1) -> TaughtRoute:
 
 
 def arc_route(count: int = 120, spacing: float = 0.1, curvature: float = 0.4) -> TaughtRoute:
-    """Return a taught route turning left at a constant curvature (1/m), `spacing` m between snapshots."""
-    along = np.arange(count) * spacing
-    headings = along * curvature
-    if curvature == 0:
-        positions = np.column_stack([along, np.zeros(count)])
-    else:
-        positions = np.column_stack([np.sin(headings), 1 - np.cos(headings)]) / curvature
+    """Return a taught route turning left on a circle of `curvature` (1/m, > 0), `spacing` m between snapshots."""
+    headings = np.arange(count) * spacing * curvature
+    positions = np.column_stack([np.sin(headings), 1 - np.cos(headings)]) / curvature
     return TaughtRoute.from_poses(yaw_poses(positions, headings))
 
 
