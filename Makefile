@@ -44,8 +44,10 @@ $(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
 	@touch $@
 
 ## test: lint, format and type checks, then every test, unit and replay, with pytest's summary
+# Two workers (the CI machine has two cores); a test file stays on one worker, so its fixtures are built once.
+TEST_WORKERS ?= 2
 test: lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
 
 ## lint: ruff's lint and format checks and mypy (configuration: ruff.toml, mypy.ini)
 lint: setup
