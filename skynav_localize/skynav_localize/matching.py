@@ -412,6 +412,13 @@ class RouteTracker:
         self.place: float | None = None  # the tracked place, m along the route
         self.travelled: float | None = None  # the drive's odometry path length at the previous view, m
 
+    def start_at(self, index: int) -> None:
+        """Place the robot at snapshot `index` (where a FollowRoute goal starts) as if a match there had been accepted:
+        the first window is near it."""
+        self.reset()
+        self.anchor = index
+        self.place = None if self.route is None else float(self.route[index])
+
     def _step(self, travelled: float | None) -> float | None:
         """Return the odometry's step (m) from the previous view to this one; None without odometry."""
         if travelled is None or self.travelled is None:

@@ -8,7 +8,8 @@ be opened is refused (the old one stays). Without a usable map every match is in
 A view without a skyline (all sky or all ground in its field of view) is matched but never accepted,
 nor is a match on a snapshot without one. Where the route looks alike, a sequence's match is accepted
 only if it moves along the route with the robot (matching, the module notes). With `tracking` (set by the route
-node while it follows the route) each view is sought near the last accepted match.
+node while it follows the route) each view is sought near the last accepted match, or from the first view near
+`tracking_start` (the snapshot the FollowRoute goal starts at).
 
 The node also serves the Teach action /skynav/teach (teach_server), in a live graph and in an in-process one
 (the simulator's) alike: while a goal runs, the views it takes (and /odom) become snapshots of a new map, which
@@ -107,6 +108,10 @@ class LocalizeNode(SkynavNode):
                 store.close()
             raise ValueError(str(exc)) from None
         localizer.tracking = bool(values['tracking'])
+        if not -1 <= values['tracking_start'] < len(store):
+            raise ValueError(f'tracking_start must be -1 or a snapshot of the map (0..{len(store) - 1})')
+        if localizer.tracking and values['tracking_start'] >= 0:
+            localizer.tracker.start_at(values['tracking_start'])
         self.localizer = localizer
         if self.store is not None and self.store is not store:
             self.store.close()

@@ -36,6 +36,11 @@ PARAMETERS = {
         'seek each view near the last accepted match, as a robot following the route is (sequence methods; the '
         'route node sets it for a FollowRoute goal)',
     ),
+    'tracking_start': Parameter(
+        -1,
+        'with tracking: the snapshot the robot starts at, sought near from the first view (the FollowRoute '
+        "goal's start_index); -1: wherever its first accepted match places it",
+    ),
     'candidates': Parameter(5, 'runners-up in each match'),
     'max_degree': Parameter(DESCRIPTOR_DEGREE, 'SH degree of the place descriptors (views and map are cut to it)'),
     'teach_spacing': Parameter(DEFAULT_SPACING, 'Teach goals: m of travel between snapshots when the goal says <= 0'),

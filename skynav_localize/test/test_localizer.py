@@ -273,6 +273,23 @@ def test_tracking_follows_a_route_past_its_look_alikes(route_back, odometry):
     assert np.all(np.abs(index[accepted] - truth[accepted]) <= 2)
 
 
+def test_tracking_from_a_start_places_the_robot_where_the_route_looks_alike(route_back):
+    # standing at snapshot 30, whose twin is snapshot 110: the ratio tests refuse every view, and a start names the
+    # place. The same views tracked from snapshot 110 (the goal says so) are sought there instead
+    store, coefficients = route_back
+    rng = np.random.default_rng(8)
+    views = coefficients[30] + 0.01 * rng.standard_normal((5, coefficients.shape[1]))
+    for start, twin in ((30, 110), (110, 30)):
+        localizer = Localizer(store, 'amplitude-seq')
+        localizer.tracking = True
+        localizer.tracker.start_at(start)
+        matches = [localizer.query(v, travelled=0.0) for v in views]
+        assert all(m.accepted for m in matches)
+        assert all(abs(m.index - start) <= 2 for m in matches) and not any(abs(m.index - twin) <= 2 for m in matches)
+    untracked = Localizer(store, 'amplitude-seq')
+    assert not any(untracked.query(v).accepted for v in views)
+
+
 def test_tracking_starts_only_from_an_accepted_match(route_back):
     # on the look-alike stretch from the start, nothing was accepted yet: tracking has no place to seek near
     store, coefficients = route_back

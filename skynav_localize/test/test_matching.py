@@ -320,6 +320,20 @@ def test_tracking_window_without_odometry_counts_views_and_ends():
     assert tracker.window(None) is None
 
 
+@pytest.mark.parametrize('odometry', [True, False], ids=['odometry', 'views'])
+def test_tracking_from_a_start_seeks_the_first_view_near_it(odometry):
+    route = 0.1 * np.arange(100)
+    tracker = RouteTracker(SequenceParams(), route if odometry else None)
+    tracker.start_at(60)
+    first, last = tracker.window(5.0 if odometry else None)  # the first view: no step of the odometry yet
+    assert first <= 60 <= last and last - first <= 2 * MOTION_SLACK + SequenceParams().max_speed + 1
+    tracker.update(61, True, 5.0 if odometry else None)
+    first, last = tracker.window(5.1 if odometry else None)
+    assert first <= 62 <= last and first > 50  # from then on as after an accepted match
+    tracker.reset()
+    assert tracker.window(5.1 if odometry else None) is None
+
+
 def test_tracking_window_ends_at_the_route_end():
     route = 0.1 * np.arange(50)
     tracker = RouteTracker(SequenceParams(), route)

@@ -13,8 +13,8 @@ the next subscriber hears it, at the frame's own /skyline/sh). The command comes
 
 For each goal it sets the compass and warping nodes' snapshot choice through their parameters (following: the
 compass against the match, the warping node `lookahead` snapshots ahead; homing: both against the goal's index),
-localize's `tracking` while it follows the route (each view sought near the last accepted match; off again when the
-goal ends) and, for a goal naming another map, the `map` of localize, compass and warping.
+localize's `tracking` while it follows the route (each view sought near the last accepted match, the first ones
+near the goal's start_index when it names one; off again when the goal ends) and, for a goal naming another map, the `map` of localize, compass and warping.
 
 The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
 frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s.
@@ -370,12 +370,13 @@ class RouteNode(SkynavNode):
         peers = self.peer_settings(
             path, {'reference': 'match'}, {'target': 'next', 'lookahead': self.values['lookahead']}
         )
-        peers.setdefault('localize', {})['tracking'] = True
+        # a goal with a start: the robot stands there, and localize seeks its first views near that snapshot
+        peers.setdefault('localize', {}).update(tracking=True, tracking_start=goal.start_index)
         outcome, active = await self.run_goal(FollowRoute, handle, controller, peers)
         if active is None:
             return self.refuse(handle, result, FollowRoute.Result.BUSY, 'another follow or home goal is running')
         if outcome != SHUTDOWN:  # off the route the place is sought on the whole route again
-            await self.configure_peers({'localize': {'tracking': False}})
+            await self.configure_peers({'localize': {'tracking': False, 'tracking_start': -1}})
         result.reached_index = max(controller.matched, -1)
         return self.conclude(handle, result, outcome, active, FollowRoute.Result)
 

@@ -413,8 +413,10 @@ def follow_route(
     route: np.ndarray | None = None,
     clouds: float = 0.0,
     progress: Callable[[], None] | None = None,
+    start_index: int = 0,
 ) -> tuple[Run, np.ndarray]:
-    """Follow the route of a map from `start` with a FollowRoute goal to its last snapshot.
+    """Follow the route of a map from `start` with a FollowRoute goal from snapshot `start_index` (-1: wherever
+    localization places the robot) to its last snapshot.
 
     Returns the run and the route (snapshot positions x, y in m: the map's poses unless `route` gives the true
     ones of a taught map; for scoring only, the loop never sees them). The sky has `clouds` cover; `progress` is
@@ -432,7 +434,7 @@ def follow_route(
         base.slip,
         base.odometry_noise,
     )
-    goal = FollowRoute.Goal(map_path='', start_index=-1, end_index=-1, max_speed=SPEED)
+    goal = FollowRoute.Goal(map_path='', start_index=start_index, end_index=-1, max_speed=SPEED)
     with in_process(graph_specs(), arguments) as graph:
         run = drive_goal(
             graph, simulation, mower, (FollowRoute, '/skynav/follow_route'), goal, route[-1], max_frames, progress

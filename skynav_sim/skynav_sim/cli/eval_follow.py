@@ -30,9 +30,10 @@ DEFAULT_SEEDS = (2, 4)  # world seeds not used to tune the controller (garden se
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval follow`."""
-    from .options import add_closed_loop_arguments
+    from .options import add_closed_loop_arguments, add_start_argument
 
     add_closed_loop_arguments(parser, DEFAULT_SEEDS, 'follow')
+    add_start_argument(parser)
     parser.add_argument('--length', type=float, default=50.0, metavar='M', help='route length (default 50 m)')
     parser.add_argument(
         '--offset', type=float, default=0.3, metavar='M', help="start this far left of the route's start (0.3)"
@@ -81,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     print(
         f'route following (synthetic): {len(pairs)} runs of {args.length:g} m routes, taught at {teach_hours:.1f} h '
         f'clear, followed at {hours:.1f} h with cloud cover {args.clouds:g}, from {args.offset:+.2f} m beside the '
-        f'start turned {args.turn:+.0f} deg',
+        f'start turned {args.turn:+.0f} deg'
+        + (', placed by localization' if args.start_index < 0 else ''),
         flush=True,
     )
     began = time.monotonic()
@@ -154,6 +156,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
         route=route,
         clouds=args.clouds,
         progress=progress,
+        start_index=args.start_index,
     )
     path = np.array(run.path)
     error, along = cross_track(path, route)

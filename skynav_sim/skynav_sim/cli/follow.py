@@ -22,6 +22,8 @@ END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim follow`."""
+    from .options import add_start_argument
+
     parser.add_argument(
         'teach',
         type=Path,
@@ -44,6 +46,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="start turned this far left of the route's direction (default 20)",
     )
     parser.add_argument('--time', default='morning', help='time of day of the run (default morning)')
+    add_start_argument(parser)
     parser.add_argument(
         '--max-frames',
         type=int,
@@ -161,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
         base=Base(args.slip, args.odometry_noise),
         bump_tilt=args.bump_tilt,
         route=route,
+        start_index=args.start_index,
     )
     deviation = route_deviation(run, route)
     end = float(np.linalg.norm(run.path[-1] - route[-1]))

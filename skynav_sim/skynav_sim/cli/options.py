@@ -189,6 +189,19 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int,
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
 
 
+def add_start_argument(parser: argparse.ArgumentParser) -> None:
+    """Add --from, the FollowRoute goal's start_index."""
+    parser.add_argument(
+        '--from',
+        dest='start_index',
+        type=int,
+        default=0,
+        choices=(0, -1),
+        help="the goal's start snapshot (default 0: the mower stands at the route's start and the goal says so, as "
+        'when it leaves its dock; -1: wherever localization places it)',
+    )
+
+
 def check_closed_loop_arguments(args: argparse.Namespace) -> tuple[float, float]:
     """Raise CliError (exit 2) for unknown worlds, no seeds, a cloud cover or a time that is malformed; return the
     teach's and the run's time of day (h)."""
