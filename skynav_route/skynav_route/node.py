@@ -14,7 +14,8 @@ the next subscriber hears it, at the frame's own /skyline/sh). The command comes
 For each goal it sets the compass and warping nodes' snapshot choice through their parameters (following: the
 compass against the match, the warping node `lookahead` snapshots ahead; homing: both against the goal's index),
 localize's `tracking` while it follows the route (each view sought near the last accepted match, the first ones
-near the goal's start_index when it names one; off again when the goal ends) and, for a goal naming another map, the `map` of localize, compass and warping.
+near the goal's start_index when it names one; off again when the goal ends) and, for a goal naming another map,
+the `map` of localize, compass and warping.
 
 The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
 frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s.

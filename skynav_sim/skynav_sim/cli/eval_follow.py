@@ -82,8 +82,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f'route following (synthetic): {len(pairs)} runs of {args.length:g} m routes, taught at {teach_hours:.1f} h '
         f'clear, followed at {hours:.1f} h with cloud cover {args.clouds:g}, from {args.offset:+.2f} m beside the '
-        f'start turned {args.turn:+.0f} deg'
-        + (', placed by localization' if args.start_index < 0 else ''),
+        f'start turned {args.turn:+.0f} deg' + (', placed by localization' if args.start_index < 0 else ''),
         flush=True,
     )
     began = time.monotonic()
