@@ -64,6 +64,11 @@ def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
     )
 
 
+def wrap_angle(angle: float) -> float:
+    """Return an angle (rad) wrapped into [-pi, pi)."""
+    return float((angle + np.pi) % (2 * np.pi) - np.pi)
+
+
 def yaw_matrix(angle) -> np.ndarray:
     """Return Rz(angle) (..., 3, 3): the turn by angle (rad) about +z, counter-clockwise seen from +z."""
     c, s = np.cos(angle), np.sin(angle)

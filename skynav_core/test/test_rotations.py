@@ -17,6 +17,7 @@ from skynav_core.rotations import (
     relative_rotation,
     rotation_angle,
     tilt,
+    wrap_angle,
     yaw,
     yaw_matrix,
     zyz_angles,
@@ -164,3 +165,11 @@ def test_importing_the_rotations_leaves_scipy_spatial_unloaded():
     # the stage nodes import this module at start-up; scipy.spatial loads on the first quaternion instead
     check = "import sys, skynav_core.rotations; sys.exit('scipy.spatial' in sys.modules)"
     assert subprocess.run([sys.executable, '-c', check]).returncode == 0
+
+
+@pytest.mark.parametrize('angle', [0.0, 1.0, -1.0, np.pi, -np.pi, 3 * np.pi, 7.5, -7.5, 1e3])
+def test_wrap_angle_lands_in_minus_pi_to_pi_and_keeps_the_direction(angle):
+    wrapped = wrap_angle(angle)
+    assert isinstance(wrapped, float) and -np.pi <= wrapped < np.pi
+    assert np.cos(wrapped) == pytest.approx(np.cos(angle), abs=1e-9)
+    assert np.sin(wrapped) == pytest.approx(np.sin(angle), abs=1e-9)

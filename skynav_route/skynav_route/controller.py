@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from skynav_core.rotations import yaw
+from skynav_core.rotations import wrap_angle, yaw
 
 # states of the FollowRoute feedback (docs/interfaces.md)
 LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recovering', 'stopping'
@@ -192,11 +192,6 @@ class _Motion:
         """Return a zero command (a stop is never rate-limited) and remember it."""
         self.command, self.stamp = Command(), stamp
         return Command()
-
-
-def wrap_angle(angle: float) -> float:
-    """Return an angle (rad) wrapped into [-pi, pi)."""
-    return float((angle + math.pi) % (2 * math.pi) - math.pi)
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,9 @@ from skynav_route.controller import (
     observed_offset,
     route_direction,
     steering_angle,
-    wrap_angle,
 )
+
+from skynav_core.rotations import wrap_angle
 
 FRAME = 100_000_000  # ns: frames 0.1 s apart
 LIMITS = Limits(max_speed=0.4, max_acceleration=0.5, max_turn_rate=1.0, max_turn_acceleration=4.0)

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_core.rotations import wrap_angle
+
 from .world import World
 
 
@@ -38,17 +40,12 @@ class Pose2D:
             radius = distance / turn
             dx, dy = radius * math.sin(turn), radius * (1.0 - math.cos(turn))
         c, s = math.cos(self.heading), math.sin(self.heading)
-        return Pose2D(self.x + c * dx - s * dy, self.y + s * dx + c * dy, _wrap(self.heading + turn))
+        return Pose2D(self.x + c * dx - s * dy, self.y + s * dx + c * dy, wrap_angle(self.heading + turn))
 
     @property
     def position(self) -> np.ndarray:
         """Return (x, y) in m."""
         return np.array([self.x, self.y])
-
-
-def _wrap(angle: float) -> float:
-    """Return an angle in (-pi, pi]."""
-    return float(math.atan2(math.sin(angle), math.cos(angle)))
 
 
 class Mower:
