@@ -234,6 +234,7 @@ class Localizer:
         #: accepted match (matching, the module notes)
         self.tracking = False
         self.tracker = RouteTracker(self.sequence, route_odometry(store), slack)
+        self._start: int | None = None  # where the robot stands until a match is accepted (track_from)
         self._local_step: np.ndarray | None = None
         self._look_alike: np.ndarray | None = None
 
@@ -314,6 +315,14 @@ class Localizer:
             self._buffer.clear()
         self._history.clear()
         self.tracker.reset()
+        if self._start is not None:
+            self.tracker.start_at(self._start)
+
+    def track_from(self, start: int) -> None:
+        """Track the route from snapshot `start`, where the robot stands: the views are sought near it until one is
+        accepted (a reset of the history keeps it)."""
+        self.tracking, self._start = True, start
+        self.tracker.start_at(start)
 
     def self_similarity(self, indices: np.ndarray) -> np.ndarray:
         """Return the self-similarity (matching.self_similarity) of the map's snapshots at indices (any shape).
@@ -411,6 +420,8 @@ class Localizer:
                 accepted = accepted and bool(passed[-1])
             self._history.append((index, vouched))
         self.tracker.update(index, accepted, travelled)
+        if accepted:
+            self._start = None
         if window is not None and accepted and (tracked := self.tracker.nearest()) is not None:
             index = tracked  # the place the odometry carries on and the views correct (candidates: the view's own)
             best_distance = distances[[index]]

@@ -111,7 +111,7 @@ class LocalizeNode(SkynavNode):
         if not -1 <= values['tracking_start'] < len(store):
             raise ValueError(f'tracking_start must be -1 or a snapshot of the map (0..{len(store) - 1})')
         if localizer.tracking and values['tracking_start'] >= 0:
-            localizer.tracker.start_at(values['tracking_start'])
+            localizer.track_from(values['tracking_start'])
         self.localizer = localizer
         if self.store is not None and self.store is not store:
             self.store.close()

@@ -281,8 +281,8 @@ def test_tracking_from_a_start_places_the_robot_where_the_route_looks_alike(rout
     views = coefficients[30] + 0.01 * rng.standard_normal((5, coefficients.shape[1]))
     for start, twin in ((30, 110), (110, 30)):
         localizer = Localizer(store, 'amplitude-seq')
-        localizer.tracking = True
-        localizer.tracker.start_at(start)
+        localizer.track_from(start)
+        localizer.reset()  # a gap in the views before the first: the robot still stands at the start
         matches = [localizer.query(v, travelled=0.0) for v in views]
         assert all(m.accepted for m in matches)
         assert all(abs(m.index - start) <= 2 for m in matches) and not any(abs(m.index - twin) <= 2 for m in matches)

@@ -16,6 +16,7 @@ from skynav_core.nodes import NodeSpec
 from skynav_core.testing import run_skynav
 from skynav_core.views import recording_views
 from skynav_localize.evaluation import correct_matches
+from skynav_localize.matching import MOTION_SLACK
 
 BAGS = Path(__file__).parents[2] / 'bags'
 SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
@@ -118,6 +119,27 @@ def test_self_similarity_bound_is_a_parameter(garden_map):
             np.array([m.index for m in matches]), np.stack([v.pose[:3] for v in views]), store.positions(), 1.0
         )
     assert np.count_nonzero(strict) >= 12 and correct[strict].all()
+
+
+def test_tracking_start_is_where_the_first_views_are_sought(garden_map):
+    # the route node passes a FollowRoute goal's start_index: the node trusts it, so views of the route's start
+    # tracked from its last snapshot are matched there; a start the map does not have is refused
+    views = recording_views(BAGS / 'synthetic_garden_repeat.mcap', images=False).views[:4]
+    with MapStore.open(garden_map) as store:
+        last = len(store) - 1
+    with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        placed = feed(graph, views, start=10**18)
+        assert all(m.accepted and m.index < last // 2 for m in placed)
+        assert node.set_parameters([Parameter('tracking', value=True)])[0].successful
+        refused = node.set_parameters([Parameter('tracking_start', value=last + 1)])[0]
+        assert not refused.successful and 'tracking_start' in refused.reason
+        assert node.set_parameters([Parameter('tracking_start', value=last)])[0].successful
+        tracked = feed(graph, views, start=2 * 10**18)
+    # the first within the window about the start; then each may slip MOTION_SLACK back towards the views' place
+    assert tracked[0].index >= last - MOTION_SLACK
+    assert all(m.accepted and m.index > last // 2 for m in tracked)
 
 
 def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
