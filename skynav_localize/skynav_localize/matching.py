@@ -49,6 +49,10 @@ place descriptors of skynav and the baselines share one code path.
   synthetic follow runs, taught at 8.5 h, followed at 6.2 h under clouds: 0.45-0.7 within 4 m of the start, the
   views resembling snapshots 0.5 m behind them), and where the route comes back near its start the sequence's
   ratio does (0.57); a follower without tracking lost its place within 5 m on 4 of 6 routes of 50 m.
+- The start: a robot that follows a route from its start (a FollowRoute goal naming start_index) is placed there
+  (RouteTracker.start_at), as if a match had been accepted, until its first accepted match. Where the route ends
+  near its start, a standing robot's views resemble both ends and every ratio test refuses them (synthetic garden
+  seed 7: 11 of 11 views matched snapshot 396 of 428, none accepted, and the goal ended LOST at the start).
 """
 
 from __future__ import annotations
