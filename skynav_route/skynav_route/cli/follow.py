@@ -27,7 +27,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=-1,
         metavar='I',
-        help='start snapshot (default: wherever localization places the robot)',
+        help="the snapshot the robot stands at (e.g. 0 at the route's start: its first views are sought there; "
+        'default: wherever localization places the robot)',
     )
     parser.add_argument('--to', dest='end', type=int, default=-1, metavar='J', help='end snapshot (default: the last)')
     parser.add_argument('--max-speed', type=float, default=0.0, metavar='M/S', help="speed limit (default: the node's)")
