@@ -379,7 +379,10 @@ class RouteNode(SkynavNode):
         if outcome != SHUTDOWN:  # off the route the place is sought on the whole route again
             await self.configure_peers({'localize': {'tracking': False, 'tracking_start': -1}})
         result.reached_index = max(controller.matched, -1)
-        return self.conclude(handle, result, outcome, active, FollowRoute.Result)
+        unplaced = None if controller.matched >= 0 else 'lost: no view was placed on the route, the robot never moved'
+        if unplaced and goal.start_index < 0:
+            unplaced += ' (where it stands at a known snapshot, give it as start_index: skynav follow --from I)'
+        return self.conclude(handle, result, outcome, active, FollowRoute.Result, unplaced)
 
     async def execute_home(self, handle: Any) -> Home.Result:
         """Drive to the place of the Home goal's snapshot."""
@@ -410,11 +413,14 @@ class RouteNode(SkynavNode):
         handle.abort()
         return result
 
-    def conclude(self, handle: Any, result: Any, outcome: str, goal: ActiveGoal, codes: Any) -> Any:
-        """Fill a finished goal's result and end its handle by the outcome."""
+    def conclude(
+        self, handle: Any, result: Any, outcome: str, goal: ActiveGoal, codes: Any, lost: str | None = None
+    ) -> Any:
+        """Fill a finished goal's result and end its handle by the outcome (`lost`: the text of LOST, if not the
+        usual one)."""
         result.driven_length = float(goal.driven)
         texts = {
-            LOST: (codes.LOST, 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
+            LOST: (codes.LOST, lost or 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
             STALE: (codes.STALE_INPUT, f'no usable frame for {self.values["input_timeout"]} s'),
             TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {self.values["goal_timeout"]} s'),
             SHUTDOWN: (codes.LOST, 'the route node shut down'),

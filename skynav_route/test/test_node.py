@@ -175,6 +175,25 @@ def test_stale_inputs_stop_the_robot_and_abort(route_map):
             driver.close()
 
 
+@pytest.mark.parametrize('start', [-1, 0])
+def test_a_robot_never_placed_on_the_route_is_lost_where_it_stands(route_map, start):
+    with route_graph(route_map, 'lost_frames:=3') as graph:
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(
+                FollowRoute, '/skynav/follow_route', FollowRoute.Goal(start_index=start, end_index=-1)
+            )
+            for _ in range(4):
+                driver.publish_frame(accepted=False)
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'LOST' and 'never moved' in outcome.error_msg
+            assert ('--from' in outcome.error_msg) == (start < 0)  # the hint only where no start was given
+            assert outcome.reached_index == -1 and all(is_zero(c) for c in driver.commands)
+        finally:
+            driver.close()
+
+
 def test_lost_stops_the_robot_and_aborts(route_map):
     with route_graph(route_map, 'lost_frames:=3') as graph:
         driver = Driver(graph)
