@@ -11,7 +11,7 @@ camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Union
+from typing import TYPE_CHECKING, Union, overload
 
 import numpy as np
 
@@ -64,9 +64,14 @@ def zyz_matrix(alpha, beta, gamma) -> np.ndarray:
     )
 
 
-def wrap_angle(angle: float) -> float:
-    """Return an angle (rad) wrapped into [-pi, pi)."""
-    return float((angle + np.pi) % (2 * np.pi) - np.pi)
+@overload
+def wrap_angle(angle: float) -> float: ...
+@overload
+def wrap_angle(angle: np.ndarray) -> np.ndarray: ...
+def wrap_angle(angle: float | np.ndarray) -> float | np.ndarray:
+    """Return angles (rad, a scalar or an array) wrapped into [-pi, pi)."""
+    wrapped = (np.asarray(angle, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+    return float(wrapped) if np.ndim(wrapped) == 0 else wrapped
 
 
 def yaw_matrix(angle) -> np.ndarray:

@@ -104,9 +104,9 @@ def test_yaw_between_tilted_cameras_is_the_turn_to_second_order():
         turns = rng.uniform(-np.pi, np.pi, 200)
         between = tilts[0].inv() * Rotation.from_euler('z', turns[:, None]) * tilts[1]
         matrices = between.as_matrix()
-        error = np.abs(np.angle(np.exp(1j * (yaw(matrices) - turns))))
+        error = np.abs(wrap_angle(yaw(matrices) - turns))
         # the azimuth of the snapshot's forward axis seen from the tilted current camera, for comparison
-        projected = np.abs(np.angle(np.exp(1j * (-np.arctan2(matrices[:, 0, 1], matrices[:, 0, 0]) - turns))))
+        projected = np.abs(wrap_angle(-np.arctan2(matrices[:, 0, 1], matrices[:, 0, 0]) - turns))
         # both cameras tilted 20 degrees: 3.6 degrees at most, where the forward axis's azimuth is 8.9 degrees off
         assert np.max(error) < 0.55 * np.radians(degrees) ** 2 and np.max(error) < np.max(projected) / 2
 
@@ -173,3 +173,10 @@ def test_wrap_angle_lands_in_minus_pi_to_pi_and_keeps_the_direction(angle):
     assert isinstance(wrapped, float) and -np.pi <= wrapped < np.pi
     assert np.cos(wrapped) == pytest.approx(np.cos(angle), abs=1e-9)
     assert np.sin(wrapped) == pytest.approx(np.sin(angle), abs=1e-9)
+
+
+def test_wrap_angle_broadcasts_over_arrays_as_over_scalars():
+    angles = np.array([[0.0, np.pi, -np.pi], [3 * np.pi, 7.5, -7.5]])
+    wrapped = wrap_angle(angles)
+    assert wrapped.shape == angles.shape
+    np.testing.assert_array_equal(wrapped, np.vectorize(wrap_angle)(angles))
