@@ -6,21 +6,23 @@ Pure numpy, no ROS: the node (skynav_route.node) turns messages into `View`s and
 Every direction is in base_link (= camera_link's axes: x forward, y left, z up). A direction's *ground angle* is
 its azimuth atan2(y, x) in the robot's x-y plane (rad, left positive).
 
-Route following (`RouteFollower`): where am I (the accepted place match, never moving backwards along the route),
-which way does the route run here (the compass rotation R, d_snapshot = R d_current, against the matched snapshot:
-its twist about z, `yaw(R)`, is the robot's heading from the one the snapshot was taught with, the route's direction
-there), and how far off am I. The last is the *cross-track offset*, the robot's signed distance from the route
-(m, left positive), kept by `CrossTrack`, a Kalman filter of one state: from frame to frame it is carried on by the
-distance driven (odometry, else the last command) along the heading relative to the route, which the compass
-measures closely; each home vector to a snapshot a few places ahead, with the taught route's shape (`TaughtRoute`:
-the teach's odometry poses), observes it, with a weight that grows with the vector's confidence 1 - residual. One
-home vector is a noisy and, over metres, biased ruler of the offset (its error is a few decimetres); the filter
-averages it over metres of driving (`offset_noise` against `offset_drift`). The steering law is Stanley's in spirit:
-head along the route, turned towards it by atan(offset / `approach`), the route's curvature over `route_lead`
-snapshots fed forward, with a proportional turn-rate law and the speed falling as cos(error). A map without the
-teach's odometry (built from a recording without /odom) has no shape to turn a home vector into an offset: there
-the robot steers along the sum of the route's direction (the snapshot's forward axis R^T e_x, the first row of R,
-in the current view) and the home vector weighted by `homing_gain` times its confidence.
+Route following (`RouteFollower`): where am I, and which way does the route run there? The robot's heading in the
+teach's odometry frame is known closely: the compass rotation R (d_snapshot = R d_current) against the matched
+snapshot twists about z by `yaw(R)` from the heading that snapshot was taught with (`TaughtRoute`: the teach's
+odometry poses). Its ground position in that frame is kept by `RoutePosition`, a Kalman filter of two states:
+from frame to frame it is carried on by the distance driven (odometry, else the last command) along that heading;
+each accepted place match puts the robot level with its snapshot along the route (`match_noise`); each home vector
+to a snapshot a few places ahead puts that snapshot on the line of sight (`bearing_noise`, weighted by the
+vector's confidence 1 - residual). One home vector is a noisy and, over metres, biased ruler (its bearing is off
+by tens of degrees where the scene is poor); the filter averages it over metres of driving against the odometry
+(`odometry_drift`, `odometry_noise`). The nearest point of the route's polyline to that position gives the
+*cross-track offset* (m, left positive) and the route's direction there, so that a match a few decimetres ahead
+on a bend bends neither. The steering law is Stanley's in spirit: head along the route, turned towards it by
+atan(offset / `approach`), the route's curvature over `route_lead` snapshots fed forward, with a proportional
+turn-rate law and the speed falling as cos(error). A map without the teach's odometry (built from a recording
+without /odom) has no shape to place the robot on: there the robot steers along the sum of the route's direction
+(the snapshot's forward axis R^T e_x, the first row of R, in the current view) and the home vector weighted by
+`homing_gain` times its confidence.
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
@@ -47,10 +49,11 @@ LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recove
 # outcomes of a step: '' goes on, the others end the goal
 GOING, REACHED, LOST = '', 'reached', 'lost'
 MAX_FRAME_GAP = 1.0  # s: a longer gap between frames counts as this much for the acceleration limits
-START_OFFSET_SIGMA = 0.3  # m: the cross-track offset's standard deviation before the first home vector
-MIN_RULER = 0.2  # m: a home vector observes the offset only to a snapshot at least this far ahead along the route
-MAX_RULER_ANGLE = math.radians(60)  # ...and only when it points within this angle of the route's direction
-GATE_SIGMAS = 3.0  # an offset observation further than this many standard deviations from the estimate is ignored
+START_ALONG_SIGMA = 0.5  # m: standard deviation of the position along the route when the first match places the robot
+START_OFFSET_SIGMA = 0.3  # m: ...and across it
+MIN_SIGHT = 0.3  # m: a home vector's line of sight is trusted no better than one to a snapshot this far away
+GATE_SIGMAS = 3.0  # a home vector whose line of sight is further than this many standard deviations is ignored
+LOCATE_WINDOW = 10  # snapshots either side of the last nearest one where the nearest point of the route is sought
 
 
 @dataclass(frozen=True)
@@ -69,8 +72,10 @@ class Settings:
 
     heading_gain: float = 1.5  # rad/s of turn rate per rad of heading error
     approach: float = 1.0  # m: route following turns towards the route by atan(cross-track offset / approach)
-    offset_noise: float = 0.4  # m: standard deviation of a fully confident home vector's cross-track observation
-    offset_drift: float = 0.03  # m: growth of the offset's standard deviation per square-root metre driven
+    bearing_noise: float = 1.0  # rad: standard deviation of a fully confident home vector's bearing
+    match_noise: float = 0.6  # m: standard deviation of an accepted place match's position along the route
+    odometry_drift: float = 0.01  # m: growth of the position's standard deviation per square-root metre driven
+    odometry_noise: float = 0.05  # standard deviation of the distance driven, as a share of it
     route_lead: int = 3  # snapshots ahead of the matched one over which the route's curvature is felt forward
     homing_gain: float = 2.0  # without the route's shape: weight of a fully confident home vector against its direction
     unsure_residual: float = 0.97  # HomeVector.residual above this: no confident direction
@@ -219,12 +224,6 @@ class TaughtRoute:
     def __len__(self) -> int:
         return len(self.headings)
 
-    def relative(self, origin: int, index: int) -> np.ndarray:
-        """Return snapshot `index`'s ground position (m) in snapshot `origin`'s frame (x along its heading, y left)."""
-        c, s = math.cos(self.headings[origin]), math.sin(self.headings[origin])
-        dx, dy = self.positions[index] - self.positions[origin]
-        return np.array([c * dx + s * dy, -s * dx + c * dy])
-
     def curvature(self, origin: int, span: int) -> float:
         """Return the route's mean curvature (1/m, left positive) over `span` snapshots from `origin` on (0 if none)."""
         index = min(origin + max(span, 1), len(self) - 1)
@@ -237,48 +236,102 @@ class TaughtRoute:
         return wrap_angle(float(self.headings[index] - self.headings[origin]))
 
 
-@dataclass
-class CrossTrack:
-    """The robot's signed distance from the route (m, left positive): a Kalman filter of one state.
+@dataclass(frozen=True)
+class Placement:
+    """Where a ground position lies against the taught route: the nearest point of the route and the offset from it."""
 
-    Predict: the offset moves by the distance driven times the sine of the heading relative to the route, and its
-    variance grows by `drift`^2 per metre. Correct: an observation with standard deviation `noise` / sqrt(weight).
+    along: float  # the nearest point, as a fractional snapshot index
+    offset: float  # m: the signed distance from the route (left positive)
+    heading: float  # rad: the route's direction at the nearest point, in the teach's odometry frame
+
+
+def locate(route: TaughtRoute, position: np.ndarray, near: int) -> Placement:
+    """Return where a ground position (m, the teach's odometry frame) lies against the route's polyline, sought
+    within LOCATE_WINDOW snapshots of snapshot `near` (so that a route passing close to itself is never confused)."""
+    lo = min(max(near - LOCATE_WINDOW, 0), len(route) - 2)
+    hi = min(max(near + LOCATE_WINDOW, lo + 1), len(route) - 1)
+    start, end = route.positions[lo:hi], route.positions[lo + 1 : hi + 1]
+    chord = end - start
+    length2 = np.einsum('ij,ij->i', chord, chord)
+    share = np.clip(np.einsum('ij,ij->i', position - start, chord) / np.maximum(length2, 1e-12), 0.0, 1.0)
+    nearest = start + share[:, None] * chord
+    k = int(np.argmin(np.linalg.norm(position - nearest, axis=1)))
+    if length2[k] > 1e-12:
+        heading = math.atan2(chord[k, 1], chord[k, 0])
+    else:  # the teach stood still between two snapshots: its own heading there
+        heading = float(route.headings[lo + k])
+    away = position - nearest[k]
+    offset = math.cos(heading) * away[1] - math.sin(heading) * away[0]
+    return Placement(lo + k + float(share[k]), float(offset), heading)
+
+
+def ground_direction(angle: float) -> np.ndarray:
+    """Return the unit (x, y) vector at ground angle `angle` (rad)."""
+    return np.array([math.cos(angle), math.sin(angle)])
+
+
+@dataclass
+class RoutePosition:
+    """The robot's ground position (m) in the teach's odometry frame: a Kalman filter of two states.
+
+    The robot's heading in that frame is known from the compass (a snapshot's taught heading plus the compass's
+    twist), so each observation is one line the position lies on: a place match puts the robot level with its
+    snapshot along the route, a home vector puts its snapshot on the line of sight. Predict: the position moves
+    by the distance driven along the heading; its covariance grows by `drift`^2 per metre in every direction and
+    by (`scale_noise` * distance)^2 along the heading (wheel slip, odometry's scale).
     """
 
-    noise: float
+    position: np.ndarray  # (2,) m
+    covariance: np.ndarray  # (2, 2) m^2
     drift: float
-    offset: float = 0.0
-    variance: float = START_OFFSET_SIGMA**2
+    scale_noise: float
 
-    def predict(self, distance: float, relative_heading: float) -> None:
-        """Carry the offset on over `distance` m driven at `relative_heading` (rad) to the route's direction."""
-        self.offset += distance * math.sin(relative_heading)
-        self.variance += self.drift**2 * abs(distance)
+    @classmethod
+    def at_snapshot(cls, route: TaughtRoute, index: int, drift: float, scale_noise: float) -> RoutePosition:
+        """Return a robot placed at snapshot `index` (standard deviations: START_ALONG_SIGMA, START_OFFSET_SIGMA)."""
+        along, across = ground_direction(route.headings[index]), ground_direction(route.headings[index] + math.pi / 2)
+        covariance = START_ALONG_SIGMA**2 * np.outer(along, along) + START_OFFSET_SIGMA**2 * np.outer(across, across)
+        return cls(route.positions[index].copy(), covariance, drift, scale_noise)
 
-    def correct(self, observed: float, weight: float) -> bool:
-        """Pull the offset towards an observation (m) of confidence `weight` in (0, 1]; False if it was gated out."""
-        if weight <= 0 or not math.isfinite(observed):
+    def predict(self, distance: float, heading: float) -> None:
+        """Move the position by `distance` m driven at `heading` (rad, the teach's odometry frame)."""
+        forward = ground_direction(heading)
+        self.position = self.position + distance * forward
+        self.covariance = (
+            self.covariance
+            + self.drift**2 * abs(distance) * np.eye(2)
+            + (self.scale_noise * distance) ** 2 * np.outer(forward, forward)
+        )
+
+    def correct(self, normal: np.ndarray, value: float, sigma: float, gate: bool = True) -> bool:
+        """Pull the position towards the line normal . position = value (m, standard deviation `sigma` m); False if
+        `gate` and the line lies further than GATE_SIGMAS standard deviations from the estimate."""
+        if not (math.isfinite(value) and math.isfinite(sigma) and sigma > 0):
             return False
-        noise = self.noise**2 / weight
-        innovation = observed - self.offset
-        if innovation**2 > GATE_SIGMAS**2 * (self.variance + noise):
+        innovation = value - float(normal @ self.position)
+        spread = float(normal @ self.covariance @ normal) + sigma**2
+        if gate and innovation**2 > GATE_SIGMAS**2 * spread:
             return False
-        gain = self.variance / (self.variance + noise)
-        self.offset += gain * innovation
-        self.variance *= 1.0 - gain
+        gain = self.covariance @ normal / spread
+        self.position = self.position + gain * innovation
+        self.covariance = self.covariance - np.outer(gain, normal @ self.covariance)
         return True
 
+    def observe_match(self, route: TaughtRoute, index: int, sigma: float) -> None:
+        """Take a place match at snapshot `index`: the robot is level with it along the route (within `sigma` m)."""
+        along = ground_direction(route.headings[index])
+        self.correct(along, float(along @ route.positions[index]), sigma, gate=False)
 
-def observed_offset(route: TaughtRoute, origin: int, index: int, bearing: float) -> float | None:
-    """Return the cross-track offset (m) at snapshot `origin` that puts snapshot `index` at `bearing` (rad, relative
-    to the route's direction at `origin`); None when that snapshot is too near or the bearing too far off the route.
-
-    The robot is taken to stand level with `origin` along the route (the matched snapshot).
-    """
-    ahead, left = route.relative(origin, index)
-    if ahead < MIN_RULER or abs(bearing) > MAX_RULER_ANGLE:
-        return None
-    return float(left - ahead * math.tan(bearing))
+    def observe_home(self, route: TaughtRoute, index: int, bearing: float, sigma: float, confidence: float) -> bool:
+        """Take a home vector to snapshot `index` at `bearing` (rad, the teach's odometry frame): the snapshot lies on
+        the line of sight, to within `sigma` rad times its distance over the root of `confidence` in (0, 1]; False
+        if it was not taken (no confidence, the snapshot behind the line of sight, or gated out)."""
+        sight = route.positions[index] - self.position
+        if confidence <= 0 or float(sight @ ground_direction(bearing)) <= 0:
+            return False
+        normal = ground_direction(bearing + math.pi / 2)
+        distance = max(float(np.linalg.norm(sight)), MIN_SIGHT)
+        return self.correct(normal, float(normal @ route.positions[index]), sigma * distance / math.sqrt(confidence))
 
 
 class RouteFollower:
@@ -291,7 +344,9 @@ class RouteFollower:
         whose shape is `route` (None: unknown)."""
         self.start_index, self.end_index = start_index, end_index
         self.limits, self.settings, self.route = limits, settings, route
-        self.cross_track = CrossTrack(settings.offset_noise, settings.offset_drift)
+        self.position: RoutePosition | None = None  # where the robot is, once it was placed and had a compass
+        self.heading = 0.0  # rad: its last heading by the compass, in the teach's odometry frame
+        self.nearest = 0  # the snapshot nearest to it
         self.matched = -1  # furthest snapshot believed passed
         self.unsure = 0
         self.recovered_distance = 0.0
@@ -340,6 +395,8 @@ class RouteFollower:
         # unsure: creep straight on for a while, as a driver would, then give up
         self.unsure += 1
         self.recovered_distance += view.odometry or 0.0
+        if self.position is not None:  # the robot creeps straight on: carry its position on along its last heading
+            self.position.predict(self._motion.travelled(view), self.heading)
         if self.unsure > self.settings.lost_frames or self.recovered_distance > self.settings.recover_distance:
             self.state = STOPPING
             return self._answer(self._motion.stop(view.stamp), view, LOST)
@@ -352,20 +409,28 @@ class RouteFollower:
         is known, else along the route's direction pulled towards the home vector."""
         assert view.rotation is not None
         origin = view.rotation_index
-        if self.route is None or not 0 <= origin < len(self.route):
+        if self.route is None or len(self.route) < 2 or not 0 <= origin < len(self.route):
             direction = route_direction(view.rotation)
             angle = steering_angle(direction, view.home_direction, confidence, self.settings.homing_gain)
             return pursue(angle, self.limits.max_speed, self.limits, self.settings)
-        relative = float(yaw(view.rotation))  # the robot's heading from the route's (rad): R's twist about z
-        self.cross_track.predict(self._motion.travelled(view), relative)
-        if view.home_direction is not None and 0 <= view.home_index < len(self.route):
-            bearing = relative + ground_angle(view.home_direction)
-            observed = observed_offset(self.route, origin, view.home_index, bearing)
-            if observed is not None:
-                self.cross_track.correct(observed, confidence)
-        error = wrap_angle(-math.atan2(self.cross_track.offset, self.settings.approach) - relative)
-        command = pursue(error, self.limits.max_speed, self.limits, self.settings)
-        command.angular += command.linear * self.route.curvature(origin, self.settings.route_lead)
+        settings, route = self.settings, self.route
+        heading = self.heading = float(route.headings[origin] + yaw(view.rotation))  # the teach's odometry frame
+        if self.position is None:
+            self.position = RoutePosition.at_snapshot(route, origin, settings.odometry_drift, settings.odometry_noise)
+            self.nearest = origin
+        else:
+            self.position.predict(self._motion.travelled(view), heading)
+        if 0 <= view.match_index < len(route):
+            self.position.observe_match(route, view.match_index, settings.match_noise)
+        if view.home_direction is not None and 0 <= view.home_index < len(route):
+            bearing = heading + ground_angle(view.home_direction)
+            self.position.observe_home(route, view.home_index, bearing, settings.bearing_noise, confidence)
+        place = locate(route, self.position.position, self.nearest)
+        self.nearest = round(place.along)
+        relative = wrap_angle(heading - place.heading)  # the robot's heading from the route's (rad)
+        error = wrap_angle(-math.atan2(place.offset, settings.approach) - relative)
+        command = pursue(error, self.limits.max_speed, self.limits, settings)
+        command.angular += command.linear * route.curvature(int(place.along), settings.route_lead)
         return command
 
     def _answer(self, command: Command, view: View, outcome: str = GOING) -> Step:

@@ -126,14 +126,16 @@ class RouteNode(SkynavNode):
             raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
         if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:
             raise ValueError('lost_frames and arrived_frames must be at least 1, lookahead not negative')
-        if values['approach'] <= 0 or values['offset_noise'] <= 0 or values['route_lead'] < 0:
-            raise ValueError('approach and offset_noise must be more than 0, route_lead not negative')
+        if min(values['approach'], values['bearing_noise'], values['match_noise']) <= 0 or values['route_lead'] < 0:
+            raise ValueError('approach, bearing_noise and match_noise must be more than 0, route_lead not negative')
         self.values = values
         self.settings = Settings(
             heading_gain=values['heading_gain'],
             approach=values['approach'],
-            offset_noise=values['offset_noise'],
-            offset_drift=values['offset_drift'],
+            bearing_noise=values['bearing_noise'],
+            match_noise=values['match_noise'],
+            odometry_drift=values['odometry_drift'],
+            odometry_noise=values['odometry_noise'],
             route_lead=values['route_lead'],
             homing_gain=values['homing_gain'],
             unsure_residual=values['unsure_residual'],

@@ -19,13 +19,20 @@ PARAMETERS = {
     'approach': Parameter(
         _SETTINGS.approach, 'route following: turn towards the route by atan(cross-track offset / approach) (m)'
     ),
-    'offset_noise': Parameter(
-        _SETTINGS.offset_noise,
-        "route following: standard deviation (m) of a fully confident home vector's cross-track offset observation",
+    'bearing_noise': Parameter(
+        _SETTINGS.bearing_noise, "route following: standard deviation (rad) of a fully confident home vector's bearing"
     ),
-    'offset_drift': Parameter(
-        _SETTINGS.offset_drift,
-        "route following: growth of the cross-track offset's standard deviation per square-root metre driven (m)",
+    'match_noise': Parameter(
+        _SETTINGS.match_noise,
+        "route following: standard deviation (m) of an accepted place match's position along the route",
+    ),
+    'odometry_drift': Parameter(
+        _SETTINGS.odometry_drift,
+        "route following: growth of the position's standard deviation per square-root metre driven (m); raise it "
+        'where the compass is degrees off',
+    ),
+    'odometry_noise': Parameter(
+        _SETTINGS.odometry_noise, 'route following: standard deviation of the distance driven, as a share of it'
     ),
     'homing_gain': Parameter(
         _SETTINGS.homing_gain,

@@ -13,15 +13,15 @@ from skynav_route.controller import (
     REACHED,
     RECOVERING,
     Command,
-    CrossTrack,
     Homer,
     Limits,
     RouteFollower,
+    RoutePosition,
     Settings,
     TaughtRoute,
     View,
     limit,
-    observed_offset,
+    locate,
     route_direction,
     steering_angle,
 )
@@ -86,37 +86,70 @@ def test_taught_route_reads_headings_from_the_odometry_quaternions():
     assert TaughtRoute.from_poses(np.zeros((3, 5))) is None
 
 
-def test_taught_route_gives_positions_in_a_snapshots_frame():
-    route = TaughtRoute.from_poses(yaw_poses(np.array([[1.0, 1.0], [1.0, 2.0]]), np.array([math.pi / 2, 0.0])))
-    assert route.relative(0, 1) == pytest.approx([1.0, 0.0])  # facing +y, the next one lies straight ahead
-    assert route.relative(1, 0) == pytest.approx([0.0, -1.0])  # facing +x, the first lies to the right
-    assert straight_route().relative(3, 9) == pytest.approx([0.6, 0.0])
+def test_locate_gives_the_nearest_point_of_the_route_and_the_signed_offset_from_it():
+    route, curvature = arc_route(), 0.4
+    for along, offset in ((12.0, 0.3), (40.5, -0.2), (75.25, 0.0)):
+        heading = along * 0.1 * curvature
+        left = np.array([-math.sin(heading), math.cos(heading)])
+        point = np.array([math.sin(heading), 1 - math.cos(heading)]) / curvature  # on the arc
+        place = locate(route, point + offset * left, near=int(along) + 3)
+        # the polyline's chords lie within 0.1^2 * 0.4 / 8 = 0.5 mm of the arc; at a vertex, 0.3 m beside it, the
+        # nearest point slides 0.3 m * 0.04 rad / 2 = 6 mm (0.06 snapshots) along
+        assert place.along == pytest.approx(along, abs=0.1) and place.offset == pytest.approx(offset, abs=2e-3)
+        assert place.heading == pytest.approx(heading, abs=0.1 * curvature / 2 + 1e-9)
+    assert locate(route, np.array([-1.0, 0.0]), near=0).along == 0.0  # before the start: the first snapshot
 
 
-def test_a_home_vector_observes_the_offset_that_explains_it():
-    route = arc_route()
-    for offset in (-0.4, 0.0, 0.25):
-        for origin, index in ((10, 16), (40, 52)):
-            # the robot stands `offset` m left of snapshot `origin`; the true bearing of snapshot `index` from there
-            ahead, left = route.relative(origin, index)
-            bearing = math.atan2(left - offset, ahead)
-            assert observed_offset(route, origin, index, bearing) == pytest.approx(offset)
-    assert observed_offset(route, 10, 11, 0.0) is None  # 0.1 m ahead: too short a ruler
-    assert observed_offset(route, 10, 20, math.radians(80)) is None  # pointing across the route
+def test_locate_keeps_to_the_stretch_of_the_route_it_was_on():
+    # out along x and back 0.4 m to the left: the two legs' points are nearer each other than to their neighbours
+    out = np.column_stack([np.arange(30) * 0.1, np.zeros(30)])
+    back = np.column_stack([np.arange(29, -1, -1) * 0.1, np.full(30, 0.4)])
+    route = TaughtRoute.from_poses(yaw_poses(np.vstack([out, back]), np.r_[np.zeros(30), np.full(30, math.pi)]))
+    between = np.array([1.0, 0.25])  # 0.25 m left of the way out, 0.15 m right of the way back
+    on_the_way_out = locate(route, between, near=10)
+    assert on_the_way_out.along == pytest.approx(10.0) and on_the_way_out.offset == pytest.approx(0.25)
+    on_the_way_back = locate(route, between, near=49)
+    assert on_the_way_back.along == pytest.approx(49.0) and on_the_way_back.offset == pytest.approx(0.15)
+    assert on_the_way_back.heading == pytest.approx(math.pi)
 
 
-def test_cross_track_carries_the_offset_on_and_weighs_observations_by_confidence():
-    track = CrossTrack(noise=0.4, drift=0.03)
-    track.predict(1.0, math.radians(30))
-    assert track.offset == pytest.approx(0.5)
-    before = track.variance
-    assert track.correct(0.3, 0.5)
-    pulled = 0.5 - track.offset
-    assert 0 < pulled < 0.2 and track.variance < before
-    sure = CrossTrack(noise=0.4, drift=0.03, offset=0.5, variance=before)
-    sure.correct(0.3, 1.0)
-    assert 0.5 - sure.offset > pulled  # a more confident observation pulls harder
-    assert not track.correct(5.0, 1.0) and not track.correct(0.0, 0.0)  # far outside the estimate; no confidence
+def test_route_position_moves_by_odometry_and_its_uncertainty_grows_most_along_the_heading():
+    route = straight_route()
+    position = RoutePosition.at_snapshot(route, 10, drift=0.01, scale_noise=0.05)
+    assert position.position == pytest.approx([1.0, 0.0])
+    before = position.covariance.copy()
+    position.predict(2.0, math.pi / 2)
+    assert position.position == pytest.approx([1.0, 2.0])
+    grown = np.diag(position.covariance - before)
+    assert grown[1] > grown[0] > 0  # the distance's own noise adds along the heading (y)
+
+
+def test_a_place_match_moves_the_position_along_the_route_only():
+    route = straight_route()
+    position = RoutePosition(np.array([1.5, 0.2]), np.diag([0.25, 0.09]), drift=0.01, scale_noise=0.05)
+    position.observe_match(route, 10, sigma=0.5)  # snapshot 10 stands at x = 1 m
+    assert 1.0 < position.position[0] < 1.5 and position.position[1] == pytest.approx(0.2)
+
+
+def test_a_home_vector_pulls_the_position_towards_its_line_of_sight_by_its_confidence():
+    route = straight_route()
+    true = np.array([1.0, 0.3])  # the robot stands 0.3 m left of snapshot 10; it sees snapshot 16 at this bearing
+    sight = route.positions[16] - true
+    bearing = math.atan2(sight[1], sight[0])
+
+    def after(confidence: float) -> RoutePosition:
+        position = RoutePosition(np.array([1.0, 0.0]), np.diag([0.25, 0.09]), drift=0.01, scale_noise=0.05)
+        assert position.observe_home(route, 16, bearing, sigma=1.0, confidence=confidence)
+        return position
+
+    weak, strong = after(0.3), after(1.0)
+    assert 0.0 < weak.position[1] < strong.position[1] < 0.3  # towards the truth, harder when more confident
+    assert np.trace(strong.covariance) < np.trace(weak.covariance)
+    position = RoutePosition(np.array([1.0, 0.0]), np.diag([0.25, 0.09]), drift=0.01, scale_noise=0.05)
+    assert not position.observe_home(route, 16, bearing + math.pi, 1.0, 1.0)  # the snapshot behind its line of sight
+    assert not position.observe_home(route, 16, bearing, 1.0, 0.0)  # no confidence
+    assert not position.observe_home(route, 40, math.radians(60), 0.05, 1.0)  # far outside the estimate: gated out
+    assert position.position == pytest.approx([1.0, 0.0])
 
 
 def follow_curve(noise_deg: float, bias_deg: float, seed: int, offset: float = 0.3) -> np.ndarray:
