@@ -8,6 +8,7 @@ import time
 import pytest
 
 from skynav_core.actions import ERROR_NONE, error_codes, error_name
+from skynav_core.testing import on_executor_thread
 
 # The fields of each action exactly as the contract writes them: (goal, result, feedback), name -> rosidl type.
 CONTRACT = {
@@ -91,7 +92,7 @@ def test_messages_round_trip_through_cdr(name):
 def test_a_goal_round_trips_through_an_action_server(ros_context):
     """A Teach goal sent by a client reaches a server, which sends feedback and a result back (rclpy.action)."""
     from rclpy.action import ActionClient, ActionServer
-    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
     teach = action_type('Teach')
@@ -107,7 +108,7 @@ def test_a_goal_round_trips_through_an_action_server(ros_context):
     client_node = Node('teach_client', context=ros_context)
     server = ActionServer(server_node, teach, '/skynav/teach', execute)
     client = ActionClient(client_node, teach, '/skynav/teach')
-    executor = MultiThreadedExecutor(context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(server_node)
     executor.add_node(client_node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -116,13 +117,15 @@ def test_a_goal_round_trips_through_an_action_server(ros_context):
         assert client.wait_for_server(timeout_sec=20)
         feedback = []
         goal = teach.Goal(map_path='/tmp/x.db', map_name='x', spacing=0.2, max_length=3.0, overwrite=True)
-        future = client.send_goal_async(goal, feedback_callback=lambda message: feedback.append(message.feedback))
+        future = on_executor_thread(
+            executor, lambda: client.send_goal_async(goal, feedback_callback=lambda m: feedback.append(m.feedback))
+        )
         deadline = time.monotonic() + 20
         while not future.done() and time.monotonic() < deadline:
             time.sleep(0.01)
         handle = future.result()
         assert handle.accepted
-        result_future = handle.get_result_async()
+        result_future = on_executor_thread(executor, handle.get_result_async)
         while not result_future.done() and time.monotonic() < deadline:
             time.sleep(0.01)
         result = result_future.result().result

@@ -10,8 +10,10 @@ import random
 import subprocess
 import sys
 import tempfile
+import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypeVar
 
 import numpy as np
 import yaml
@@ -43,6 +45,25 @@ def claim_domain_id() -> tuple[int, IO]:
             continue
         return domain, lock
     raise RuntimeError(f'every ROS domain id in {TEST_DOMAINS} is held by another test run')
+
+
+T = TypeVar('T')
+
+
+def on_executor_thread(executor: Any, call: Callable[[], T], timeout: float = 30.0) -> T:
+    """Return what `call()` returns, run on the thread that spins `executor` (an rclpy executor spinning elsewhere).
+
+    Make every action-client call (send_goal_async, get_result_async, cancel_goal_async) of a client spun by another
+    thread this way: Jazzy's rclpy drops an answer that is taken before the call has registered its request, and
+    its future never completes (ros2/rclpy#1123); on the spinning thread no answer can be taken in between.
+    """
+    task = executor.create_task(call)
+    deadline = time.monotonic() + timeout
+    while not task.done():
+        if time.monotonic() > deadline:
+            raise AssertionError(f'the executor did not run the call within {timeout:g} s')
+        time.sleep(0.005)
+    return task.result()
 
 
 def skynav_command(*args: str) -> list[str]:

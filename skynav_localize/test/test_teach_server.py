@@ -18,7 +18,9 @@ import pytest
 from rclpy.parameter import Parameter
 
 from skynav_core.actions import error_name
+from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
+from skynav_core.testing import on_executor_thread
 
 TIMEOUT = 30.0  # s for discovery and results under load
 
@@ -64,6 +66,7 @@ class Operator:
         self.executor, self.thread = spin_in_thread(self.node, context)
         assert self.client.wait_for_server(timeout_sec=TIMEOUT)
         wait(lambda: self.views.get_subscription_count() >= 1, what='the localize node to subscribe /skyline/sh')
+        time.sleep(SERVER_SETTLE)  # as `skynav teach` does: until the server has matched this client, a goal is lost
 
     def drive(self, recording, indices, odometry=True, period=0.04, shift=0):
         """Publish views (and, just before each, /odom of the same instant) of a recording's frames."""
@@ -91,8 +94,10 @@ class Operator:
         """Send a Teach goal; return its goal handle (accepted)."""
         from skynav_msgs.action import Teach
 
-        future = self.client.send_goal_async(
-            Teach.Goal(**fields), feedback_callback=lambda message: self.feedback.append(message.feedback)
+        goal = Teach.Goal(**fields)
+        future = on_executor_thread(
+            self.executor,
+            lambda: self.client.send_goal_async(goal, feedback_callback=lambda m: self.feedback.append(m.feedback)),
         )
         wait(future.done, what='the goal to be accepted')
         handle = future.result()
@@ -101,13 +106,13 @@ class Operator:
 
     def result(self, handle):
         """Return (status, result) of a goal once it ended."""
-        future = handle.get_result_async()
+        future = on_executor_thread(self.executor, handle.get_result_async)
         wait(future.done, what='the result')
         return future.result().status, future.result().result
 
     def cancel(self, handle):
         """Cancel a goal; return (status, result)."""
-        future = handle.cancel_goal_async()
+        future = on_executor_thread(self.executor, handle.cancel_goal_async)
         wait(future.done, what='the cancel response')
         return self.result(handle)
 
