@@ -48,10 +48,13 @@ from skynav_warping.errors import WarpingError
 from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
+SMALLEST_RATIO = 0.015  # |t| / rho of the shortest step hypothesised: no home vector is confident nearer home
+RATIO_STEPS = 18  # ratios on the geometric grid from SMALLEST_RATIO, a factor 2^(1/3) apart (up to 0.76)
+
 
 def default_ratios() -> tuple[float, ...]:
-    """Return the fine distance-ratio grid |t| / rho: 0 (no translation), then geometric 0.03 .. 0.76 (x1.26)."""
-    return (0.0,) + tuple(float(x) for x in 0.03 * 2 ** (np.arange(15) / 3))
+    """Return the fine distance-ratio grid |t| / rho: 0 (no translation), then geometric 0.015 .. 0.76 (x1.26)."""
+    return (0.0,) + tuple(float(x) for x in SMALLEST_RATIO * 2 ** (np.arange(RATIO_STEPS) / 3))
 
 
 @dataclass(frozen=True)
@@ -63,7 +66,7 @@ class WarpingSettings:
     azimuth_steps: int = 48  # coarse directions per ring = yaw corrections per turn (7.5 degrees)
     ring_elevations: tuple[float, ...] = tuple(np.radians([-20.0, -10.0, 0.0, 10.0, 20.0]))
     ratios: tuple[float, ...] = field(default_factory=default_ratios)  # fine grid; ratios[0] must be 0
-    coarse_ratios: tuple[int, ...] = (3, 6, 9, 12)  # indices into ratios tried by the coarse search
+    coarse_ratios: tuple[int, ...] = (6, 9, 12, 15)  # indices into ratios tried by the coarse search (0.05-0.38)
     yaw_window: float = np.radians(30.0)  # coarse yaw corrections +- this around the start rotation
     max_tilt: float = np.radians(35.0)  # without a given rotation: tilts tried by the pre-alignment, up to this
     max_relative_tilt: float = MAX_TILT  # no rotation of the search tilts the views further apart (the compass's)
