@@ -26,9 +26,9 @@ without /odom) has no shape to place the robot on: there the robot steers along 
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
-is left to home on). Near home the vectors become unsure a little early (within the warping's shortest step: 0.05-0.3
-m in the synthetic garden and park), so on those frames the robot keeps its last confident course straight on (it never steers on an unsure vector)
-for `arrive_creep` m (by odometry, else by its commands) and then stops.
+is left to home on). Near home the vectors become unsure a little early (within the warping's shortest step:
+0.05-0.3 m in the synthetic garden and park), so on those frames the robot keeps its last confident course straight
+on (it never steers on an unsure vector) for `arrive_creep` m (by odometry, else by its commands) and then stops.
 
 Safety: a frame without the inputs to steer on is *unsure*. Unsure frames first make the robot creep straight on
 (recovering); after `lost_frames` of them in a row (or `recover_distance` m of odometry) the goal ends LOST with a
