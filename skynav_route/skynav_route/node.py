@@ -2,10 +2,11 @@
 """The route node: serves /skynav/follow_route and /skynav/home and drives the robot through /cmd_vel.
 
 Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and,
-when a robot has it, /odom; publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as docs/interfaces.md
-("Driving") says: while a goal is active, exactly one command per camera frame it processes, stamped with that
-frame's stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, stale inputs, shutdown);
-nothing while idle. It never reads /ground_truth/*.
+when a robot has them, /odom and /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED,
+as skynav does not drive around objects); publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as
+docs/interfaces.md ("Driving") says: while a goal is active, exactly one command per camera frame it processes,
+stamped with that frame's stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, blocked,
+stale inputs, shutdown); nothing while idle. It never reads /ground_truth/*.
 
 A frame is processed when its home vector comes (warping is the last stage), or, when none comes, once a view
 `frame_wait` s newer arrives on /skyline/sh (in the in-process graph, where every node has answered a view before
@@ -35,6 +36,7 @@ from rclpy.parameter import Parameter as RosParameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
@@ -52,7 +54,7 @@ BASE_FRAME = 'base_link'
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
-CANCELED, STALE, TIMED_OUT, SHUTDOWN = 'canceled', 'stale', 'timeout', 'shutdown'
+CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
 
 
 @dataclass
@@ -84,7 +86,14 @@ class RouteNode(SkynavNode):
     """Drives the robot along a taught route or home to a snapshot."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = ('/skyline/sh', '/localization/match', '/compass/orientation', '/homing/home_vector', '/odom')
+    INPUT_TOPICS = (
+        '/skyline/sh',
+        '/localization/match',
+        '/compass/orientation',
+        '/homing/home_vector',
+        '/odom',
+        '/bumper',
+    )
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
     stops_on_signal = True
 
@@ -98,11 +107,13 @@ class RouteNode(SkynavNode):
         self.last_frame = -1  # stamp (ns) of the last frame processed
         self.odom: np.ndarray | None = None  # latest base_link position in odom (x, y), m
         self.odom_at_frame: np.ndarray | None = None
+        self.bumped = False  # the bumper's latest word: in contact
         self.input('/skyline/sh', ShCoefficients, self.on_view)
         self.input('/localization/match', PlaceMatch, lambda m: self._keep(self.matches, m))
         self.input('/compass/orientation', CompassEstimate, lambda m: self._keep(self.compass, m))
         self.input('/homing/home_vector', HomeVector, self.on_home_vector)
         self.input('/odom', Odometry, self.on_odom)
+        self.input('/bumper', Bool, self.on_bumper)
         self.output(CMD_TOPIC, TwistStamped)
         self.servers = [
             ActionServer(self, kind, name, execute_callback=execute, cancel_callback=self.on_cancel)
@@ -168,6 +179,12 @@ class RouteNode(SkynavNode):
         else:
             self.reject('non_finite', 'an /odom pose is not finite')
 
+    def on_bumper(self, message: Bool) -> None:
+        """Remember whether the bumper is in contact; contact stops the active goal (BLOCKED)."""
+        self.bumped = bool(message.data)
+        if self.bumped and self.active is not None:
+            self.stop_blocked()
+
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
         self._keep(self.homes, message)
@@ -219,6 +236,9 @@ class RouteNode(SkynavNode):
         goal = self.active
         if goal is None:
             return
+        if self.bumped:  # pressed since before the goal began
+            self.stop_blocked(stamp)
+            return
         with self.processing(stamp):
             view = self.view(stamp)
             step = goal.controller.step(view)
@@ -249,6 +269,12 @@ class RouteNode(SkynavNode):
     def stop(self, stamp: int | None = None) -> None:
         """Publish a zero command (stamped with the node's time unless a frame's stamp is given)."""
         self.emit(CMD_TOPIC, twist(self.now_ns() if stamp is None else stamp, Command()))
+
+    def stop_blocked(self, stamp: int | None = None) -> None:
+        """Stop the robot on bumper contact and end the goal with BLOCKED (the zero command stamped as stop's)."""
+        self.get_logger().warning('the bumper reports contact: the robot stops and the goal aborts (BLOCKED)')
+        self.stop(stamp)
+        self.finish(BLOCKED, stopped=True)
 
     def finish(self, outcome: str, stopped: bool = False) -> None:
         """End the active goal: stop the robot (unless the last command was a stop) and wake its execution."""
@@ -426,6 +452,7 @@ class RouteNode(SkynavNode):
             STALE: (codes.STALE_INPUT, f'no usable frame for {self.values["input_timeout"]} s'),
             TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {self.values["goal_timeout"]} s'),
             SHUTDOWN: (codes.LOST, 'the route node shut down'),
+            BLOCKED: (codes.BLOCKED, 'blocked: the bumper reported contact (skynav does not drive around objects)'),
         }
         if outcome == REACHED:
             handle.succeed()

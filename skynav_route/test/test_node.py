@@ -14,6 +14,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool
 
 from skynav_core.actions import error_name
 from skynav_core.graph import in_process
@@ -209,6 +210,41 @@ def test_lost_stops_the_robot_and_aborts(route_map):
             assert driver.spin_until(lambda: len(driver.feedback) == 9)  # the goal's first feedback and one per frame
             assert [f.state for f in driver.feedback[-4:]] == ['recovering'] * 3 + ['stopping']
             assert is_zero(driver.commands[-1]) and not is_zero(driver.commands[-2])
+        finally:
+            driver.close()
+
+
+def test_bumper_contact_stops_the_robot_and_aborts_blocked(route_map):
+    with route_graph(route_map) as graph:
+        driver = Driver(graph)
+        try:
+            graph.publish('/bumper', Bool(data=False))
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            for _ in range(3):
+                driver.publish_frame(home_index=4)
+            assert not is_zero(driver.commands[-1])
+            graph.publish('/bumper', Bool(data=True))
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'BLOCKED' and 'bumper' in outcome.error_msg
+            assert len(driver.commands) == 4 and is_zero(driver.commands[-1])
+            driver.publish_frame(home_index=4)
+            assert len(driver.commands) == 4  # idle again: nothing
+            # still pressed when the next goal begins: its first frame is answered with a stop, stamped alike
+            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            stamp = driver.publish_frame()
+            assert driver.spin_until(result.done)
+            assert error_name(result.result().result) == 'BLOCKED'
+            assert len(driver.commands) == 5 and is_zero(driver.commands[-1])
+            assert stamp_ns(driver.commands[-1].header) == stamp
+            # released: a goal drives again
+            graph.publish('/bumper', Bool(data=False))
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            for _ in range(3):
+                driver.publish_frame(home_index=4)
+            assert len(driver.commands) == 8 and not is_zero(driver.commands[-1])
+            handle.cancel_goal_async()
+            assert driver.spin_until(result.done)
         finally:
             driver.close()
 
