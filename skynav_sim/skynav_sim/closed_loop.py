@@ -28,6 +28,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image
+from std_msgs.msg import Bool
 
 from skynav_core.actions import error_name
 from skynav_core.camera import EquidistantCamera
@@ -70,7 +71,7 @@ class Run:
     tilts: list[float] = field(default_factory=list)  # camera tilt from the vertical (degrees), one per camera frame
     confidences: list[float] = field(default_factory=list)  # the goal's feedback, one per processed frame
     feedback: list[Any] = field(default_factory=list)  # the goal's feedback messages, the first before any frame
-    stopped: str = ''  # why the run ended: 'reached', an error code's name (LOST, ...), 'blocked' or 'frames'
+    stopped: str = ''  # why the run ended: 'reached', an error code's name (LOST, BLOCKED, ...) or 'frames'
     result: Any = None  # the action's result
     commands: int = 0  # /cmd_vel messages the mower received
     stopped_frames: int = 0  # frames the mower stood still while the goal ran
@@ -97,7 +98,7 @@ class Run:
 
 
 class SimMowerNode(SkynavNode):
-    """The simulated mower in the in-process graph: camera, /odom and /clock out, /cmd_vel in."""
+    """The simulated mower in the in-process graph: camera, /odom, /bumper and /clock out, /cmd_vel in."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sim_mower', **kwargs)
@@ -105,6 +106,7 @@ class SimMowerNode(SkynavNode):
             self.output(topic, Image)
         self.output('/camera/uv/camera_info', CameraInfo)
         self.output('/odom', Odometry)
+        self.output('/bumper', Bool)
         self.output('/clock', Clock)
         self.commands: list[TwistStamped] = []
         self.input('/cmd_vel', TwistStamped, self.commands.append)
@@ -124,6 +126,10 @@ class SimMowerNode(SkynavNode):
         message.pose.pose.orientation.z = float(np.sin(pose.heading / 2))
         message.pose.pose.orientation.w = float(np.cos(pose.heading / 2))
         self.emit('/odom', message)
+
+    def publish_bumper(self, contact: bool) -> None:
+        """Publish whether the mower's bumper touches an object."""
+        self.emit('/bumper', Bool(data=bool(contact)))
 
     def publish_frame(
         self, stamp: int, uv: np.ndarray, green: np.ndarray, encoding: str, camera: EquidistantCamera
@@ -263,12 +269,13 @@ def drive_goal(
             if result.done():
                 break
             mower.drive(linear, angular, FRAME_PERIOD)
+            robot.publish_bumper(mower.blocked)
             run.path.append(mower.pose.position)
             run.headings.append(mower.pose.heading)
             if progress is not None:
                 progress()
-            if mower.blocked:
-                run.stopped = 'blocked'
+            if mower.blocked:  # the route node ends the goal (BLOCKED)
+                spin_until(executor, result.done, RESULT_WAIT)
                 break
         if result.done():
             response = result.result().result
@@ -282,6 +289,7 @@ def drive_goal(
             spin_until(executor, result.done, RESULT_WAIT)
         run.confidences = [float(f.confidence) for f in feedback]
         run.feedback = feedback
+        run.commands = len(robot.commands)
     finally:
         executor.remove_node(client_node)
         for node in graph.nodes:
