@@ -220,10 +220,11 @@ def drive_goal(
     goal_place: np.ndarray,
     max_frames: int,
     progress: Callable[[], None] | None = None,
+    odometry: bool = True,
 ) -> Run:
     """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run.
 
-    `progress` is called once per camera frame.
+    `progress` is called once per camera frame; without `odometry` the base publishes no /odom.
     """
     robot = graph.nodes[-1]
     assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
@@ -255,7 +256,8 @@ def drive_goal(
             stamp = simulation.stamp()
             graph.advance(stamp)
             robot.publish_clock(stamp)
-            robot.publish_odometry(stamp, mower.odometry)
+            if odometry:
+                robot.publish_odometry(stamp, mower.odometry)
             uv, green, pose = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
             run.tilts.append(float(np.degrees(np.arccos(np.clip(pose.rotation.as_matrix()[2, 2], -1.0, 1.0)))))
             answered, heard = len(robot.commands), len(feedback)
@@ -302,11 +304,13 @@ def drive_goal(
 
 @dataclass(frozen=True)
 class Base:
-    """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed."""
+    """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed, and
+    whether it has wheel odometry (publishes /odom)."""
 
     slip: float = 0.05
     odometry_noise: float = 0.02
     seed: int = 0
+    odometry: bool = True
 
 
 def home_runs(
@@ -339,7 +343,9 @@ def home_runs(
         )
         with in_process(graph_specs(tuple(n for n in GRAPH_NODES if n != 'localize')), arguments) as graph:
             goal_message = Home.Goal(map_path='', index=0, max_speed=SPEED)
-            run = drive_goal(graph, simulation, mower, (Home, '/skynav/home'), goal_message, goal, max_frames)
+            run = drive_goal(
+                graph, simulation, mower, (Home, '/skynav/home'), goal_message, goal, max_frames, odometry=base.odometry
+            )
         runs.append(run)
         if progress is not None:
             progress(run)
@@ -445,7 +451,15 @@ def follow_route(
     goal = FollowRoute.Goal(map_path='', start_index=start_index, end_index=-1, max_speed=SPEED)
     with in_process(graph_specs(), arguments) as graph:
         run = drive_goal(
-            graph, simulation, mower, (FollowRoute, '/skynav/follow_route'), goal, route[-1], max_frames, progress
+            graph,
+            simulation,
+            mower,
+            (FollowRoute, '/skynav/follow_route'),
+            goal,
+            route[-1],
+            max_frames,
+            progress,
+            base.odometry,
         )
     return run, route
 
@@ -505,9 +519,10 @@ def teach_route(
     """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map.
 
     The graph (skyline, SH, localize: it serves /skynav/teach) runs in process; the mower publishes /clock, /odom
-    and its camera each frame and obeys the operator (skynav_sim.mower: slip, odometry noise). At the route's end
-    the operator cancels the goal, which finishes the map (the usual end of teaching). RuntimeError when the graph
-    does not take the goal or the drive fails. `progress` is called once per camera frame.
+    (when its base has odometry) and its camera each frame and obeys the operator (skynav_sim.mower: slip,
+    odometry noise). At the route's end the operator cancels the goal, which finishes the map (the usual end of
+    teaching). RuntimeError when the graph does not take the goal or the drive fails. `progress` is called once
+    per camera frame.
     """
     spline, total = planned_route(world, route_seed, length)
     start, ahead = spline(0.0), spline(0.3) - spline(0.0)
@@ -547,7 +562,8 @@ def teach_route(
                 stamp = simulation.stamp()
                 graph.advance(stamp)
                 robot.publish_clock(stamp)
-                robot.publish_odometry(stamp, mower.odometry)
+                if base.odometry:
+                    robot.publish_odometry(stamp, mower.odometry)
                 uv, green, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
                 robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
                 teaching.stamps.append(stamp)

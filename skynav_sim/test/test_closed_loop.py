@@ -80,9 +80,11 @@ def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, t
     assert run.commands == 2  # the frame's command and the stop
 
 
-def test_route_following_stays_on_the_taught_route(camera, garden_map):
+# with and without wheel odometry (/odom): a robot may have none; the map has no teach odometry either way
+@pytest.mark.parametrize('odometry', [True, False], ids=['odom', 'no_odom'])
+def test_route_following_stays_on_the_taught_route(camera, garden_map, odometry):
     from skynav_sim.cli.follow import teach_world
-    from skynav_sim.closed_loop import follow_route, route_deviation
+    from skynav_sim.closed_loop import Base, follow_route, route_deviation
     from skynav_sim.sky import parse_time
 
     world, seed, teach_camera, truth = teach_world(TEACH)
@@ -95,7 +97,15 @@ def test_route_following_stays_on_the_taught_route(camera, garden_map):
     left = np.array([-np.sin(heading), np.cos(heading)])
     start = route[0] + 0.3 * left
     run, followed = follow_route(
-        world, teach_camera, garden_map, start, heading + np.radians(20), parse_time('morning'), seed, max_frames=300
+        world,
+        teach_camera,
+        garden_map,
+        start,
+        heading + np.radians(20),
+        parse_time('morning'),
+        seed,
+        max_frames=300,
+        base=Base(odometry=odometry),
     )
     assert np.array_equal(followed, route)
     deviation = route_deviation(run, route)

@@ -82,7 +82,9 @@ def run(args: argparse.Namespace) -> int:
     print(
         f'route following (synthetic): {len(pairs)} runs of {args.length:g} m routes, taught at {teach_hours:.1f} h '
         f'clear, followed at {hours:.1f} h with cloud cover {args.clouds:g}, from {args.offset:+.2f} m beside the '
-        f'start turned {args.turn:+.0f} deg' + (', placed by localization' if args.start_index < 0 else ''),
+        f'start turned {args.turn:+.0f} deg'
+        + (', placed by localization' if args.start_index < 0 else '')
+        + (', without wheel odometry (no /odom)' if args.no_odom else ''),
         flush=True,
     )
     began = time.monotonic()
@@ -107,11 +109,12 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
     from skynav_core.goals import GoalOutcome, goal_result
     from skynav_core.maps import MapStore
 
-    from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, teach_route, truth_at
+    from ..closed_loop import FRAME_PERIOD, SPEED, follow_route, teach_route, truth_at
     from ..drive_eval import FollowScore, cross_track, path_length, time_stopped, turns
     from ..errors import SimError
     from ..scenarios import route as planned_route
     from ..world import generate
+    from . import options
     from .follow import END_RADIUS
     from .teach import write_description
 
@@ -129,7 +132,15 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
     map_path = (folder / 'teach.db').resolve()
     try:
         teaching = teach_route(
-            world, camera, teach_hours, seed, args.length, map_path, Base(), route_seed=route_seed, progress=progress
+            world,
+            camera,
+            teach_hours,
+            seed,
+            args.length,
+            map_path,
+            options.base(args),
+            route_seed=route_seed,
+            progress=progress,
         )
     except RuntimeError as exc:
         return f'the teach failed ({exc}): left out'
@@ -156,6 +167,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
         clouds=args.clouds,
         progress=progress,
         start_index=args.start_index,
+        base=options.base(args),
     )
     path = np.array(run.path)
     error, along = cross_track(path, route)

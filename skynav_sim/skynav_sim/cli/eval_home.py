@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f'homing (synthetic): {args.starts} starts {args.min_distance:g}-{args.max_distance:g} m from home in each '
         f'of {len(pairs)} worlds, snapshot at {teach_hours:.1f} h clear, homing at {hours:.1f} h with cloud cover '
-        f'{args.clouds:g}',
+        f'{args.clouds:g}' + (', without wheel odometry (no /odom)' if args.no_odom else ''),
         flush=True,
     )
     began = time.monotonic()
@@ -102,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
                 args.max_frames,
                 progress=lambda _: bar.update(),
                 clouds=args.clouds,
+                base=options.base(args),
             )
             clear = [clear_line(world, start, goal) for start, _ in starts]
             results.append((style, seed, runs, clear))

@@ -22,6 +22,7 @@ END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim follow`."""
+    from . import options
     from .options import add_start_argument
 
     parser.add_argument(
@@ -54,10 +55,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar='N',
         help='camera frames before the run is given up (default: three times the route length at full speed)',
     )
-    parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
-    parser.add_argument(
-        '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
-    )
+    options.add_base_arguments(parser)
     parser.add_argument(
         '--bump-tilt', type=float, default=0.0, metavar='DEG', help='bumpy ground: views tilted up to DEG more'
     )
@@ -116,8 +114,9 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
     from skynav_core.maps import MapError, MapStore
 
-    from ..closed_loop import FRAME_PERIOD, SPEED, Base, follow_route, route_deviation, truth_at
+    from ..closed_loop import FRAME_PERIOD, SPEED, follow_route, route_deviation, truth_at
     from ..sky import parse_time
+    from . import options
 
     try:
         hours = parse_time(args.time)
@@ -161,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         hours,
         seed,
         max_frames,
-        base=Base(args.slip, args.odometry_noise),
+        base=options.base(args),
         bump_tilt=args.bump_tilt,
         route=route,
         start_index=args.start_index,

@@ -187,6 +187,37 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int,
         '--clouds', type=float, default=0.5, metavar='COVER', help=f'cloud cover of the {what}, 0-1 (default 0.5)'
     )
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
+    add_odometry_argument(parser)
+
+
+def add_base_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the simulated mower's base: --slip, --odometry-noise and --no-odom."""
+    parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
+    parser.add_argument(
+        '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
+    )
+    add_odometry_argument(parser)
+
+
+def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
+    """Add --no-odom: the simulated mower has no wheel odometry."""
+    parser.add_argument(
+        '--no-odom',
+        action='store_true',
+        help='the mower publishes no /odom, as a robot without wheel odometry (teaching then spaces snapshots by '
+        'view change)',
+    )
+
+
+def base(args: argparse.Namespace):
+    """Return the simulated mower's base of the arguments (skynav_sim.closed_loop.Base)."""
+    from ..closed_loop import Base
+
+    return Base(
+        getattr(args, 'slip', Base.slip),
+        getattr(args, 'odometry_noise', Base.odometry_noise),
+        odometry=not args.no_odom,
+    )
 
 
 def add_start_argument(parser: argparse.ArgumentParser) -> None:

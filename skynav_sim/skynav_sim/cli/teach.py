@@ -21,6 +21,7 @@ DESCRIPTION_SOURCE = 'skynav sim teach (synthetic, scripted teleoperation)'
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim teach`."""
     from ..world import STYLES
+    from . import options
     from .options import DEFAULT_DISTORTION
 
     parser.add_argument('--world', choices=STYLES, default='garden', help='synthetic world style (default garden)')
@@ -31,10 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (default 200)')
     parser.add_argument('--distortion', default=DEFAULT_DISTORTION, metavar='K1,K2,K3,K4', help=argparse.SUPPRESS)
-    parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
-    parser.add_argument(
-        '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
-    )
+    options.add_base_arguments(parser)
     parser.add_argument(
         '--out', type=Path, default=Path('sim_teach'), metavar='DIR', help='folder for teach.db and teach.yaml'
     )
@@ -47,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
     from skynav_core.goals import GoalOutcome, goal_result
 
-    from ..closed_loop import Base, teach_route
+    from ..closed_loop import teach_route
     from ..sky import parse_time
     from ..world import generate
     from . import options
@@ -77,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
             args.seed,
             args.length,
             map_path,
-            Base(args.slip, args.odometry_noise),
+            options.base(args),
             route_seed=args.route_seed,
         )
     except RuntimeError as exc:
