@@ -23,7 +23,6 @@ END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim follow`."""
     from . import options
-    from .options import add_start_argument
 
     parser.add_argument(
         'teach',
@@ -47,7 +46,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         help="start turned this far left of the route's direction (default 20)",
     )
     parser.add_argument('--time', default='morning', help='time of day of the run (default morning)')
-    add_start_argument(parser)
+    options.add_start_argument(parser)
     parser.add_argument(
         '--max-frames',
         type=int,

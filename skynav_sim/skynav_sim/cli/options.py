@@ -1,10 +1,14 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Arguments shared by `skynav sim bag` and `skynav sim preview` (world, scenario, camera, daylight), and by
-`skynav eval follow|home` (worlds, seeds, times, clouds)."""
+"""Arguments shared by `skynav sim bag` and `skynav sim preview` (world, scenario, camera, daylight), by
+`skynav eval follow|home` (worlds, seeds, times, clouds) and by the closed-loop commands (the mower's base)."""
 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the closed loop loads rclpy: only when a command runs
+    from ..closed_loop import Base
 
 DEFAULT_DISTORTION = '0.015,-0.002,0.0,0.0'
 MAX_FOV = 220.0  # degrees (docs/interfaces.md)
@@ -209,8 +213,8 @@ def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def base(args: argparse.Namespace):
-    """Return the simulated mower's base of the arguments (skynav_sim.closed_loop.Base)."""
+def base(args: argparse.Namespace) -> Base:
+    """Return the simulated mower's base of the arguments (the evaluations have no --slip or --odometry-noise)."""
     from ..closed_loop import Base
 
     return Base(
