@@ -37,6 +37,7 @@ from typing import Any, ClassVar, Protocol
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -219,6 +220,12 @@ class SkynavNode(Node):
         self._output_publishers[topic] = (
             None if self.router is not None else self.create_publisher(message_type, topic, qos)
         )
+
+    def flush(self, topic: str, seconds: float) -> bool:
+        """Wait up to `seconds` until reliable subscribers acknowledged all published on `topic`; return whether
+        they did (always in the in-process graph)."""
+        publisher = self._output_publishers[topic]
+        return publisher is None or publisher.wait_for_all_acked(Duration(nanoseconds=int(seconds * 1e9)))
 
     def emit(self, topic: str, message: Any) -> None:
         """Publish `message` on a declared output topic."""

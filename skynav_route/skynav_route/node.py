@@ -54,6 +54,7 @@ BASE_FRAME = 'base_link'
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
+LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledged before the publisher goes
 CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
 
 
@@ -310,6 +311,9 @@ class RouteNode(SkynavNode):
         if self.active is not None:
             try:
                 self.finish(SHUTDOWN)
+                # a sample still unacknowledged when its publisher is destroyed may never arrive
+                if not self.flush(CMD_TOPIC, LAST_WORD_WAIT):
+                    self.get_logger().warning(f'the last zero command was not acknowledged within {LAST_WORD_WAIT} s')
             except Exception:  # the context may be gone already: nothing more can be sent
                 pass
         super().destroy_node()
