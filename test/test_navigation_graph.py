@@ -23,6 +23,9 @@ from skynav_core.testing import run_skynav, start_skynav
 from skynav_localize.evaluation import correct_matches
 
 BAGS = Path(__file__).parents[1] / 'bags'
+# 5 Hz: the graph takes about 0.11 s of CPU a view (0.07 s of it the warping node's, bench/homing.py), so at the
+# recorded 10 Hz a machine busy with other work drops views and the test would measure its speed instead
+REPLAY_RATE = 0.5
 
 
 def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_context):
@@ -72,7 +75,7 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
             'replay',
             str(repeat),
             '--rate',
-            '1',
+            str(REPLAY_RATE),
             '--topics',
             '/camera/uv/image_raw',
             '/camera/green/image_raw',
@@ -90,7 +93,8 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
         executor.shutdown()
         node.destroy_node()
     assert launch.returncode == 0, out + err
-    assert len(matches) >= 0.95 * len(truth), f'{len(matches)} matches for {len(truth)} frames'
+    warnings = '\n'.join(line for line in err.splitlines() if 'WARN' in line or 'ERROR' in line)
+    assert len(matches) >= 0.95 * len(truth), f'{len(matches)} matches for {len(truth)} frames\n{warnings}'
     with MapStore.open(map_file) as store:
         snapshots = store.poses()
     stamps = sorted(matches)
@@ -102,7 +106,7 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     assert all(matches[s].map_name == 'garden' for s in stamps)
 
     # the compass against the matched snapshot: d_snapshot = R d_current, true R = Q_s^-1 Q_c
-    assert len(compass) >= 0.9 * len(truth)
+    assert len(compass) >= 0.9 * len(truth), f'{missing(compass, truth)}\n{warnings}'
     errors = []
     for stamp, estimate in compass.items():
         q = estimate.rotation
@@ -113,7 +117,7 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     # home vectors to the snapshot 6 ahead of the latest match the warping node had, in the current camera_link.
     # Live, that match may be of a later view than the one homed (the topics arrive independently and the
     # warping node may lag); skynav_warping/test/test_node.py checks the targets exactly, in order.
-    assert len(homing) >= 0.9 * len(truth)
+    assert len(homing) >= 0.9 * len(truth), f'{missing(homing, truth)}\n{warnings}'
     targets = {min(m.index + 6, len(snapshots) - 1) for m in matches.values() if m.accepted}
     errors = []
     for stamp, vector in homing.items():
@@ -125,3 +129,10 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
         assert np.linalg.norm(direction) == pytest.approx(1.0, abs=1e-6) and 0.0 <= vector.residual <= 1.0
         errors.append(np.degrees(np.arccos(np.clip(direction @ true, -1.0, 1.0))))
     assert np.median(errors) < 25.0
+
+
+def missing(received: dict, truth: dict) -> str:
+    """Say which frames of the replay (by their place in it) got no output."""
+    frames = sorted(truth)
+    lost = [i for i, stamp in enumerate(frames) if stamp not in received]
+    return f'{len(received)} outputs for {len(frames)} frames; none for frames {lost}'
