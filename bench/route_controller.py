@@ -28,7 +28,7 @@ import numpy as np  # noqa: E402
 from rclpy.task import Future  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 from skynav_route.controller import Homer, Limits, RouteFollower, Settings, TaughtRoute, View  # noqa: E402
-from skynav_route.node import ActiveGoal  # noqa: E402
+from skynav_route.goals import ActiveGoal  # noqa: E402
 
 from skynav_core.graph import in_process  # noqa: E402
 from skynav_core.maps import Snapshot  # noqa: E402

@@ -25,7 +25,6 @@ frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -46,8 +45,10 @@ from skynav_core.rotations import as_matrix
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
-from .controller import LOCALIZING, LOST, REACHED, Command, Homer, Limits, RouteFollower, Settings, TaughtRoute, View
-from .parameters import PARAMETERS
+from . import goals
+from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, View
+from .goals import BLOCKED, CANCELED, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal
+from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
 BASE_FRAME = 'base_link'
@@ -55,23 +56,6 @@ FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
 LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledged before the publisher goes
-CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
-
-
-@dataclass
-class ActiveGoal:
-    """The goal being driven: its handle, its controller and how it ends."""
-
-    kind: Any  # the action FollowRoute or Home
-    handle: Any  # rclpy ServerGoalHandle
-    controller: RouteFollower | Homer
-    done: Future
-    started: int | None = None  # ns, node time of the watchdog's first look (a simulator's clock may start late)
-    last_frame: int | None = None  # ns, node time the last frame was processed (or the start)
-    driven: float = 0.0  # m
-    reached_index: int = -1
-    steps: int = 0
-    confidence: float = 0.0
 
 
 def twist(stamp: int, command: Command) -> TwistStamped:
@@ -131,38 +115,8 @@ class RouteNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Take the limits and thresholds (ValueError if unusable)."""
-        numbers = [v for v in values.values() if isinstance(v, float)]
-        if not all(math.isfinite(v) and v >= 0 for v in numbers):
-            raise ValueError('every limit, gain and timeout must be finite and not negative')
-        if values['max_speed'] <= 0 or values['max_turn_rate'] <= 0 or values['input_timeout'] <= 0:
-            raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
-        if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:
-            raise ValueError('lost_frames and arrived_frames must be at least 1, lookahead not negative')
-        if min(values['approach'], values['bearing_noise'], values['match_noise']) <= 0 or values['route_lead'] < 0:
-            raise ValueError('approach, bearing_noise and match_noise must be more than 0, route_lead not negative')
-        self.values = values
-        self.settings = Settings(
-            heading_gain=values['heading_gain'],
-            approach=values['approach'],
-            bearing_noise=values['bearing_noise'],
-            match_noise=values['match_noise'],
-            odometry_drift=values['odometry_drift'],
-            odometry_noise=values['odometry_noise'],
-            route_lead=values['route_lead'],
-            homing_gain=values['homing_gain'],
-            unsure_residual=values['unsure_residual'],
-            arrived_frames=values['arrived_frames'],
-            arrive_creep=values['arrive_creep'],
-            lost_frames=values['lost_frames'],
-            recover_speed=values['recover_speed'],
-            recover_distance=values['recover_distance'],
-        )
-
-    def limits(self, max_speed: float) -> Limits:
-        """Return the limits of a goal asking for `max_speed` (m/s; <= 0: the parameter)."""
-        v = self.values
-        speed = max_speed if max_speed > 0 else v['max_speed']
-        return Limits(speed, v['max_acceleration'], v['max_turn_rate'], v['max_turn_acceleration'])
+        check(values)
+        self.values, self.settings = values, settings(values)
 
     # --- inputs ---------------------------------------------------------------------------------
 
@@ -253,17 +207,7 @@ class RouteNode(SkynavNode):
                 goal.driven += abs(step.command.linear) * min((stamp - previous) / 1e9, 1.0)
             goal.reached_index = max(goal.reached_index, step.matched_index)
         self.emit(CMD_TOPIC, twist(stamp, step.command))
-        if goal.kind is FollowRoute:
-            feedback = FollowRoute.Feedback(
-                matched_index=step.matched_index,
-                target_index=step.target_index,
-                progress=step.progress,
-                confidence=step.confidence,
-                state=step.state,
-            )
-        else:
-            feedback = Home.Feedback(confidence=step.confidence, steps=goal.steps)
-        goal.handle.publish_feedback(feedback)
+        goal.handle.publish_feedback(goals.step_feedback(goal, step))
         if step.outcome:
             self.finish(step.outcome, stopped=True)
 
@@ -365,83 +309,56 @@ class RouteNode(SkynavNode):
             return 'busy', None
         goal = self.active = ActiveGoal(kind, handle, controller, Future())
         await self.configure_peers(peers)
-        # a first feedback tells the client the graph is set up for the goal, before any frame is answered
-        if kind is FollowRoute:
-            handle.publish_feedback(FollowRoute.Feedback(matched_index=-1, target_index=-1, state=LOCALIZING))
-        else:
-            handle.publish_feedback(Home.Feedback(confidence=0.0, steps=0))
+        handle.publish_feedback(goals.first_feedback(kind))
         return await goal.done, goal
-
-    def peer_settings(self, map_path: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
-        """Return the settings of localize, compass and warping for a goal on the map at `map_path`."""
-        peers = {'compass': dict(compass), 'warping': dict(warping)}
-        if map_path != self.values['map']:
-            peers['localize'] = {'map': map_path}
-            for values in peers.values():
-                values['map'] = map_path
-        return peers
 
     async def execute_follow(self, handle: Any) -> FollowRoute.Result:
         """Drive along the route of a FollowRoute goal."""
-        goal, result = handle.request, FollowRoute.Result()
+        request, result, codes = handle.request, FollowRoute.Result(), FollowRoute.Result
         try:
-            count, route, path = self.open_map(goal.map_path)
+            count, route, path = self.open_map(request.map_path)
         except MapError as exc:
-            return self.refuse(handle, result, FollowRoute.Result.NO_MAP, str(exc))
-        end = count - 1 if goal.end_index < 0 else goal.end_index
-        if not math.isfinite(goal.max_speed):
-            return self.refuse(handle, result, FollowRoute.Result.BAD_GOAL, 'max_speed is not finite')
-        if not (-1 <= goal.start_index < count and 0 <= end < count):
-            return self.refuse(
-                handle, result, FollowRoute.Result.BAD_INDEX, f'the map has snapshots 0..{count - 1}: no such index'
-            )
-        if goal.start_index >= 0 and goal.start_index > end:
-            return self.refuse(handle, result, FollowRoute.Result.BAD_INDEX, 'start_index lies beyond end_index')
+            return self.refuse(handle, result, (codes.NO_MAP, str(exc)))
+        refusal = goals.follow_refusal(request, count)
+        if refusal is not None:
+            return self.refuse(handle, result, refusal)
         if route is None:
             self.get_logger().info(f'{path}: no odometry of the teach: steering on the home vectors directly')
-        controller = RouteFollower(goal.start_index, end, self.limits(goal.max_speed), self.settings, route)
-        peers = self.peer_settings(
-            path, {'reference': 'match'}, {'target': 'next', 'lookahead': self.values['lookahead']}
+        end = goals.follow_end(request, count)
+        controller = RouteFollower(
+            request.start_index, end, limits(self.values, request.max_speed), self.settings, route
         )
-        # a goal with a start: the robot stands there, and localize seeks its first views near that snapshot
-        peers.setdefault('localize', {}).update(tracking=True, tracking_start=goal.start_index)
+        peers = goals.follow_peers(self.values['map'], path, self.values['lookahead'], request.start_index)
         outcome, active = await self.run_goal(FollowRoute, handle, controller, peers)
         if active is None:
-            return self.refuse(handle, result, FollowRoute.Result.BUSY, 'another follow or home goal is running')
-        if outcome != SHUTDOWN:  # off the route the place is sought on the whole route again
-            await self.configure_peers({'localize': {'tracking': False, 'tracking_start': -1}})
+            return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
+        if outcome != SHUTDOWN:
+            await self.configure_peers(goals.UNTRACKED)
         result.reached_index = max(controller.matched, -1)
-        unplaced = None if controller.matched >= 0 else 'lost: no view was placed on the route, the robot never moved'
-        if unplaced and goal.start_index < 0:
-            unplaced += ' (where it stands at a known snapshot, give it as start_index: skynav follow --from I)'
-        return self.conclude(handle, result, outcome, active, FollowRoute.Result, unplaced)
+        lost = goals.unplaced(controller.matched, request.start_index)
+        return self.conclude(handle, result, outcome, active, codes, lost)
 
     async def execute_home(self, handle: Any) -> Home.Result:
         """Drive to the place of the Home goal's snapshot."""
-        goal, result = handle.request, Home.Result()
+        request, result, codes = handle.request, Home.Result(), Home.Result
         try:
-            count, _, path = self.open_map(goal.map_path)
+            count, _, path = self.open_map(request.map_path)
         except MapError as exc:
-            return self.refuse(handle, result, Home.Result.NO_MAP, str(exc))
-        if not math.isfinite(goal.max_speed):
-            return self.refuse(handle, result, Home.Result.BAD_GOAL, 'max_speed is not finite')
-        if not 0 <= goal.index < count:
-            return self.refuse(
-                handle, result, Home.Result.BAD_INDEX, f'no snapshot {goal.index}: the map has snapshots 0..{count - 1}'
-            )
-        controller = Homer(goal.index, self.limits(goal.max_speed), self.settings)
-        peers = self.peer_settings(
-            path, {'reference': 'index', 'index': goal.index}, {'target': 'index', 'index': goal.index}
-        )
+            return self.refuse(handle, result, (codes.NO_MAP, str(exc)))
+        refusal = goals.home_refusal(request, count)
+        if refusal is not None:
+            return self.refuse(handle, result, refusal)
+        controller = Homer(request.index, limits(self.values, request.max_speed), self.settings)
+        peers = goals.home_peers(self.values['map'], path, request.index)
         outcome, active = await self.run_goal(Home, handle, controller, peers)
         if active is None:
-            return self.refuse(handle, result, Home.Result.BUSY, 'another follow or home goal is running')
-        return self.conclude(handle, result, outcome, active, Home.Result)
+            return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
+        return self.conclude(handle, result, outcome, active, codes)
 
-    def refuse(self, handle: Any, result: Any, code: int, text: str) -> Any:
+    def refuse(self, handle: Any, result: Any, refusal: goals.Refusal) -> Any:
         """Abort a goal before it drove: no command is published (nothing moved)."""
-        result.error_code, result.error_msg = code, text
-        self.get_logger().warning(f'goal refused: {text}')
+        result.error_code, result.error_msg = refusal
+        self.get_logger().warning(f'goal refused: {refusal[1]}')
         handle.abort()
         return result
 
@@ -451,19 +368,13 @@ class RouteNode(SkynavNode):
         """Fill a finished goal's result and end its handle by the outcome (`lost`: the text of LOST, if not the
         usual one)."""
         result.driven_length = float(goal.driven)
-        texts = {
-            LOST: (codes.LOST, lost or 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
-            STALE: (codes.STALE_INPUT, f'no usable frame for {self.values["input_timeout"]} s'),
-            TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {self.values["goal_timeout"]} s'),
-            SHUTDOWN: (codes.LOST, 'the route node shut down'),
-            BLOCKED: (codes.BLOCKED, 'blocked: the bumper reported contact (skynav does not drive around objects)'),
-        }
         if outcome == REACHED:
             handle.succeed()
         elif outcome == CANCELED:
             handle.canceled()
         else:
-            result.error_code, result.error_msg = texts[outcome]
+            timeouts = self.values['input_timeout'], self.values['goal_timeout']
+            result.error_code, result.error_msg = goals.failure(outcome, codes, *timeouts, lost)
             handle.abort()
         return result
 

@@ -1,7 +1,10 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The route node's parameters: names, defaults and meaning (skynav_core.parameters)."""
+"""The route node's parameters: names, defaults and meaning (skynav_core.parameters), and what they set."""
 
 from __future__ import annotations
+
+import math
+from dataclasses import fields
 
 from skynav_core.parameters import Parameter
 
@@ -73,3 +76,27 @@ PARAMETERS = {
     ),
     'peer_timeout': Parameter(5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s)"),
 }
+
+
+def check(values: dict) -> None:
+    """Raise ValueError if the parameter values cannot drive a robot."""
+    numbers = [v for v in values.values() if isinstance(v, float)]
+    if not all(math.isfinite(v) and v >= 0 for v in numbers):
+        raise ValueError('every limit, gain and timeout must be finite and not negative')
+    if values['max_speed'] <= 0 or values['max_turn_rate'] <= 0 or values['input_timeout'] <= 0:
+        raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
+    if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:
+        raise ValueError('lost_frames and arrived_frames must be at least 1, lookahead not negative')
+    if min(values['approach'], values['bearing_noise'], values['match_noise']) <= 0 or values['route_lead'] < 0:
+        raise ValueError('approach, bearing_noise and match_noise must be more than 0, route_lead not negative')
+
+
+def settings(values: dict) -> Settings:
+    """Return the controller's settings from the parameter values (the settings no parameter names keep defaults)."""
+    return Settings(**{f.name: values[f.name] for f in fields(Settings) if f.name in values})
+
+
+def limits(values: dict, max_speed: float) -> Limits:
+    """Return the limits of a goal asking for `max_speed` (m/s; <= 0: the parameter's)."""
+    speed = max_speed if max_speed > 0 else values['max_speed']
+    return Limits(speed, values['max_acceleration'], values['max_turn_rate'], values['max_turn_acceleration'])

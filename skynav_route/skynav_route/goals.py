@@ -1,0 +1,135 @@
+# SPDX-License-Identifier: Apache-2.0
+"""FollowRoute and Home goals: which requests are refused, what the other nodes are set to, feedback and results.
+
+No rclpy: the route node (skynav_route.node) serves the actions with these and drives with skynav_route.controller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from skynav_msgs.action import FollowRoute, Home
+
+from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step
+
+# how a goal ends besides the controller's REACHED and LOST
+CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
+
+Refusal = tuple[int, str]  # a Result error code and its text
+
+
+@dataclass
+class ActiveGoal:
+    """The goal being driven: its handle, its controller and how it ends."""
+
+    kind: Any  # the action FollowRoute or Home
+    handle: Any  # rclpy ServerGoalHandle
+    controller: RouteFollower | Homer
+    done: Any  # rclpy Future, given the outcome when the goal ends
+    started: int | None = None  # ns, node time of the watchdog's first look (a simulator's clock may start late)
+    last_frame: int | None = None  # ns, node time the last frame was processed (or the start)
+    driven: float = 0.0  # m
+    reached_index: int = -1
+    steps: int = 0
+    confidence: float = 0.0
+
+
+def follow_end(request: FollowRoute.Goal, count: int) -> int:
+    """Return the snapshot index a FollowRoute request ends at on a map of `count` snapshots (-1: the last)."""
+    return count - 1 if request.end_index < 0 else int(request.end_index)
+
+
+def follow_refusal(request: FollowRoute.Goal, count: int) -> Refusal | None:
+    """Return why a FollowRoute request on a map of `count` snapshots is refused, or None to drive it."""
+    codes, end = FollowRoute.Result, follow_end(request, count)
+    if not math.isfinite(request.max_speed):
+        return codes.BAD_GOAL, 'max_speed is not finite'
+    if not (-1 <= request.start_index < count and 0 <= end < count):
+        return codes.BAD_INDEX, f'the map has snapshots 0..{count - 1}: no such index'
+    if request.start_index > end:
+        return codes.BAD_INDEX, 'start_index lies beyond end_index'
+    return None
+
+
+def home_refusal(request: Home.Goal, count: int) -> Refusal | None:
+    """Return why a Home request on a map of `count` snapshots is refused, or None to drive it."""
+    codes = Home.Result
+    if not math.isfinite(request.max_speed):
+        return codes.BAD_GOAL, 'max_speed is not finite'
+    if not 0 <= request.index < count:
+        return codes.BAD_INDEX, f'no snapshot {request.index}: the map has snapshots 0..{count - 1}'
+    return None
+
+
+def peer_settings(node_map: str, goal_map: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
+    """Return {node: {parameter: value}} for compass and warping, and every map user when the goal's map is not
+    the route node's."""
+    peers = {'compass': dict(compass), 'warping': dict(warping)}
+    if goal_map != node_map:
+        peers['localize'] = {'map': goal_map}
+        for values in peers.values():
+            values['map'] = goal_map
+    return peers
+
+
+def follow_peers(node_map: str, goal_map: str, lookahead: int, start_index: int) -> dict[str, dict[str, Any]]:
+    """Return the other nodes' settings while following: the compass against the match, warping `lookahead`
+    snapshots ahead, localize tracking along the route (from `start_index` when the goal names one)."""
+    peers = peer_settings(node_map, goal_map, {'reference': 'match'}, {'target': 'next', 'lookahead': lookahead})
+    peers.setdefault('localize', {}).update(tracking=True, tracking_start=start_index)
+    return peers
+
+
+def home_peers(node_map: str, goal_map: str, index: int) -> dict[str, dict[str, Any]]:
+    """Return the other nodes' settings while homing: compass and warping against snapshot `index`."""
+    return peer_settings(
+        node_map, goal_map, {'reference': 'index', 'index': index}, {'target': 'index', 'index': index}
+    )
+
+
+#: localize's settings once a follow goal has ended: off the route, the place is sought on the whole route again
+UNTRACKED = {'localize': {'tracking': False, 'tracking_start': -1}}
+
+
+def first_feedback(kind: Any) -> Any:
+    """Return the feedback that tells a client the graph is set up for its goal, before any frame is answered."""
+    if kind is FollowRoute:
+        return FollowRoute.Feedback(matched_index=-1, target_index=-1, state=LOCALIZING)
+    return Home.Feedback(confidence=0.0, steps=0)
+
+
+def step_feedback(goal: ActiveGoal, step: Step) -> Any:
+    """Return the feedback of one answered frame."""
+    if goal.kind is FollowRoute:
+        return FollowRoute.Feedback(
+            matched_index=step.matched_index,
+            target_index=step.target_index,
+            progress=step.progress,
+            confidence=step.confidence,
+            state=step.state,
+        )
+    return Home.Feedback(confidence=step.confidence, steps=goal.steps)
+
+
+def unplaced(matched: int, start_index: int) -> str | None:
+    """Return the LOST text of a follow goal that never placed a view on the route (None if one was placed)."""
+    if matched >= 0:
+        return None
+    text = 'lost: no view was placed on the route, the robot never moved'
+    if start_index < 0:
+        text += ' (where it stands at a known snapshot, give it as start_index: skynav follow --from I)'
+    return text
+
+
+def failure(outcome: str, codes: Any, input_timeout: float, goal_timeout: float, lost: str | None = None) -> Refusal:
+    """Return the Result error code and text of a goal that ended by `outcome` (not reached, not canceled)."""
+    texts = {
+        LOST: (codes.LOST, lost or 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
+        STALE: (codes.STALE_INPUT, f'no usable frame for {input_timeout} s'),
+        TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {goal_timeout} s'),
+        SHUTDOWN: (codes.LOST, 'the route node shut down'),
+        BLOCKED: (codes.BLOCKED, 'blocked: the bumper reported contact (skynav does not drive around objects)'),
+    }
+    return texts[outcome]

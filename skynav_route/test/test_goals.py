@@ -1,0 +1,118 @@
+# SPDX-License-Identifier: Apache-2.0
+"""Goal handling without ROS: refused requests, the other nodes' settings, results; the parameters' checks."""
+
+import math
+
+import pytest
+
+from skynav_core.parameters import defaults
+from skynav_msgs.action import FollowRoute, Home
+from skynav_route import goals
+from skynav_route.controller import LOST, Limits, Settings
+from skynav_route.parameters import PARAMETERS, check, limits, settings
+
+
+def follow(start: int = -1, end: int = -1, speed: float = 0.0) -> FollowRoute.Goal:
+    return FollowRoute.Goal(start_index=start, end_index=end, max_speed=speed)
+
+
+@pytest.mark.parametrize(
+    ('request_', 'code'),
+    [
+        (follow(), None),
+        (follow(0, 9), None),
+        (follow(4, 4), None),
+        (follow(10), FollowRoute.Result.BAD_INDEX),
+        (follow(-2), FollowRoute.Result.BAD_INDEX),
+        (follow(0, 10), FollowRoute.Result.BAD_INDEX),
+        (follow(5, 4), FollowRoute.Result.BAD_INDEX),
+        (follow(speed=math.nan), FollowRoute.Result.BAD_GOAL),
+        (follow(speed=math.inf), FollowRoute.Result.BAD_GOAL),
+    ],
+)
+def test_a_follow_request_is_refused_with_its_error_code(request_, code):
+    refusal = goals.follow_refusal(request_, 10)
+    assert (refusal and refusal[0]) == code
+    if refusal is not None:
+        assert refusal[1]  # a text the client prints
+
+
+def test_a_follow_request_ends_at_its_end_index_or_the_last_snapshot():
+    assert goals.follow_end(follow(), 10) == 9
+    assert goals.follow_end(follow(end=3), 10) == 3
+
+
+@pytest.mark.parametrize(
+    ('index', 'speed', 'code'),
+    [
+        (0, 0.0, None),
+        (9, 0.5, None),
+        (10, 0.0, Home.Result.BAD_INDEX),
+        (-1, 0.0, Home.Result.BAD_INDEX),
+        (3, math.nan, Home.Result.BAD_GOAL),
+    ],
+)
+def test_a_home_request_is_refused_with_its_error_code(index, speed, code):
+    refusal = goals.home_refusal(Home.Goal(index=index, max_speed=speed), 10)
+    assert (refusal and refusal[0]) == code
+    if code == Home.Result.BAD_INDEX:
+        assert 'snapshots 0..9' in refusal[1]
+
+
+def test_following_sets_the_compass_warping_and_localize_and_another_map_for_all_three():
+    own = goals.follow_peers('route.db', 'route.db', 6, 3)
+    assert own == {
+        'compass': {'reference': 'match'},
+        'warping': {'target': 'next', 'lookahead': 6},
+        'localize': {'tracking': True, 'tracking_start': 3},
+    }
+    other = goals.follow_peers('route.db', 'other.db', 6, -1)
+    assert all(values['map'] == 'other.db' for values in other.values())
+    assert other['localize']['tracking'] is True
+
+
+def test_homing_points_the_compass_and_warping_at_the_goal_snapshot():
+    own = goals.home_peers('route.db', 'route.db', 7)
+    assert own == {'compass': {'reference': 'index', 'index': 7}, 'warping': {'target': 'index', 'index': 7}}
+    assert goals.home_peers('route.db', 'other.db', 7)['localize'] == {'map': 'other.db'}
+
+
+def test_every_way_a_goal_fails_has_its_own_code_and_text():
+    for kind in (FollowRoute, Home):
+        codes = kind.Result
+        failures = {
+            outcome: goals.failure(outcome, codes, 1.0, 600.0)
+            for outcome in (LOST, goals.STALE, goals.TIMED_OUT, goals.BLOCKED)
+        }
+        assert [code for code, _ in failures.values()] == [
+            codes.LOST,
+            codes.STALE_INPUT,
+            codes.TIMEOUT,
+            codes.BLOCKED,
+        ]
+        assert len({text for _, text in failures.values()}) == len(failures)
+        assert '600.0 s' in failures[goals.TIMED_OUT][1]
+        assert goals.failure(goals.SHUTDOWN, codes, 1.0, 600.0)[0] == codes.LOST
+        assert goals.failure(LOST, codes, 1.0, 600.0, 'never placed')[1] == 'never placed'
+
+
+def test_a_follow_goal_never_placed_on_the_route_says_so_and_how_to_help():
+    assert goals.unplaced(0, -1) is None
+    assert 'start_index' in goals.unplaced(-1, -1)
+    assert 'start_index' not in goals.unplaced(-1, 4)
+
+
+def test_the_first_feedback_says_no_frame_was_answered_yet():
+    assert goals.first_feedback(FollowRoute).state == 'localizing'
+    assert goals.first_feedback(Home).steps == 0
+
+
+def test_the_parameter_defaults_are_the_controllers_and_bad_values_are_refused():
+    values = defaults(PARAMETERS)
+    check(values)
+    assert settings(values) == Settings()
+    assert limits(values, 0.0) == Limits()
+    assert limits(values, 0.1).max_speed == 0.1
+    for name, value in (('max_speed', 0.0), ('approach', 0.0), ('heading_gain', math.nan), ('lost_frames', 0)):
+        with pytest.raises(ValueError):
+            check({**values, name: value})
