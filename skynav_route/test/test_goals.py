@@ -4,12 +4,12 @@
 import math
 
 import pytest
+from skynav_route.controller import LOST, Limits, Settings
+from skynav_route.parameters import PARAMETERS, check, limits, settings
 
 from skynav_core.parameters import defaults
 from skynav_msgs.action import FollowRoute, Home
 from skynav_route import goals
-from skynav_route.controller import LOST, Limits, Settings
-from skynav_route.parameters import PARAMETERS, check, limits, settings
 
 
 def follow(start: int = -1, end: int = -1, speed: float = 0.0) -> FollowRoute.Goal:
