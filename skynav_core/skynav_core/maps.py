@@ -67,6 +67,9 @@ SQLITE_MAGIC = b'SQLite format 3\x00'
 POSE_COLUMNS = ('x', 'y', 'z', 'qx', 'qy', 'qz', 'qw')
 #: Per-snapshot descriptor of a map taught live: (x, y, z, qx, qy, qz, qw) of base_link in `odom` (m), NaN if none.
 ODOM_POSE = 'odom_pose'
+#: ...and the same pose by dead reckoning from the velocity commands (/cmd_vel) since teaching began, for a robot
+#: without wheel odometry: (x, y, z, qx, qy, qz, qw) of base_link in the frame where teaching began (m).
+COMMAND_POSE = 'command_pose'
 META_CHECKSUM = 'meta_checksum'  # meta key of the meta table's own CRC-32 (schema 3 on)
 RESERVED_META = ('format', 'schema_version', 'name', 'max_degree', 'created_utc', 'created_from', META_CHECKSUM)
 CHECKS = ('none', 'quick', 'full')
@@ -711,9 +714,17 @@ class MapStore:
 
     def odometry_poses(self) -> np.ndarray | None:
         """Return the teach's odometry poses (N, 7) of base_link in `odom` (ODOM_POSE); None if the map has none."""
-        if not len(self) or ODOM_POSE not in self.descriptor_names():
+        return self._pose_descriptor(ODOM_POSE)
+
+    def commanded_poses(self) -> np.ndarray | None:
+        """Return the teach's poses (N, 7) of base_link by its velocity commands (COMMAND_POSE); None if none."""
+        return self._pose_descriptor(COMMAND_POSE)
+
+    def _pose_descriptor(self, name: str) -> np.ndarray | None:
+        """Return a per-snapshot pose descriptor as (N, 7); None if the map has none."""
+        if not len(self) or name not in self.descriptor_names():
             return None
-        return np.asarray(self.descriptor_matrix(ODOM_POSE), float).reshape(len(self), -1)
+        return np.asarray(self.descriptor_matrix(name), float).reshape(len(self), -1)
 
     @property
     def has_poses(self) -> bool:

@@ -12,8 +12,8 @@ node while it follows the route) each view is sought near the last accepted matc
 `tracking_start` (the snapshot the FollowRoute goal starts at).
 
 The node also serves the Teach action /skynav/teach (teach_server), in a live graph and in an in-process one
-(the simulator's) alike: while a goal runs, the views it takes (and /odom) become snapshots of a new map, which
-it and the nodes of `teach_map_nodes` use as soon as the goal ends.
+(the simulator's) alike: while a goal runs, the views it takes (with /odom, and the /cmd_vel commands the robot is
+driven with) become snapshots of a new map, which it and the nodes of `teach_map_nodes` use as soon as the goal ends.
 
 Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the node cannot use
 ('malformed', 'non_finite', 'degree': below the descriptors' degree, checked with a map;
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 
 from skynav_core.images import stamp_ns
@@ -36,7 +37,7 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import Acceptance, SequenceParams
 from .parameters import PARAMETERS
-from .teach_server import ODOM_QOS, ODOM_TOPIC, TeachServer, odometry_pose
+from .teach_server import COMMAND_QOS, COMMAND_TOPIC, ODOM_QOS, ODOM_TOPIC, TeachServer, odometry_pose
 from .teaching import OdometryTrack
 
 SH_TOPIC = '/skyline/sh'
@@ -48,7 +49,7 @@ class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (SH_TOPIC, ODOM_TOPIC)
+    INPUT_TOPICS = (SH_TOPIC, ODOM_TOPIC, COMMAND_TOPIC)
 
     needs_map = True
 
@@ -62,6 +63,7 @@ class LocalizeNode(SkynavNode):
         self.teach = TeachServer(self)
         self.odometry = OdometryTrack()  # the drive's path length, for tracking's window
         self.input(ODOM_TOPIC, Odometry, self.on_odometry, ODOM_QOS)
+        self.input(COMMAND_TOPIC, TwistStamped, self.teach.on_command, COMMAND_QOS)
         self.start()
 
     def configure(self, values: dict) -> None:

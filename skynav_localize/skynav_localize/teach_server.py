@@ -9,6 +9,10 @@ teaching has begun. The localize node hands it every view it takes and every /od
 goal ends the map is closed into one file and the nodes switch to it: the localize node itself and those of
 `teach_map_nodes` (their `map` parameter is set through their parameter services), before the result is sent. One
 goal at a time: a second one ends at once with BUSY.
+
+A robot without wheel odometry still leaves its route's shape in the map: the node hands the server every
+velocity command on /cmd_vel too (on_command: the operator's teleoperation while teaching), and the teacher dead
+reckons from them (skynav_localize.teaching.CommandedMotion).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMessage
 from rcl_interfaces.msg import ParameterType, ParameterValue
@@ -38,6 +43,8 @@ TEACH_ACTION = '/skynav/teach'
 ODOM_TOPIC = '/odom'
 # Best effort matches any odometry publisher; a deep queue, as odometry comes at up to 100 Hz in bursts.
 ODOM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
+COMMAND_TOPIC = '/cmd_vel'
+COMMAND_QOS = ODOM_QOS  # best effort takes any teleoperation's commands, reliable or not
 INPUT_CHECK_PERIOD = 0.25  # s between checks for missing views
 SWITCH_TIMEOUT = 5.0  # s a node gets to take the new map
 POLL_PERIOD = 0.02  # s between looks at pending parameter requests
@@ -120,6 +127,15 @@ class TeachServer:
         if self.active is not None:
             self.active.teacher.add_odometry(stamp_ns(message.header), odometry_pose(message))
 
+    def on_command(self, message: TwistStamped) -> None:
+        """Take one velocity command for the goal being taught (stamp 0, as some teleoperation sends: the node's
+        time); a non-finite command is counted and ignored."""
+        if self.active is None:
+            return
+        stamp = stamp_ns(message.header) or self.node.now_ns()
+        if not self.active.teacher.add_command(stamp, message.twist.linear.x, message.twist.angular.z):
+            self.node.reject('command', 'a /cmd_vel command is not finite or not newer than the last one')
+
     def check_input(self) -> None:
         """End the goal with NO_INPUT when no usable view arrived for teach_input_timeout s."""
         goal = self.active
@@ -171,7 +187,7 @@ class TeachServer:
             path = teacher.finish()
         except TeachError as exc:
             error, path = exc, None
-        summary = f'{teacher.snapshots} snapshots, {teacher.route_length:.2f} m by odometry'
+        summary = f'{teacher.snapshots} snapshots, {teacher.route_length:.2f} m by {teacher.length_source}'
         if path is not None and error is None:
             await self.switch_maps(str(path))
         result = self.result(error.code if error else 'NONE', str(error) if error else '', teacher)

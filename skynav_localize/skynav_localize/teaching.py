@@ -14,9 +14,11 @@ offered to a RouteTeacher. It keeps one as a snapshot
 
 Each snapshot is one transaction of the map (skynav_core.maps): a process killed while teaching leaves a readable
 map with every snapshot stored so far. With it the teacher stores the odometry pose of base_link in `odom` as the
-per-snapshot descriptor ODOM_POSE (NaN when there was none), for a viewer of the taught route; the map's pose
-columns stay empty (they hold ground truth, which no node reads). The map is created with the first view (its SH
-degree is the view's). Logic only (no rclpy).
+per-snapshot descriptor ODOM_POSE (NaN when there was none), and as COMMAND_POSE the pose by dead reckoning from
+the velocity commands the robot was driven with (/cmd_vel, CommandedMotion): the route's shape for a robot without
+wheel odometry (the route node reads ODOM_POSE first). Spacing stays by the view's change there, as the Teach action
+says. The map's pose columns stay empty (they hold ground truth, which no node reads). The map is created with the
+first view (its SH degree is the view's). Logic only (no rclpy).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.errors import SkynavError
-from skynav_core.maps import ODOM_POSE, MapError, MapStore
+from skynav_core.maps import COMMAND_POSE, ODOM_POSE, MapError, MapStore
 
 from .descriptors import describe
 from .mapping import DEFAULT_MIN_TRAVEL, create_map
@@ -41,6 +43,8 @@ VIEW_CHANGE_PER_METRE = 0.04
 DEFAULT_ODOMETRY_TOLERANCE_NS = 250_000_000  # the odometry sample nearest a view pairs with it within 0.25 s
 ODOMETRY_CAPACITY = 256  # odometry samples kept for pairing with views (about 5 s at 50 Hz)
 NO_POSE = np.full(7, np.nan)
+COMMAND_HOLD_NS = 500_000_000  # a velocity command moves the robot for at most 0.5 s (a base's usual command timeout)
+COMMAND_CAPACITY = 256  # commands kept for looking up views' poses (about 10 s at 25 Hz)
 
 
 class TeachError(SkynavError):
@@ -138,6 +142,66 @@ class OdometryTrack:
         return pose, float(travelled)
 
 
+def planar_pose(x: float, y: float, heading: float) -> np.ndarray:
+    """Return (x, y, 0, qx, qy, qz, qw) of a pose on the ground plane (m; heading in rad about z, left positive)."""
+    return np.array([x, y, 0.0, 0.0, 0.0, math.sin(heading / 2), math.cos(heading / 2)])
+
+
+def drive_arc(pose: np.ndarray, linear: float, angular: float, seconds: float) -> np.ndarray:
+    """Return the planar pose (x, y in m, heading in rad) reached from `pose` at a constant speed and turn rate."""
+    x, y, heading = pose
+    turn = angular * seconds
+    if abs(turn) < 1e-9:
+        step = linear * seconds
+        return np.array([x + step * math.cos(heading), y + step * math.sin(heading), heading])
+    radius = linear / angular
+    return np.array(
+        [
+            x + radius * (math.sin(heading + turn) - math.sin(heading)),
+            y + radius * (math.cos(heading) - math.cos(heading + turn)),
+            heading + turn,
+        ]
+    )
+
+
+class CommandedMotion:
+    """Dead reckoning from velocity commands: where base_link is if it obeyed each command exactly (held until the
+    next one, at most COMMAND_HOLD), in the frame where the first lookup left it standing (m, rad)."""
+
+    def __init__(self, hold_ns: int = COMMAND_HOLD_NS, capacity: int = COMMAND_CAPACITY) -> None:
+        self.hold_ns, self.capacity = int(hold_ns), capacity
+        self._stamps: list[int] = []  # ns, each command's stamp
+        self._states: list[tuple[np.ndarray, float, float, float]] = []  # (x, y, heading), path length, v, w there
+
+    def add(self, stamp_ns: int, linear: float, angular: float) -> bool:
+        """Take one command (stamp in ns, m/s forward, rad/s left); False (ignored) if not newer or finite."""
+        if not (math.isfinite(linear) and math.isfinite(angular)) or (self._stamps and stamp_ns <= self._stamps[-1]):
+            return False
+        pose, travelled = self._state_at(stamp_ns)
+        self._stamps.append(int(stamp_ns))
+        self._states.append((pose, travelled, float(linear), float(angular)))
+        if len(self._stamps) > self.capacity:
+            del self._stamps[0], self._states[0]
+        return True
+
+    def at(self, stamp_ns: int) -> tuple[np.ndarray, float] | None:
+        """Return (pose (x, y, z, qx, qy, qz, qw), path length in m) at `stamp_ns`; None if older than the commands
+        kept. Before the first command the robot stands at the origin."""
+        if self._stamps and stamp_ns < self._stamps[0] and len(self._stamps) == self.capacity:
+            return None
+        pose, travelled = self._state_at(stamp_ns)
+        return planar_pose(*pose), travelled
+
+    def _state_at(self, stamp_ns: int) -> tuple[np.ndarray, float]:
+        """Return the planar pose and path length (m) at `stamp_ns`, from the last command before it."""
+        last = int(np.searchsorted(np.asarray(self._stamps, dtype=np.int64), stamp_ns, side='right')) - 1
+        if last < 0:
+            return np.zeros(3), 0.0
+        pose, travelled, linear, angular = self._states[last]
+        seconds = min(stamp_ns - self._stamps[last], self.hold_ns) * 1e-9
+        return drive_arc(pose, linear, angular, seconds), travelled + abs(linear) * seconds
+
+
 class RouteTeacher:
     """One teach run: the views offered become snapshots of a new map at `path` (see the module notes)."""
 
@@ -167,12 +231,14 @@ class RouteTeacher:
         self.odometry_tolerance_ns = int(odometry_tolerance_ns)
         self.created_from = created_from
         self.odometry = OdometryTrack()
+        self.commanded = CommandedMotion()
         self.store: MapStore | None = None
         self.finished = False  # max_length reached: the goal ends
         self._descriptor: np.ndarray | None = None  # the last snapshot's amplitude descriptor
         self._travelled: float | None = None  # path length (m, by odometry) at the last snapshot; None without
         self._start: float | None = None  # path length at the first snapshot with odometry
         self._end: float | None = None  # path length at the last snapshot with odometry
+        self._commanded: tuple[float, float] | None = None  # commanded path length at the first and last snapshot
 
     @property
     def snapshots(self) -> int:
@@ -181,12 +247,26 @@ class RouteTeacher:
 
     @property
     def route_length(self) -> float:
-        """Return the odometry's path length (m) from the first to the last snapshot that had odometry; 0 unknown."""
-        return 0.0 if self._start is None or self._end is None else self._end - self._start
+        """Return the path length (m) from the first to the last snapshot by odometry (between snapshots that had
+        it), else by the velocity commands; 0 unknown."""
+        if self._start is not None and self._end is not None:
+            return self._end - self._start
+        return 0.0 if self._commanded is None else self._commanded[1] - self._commanded[0]
+
+    @property
+    def length_source(self) -> str:
+        """Return what route_length is measured by: 'odometry', 'commands' or 'nothing'."""
+        if self._start is not None:
+            return 'odometry'
+        return 'commands' if self.route_length > 0 else 'nothing'
 
     def add_odometry(self, stamp_ns: int, pose: np.ndarray) -> bool:
         """Take one odometry sample of base_link in odom (stamp in ns, x y z qx qy qz qw); False if ignored."""
         return self.odometry.add(stamp_ns, pose)
+
+    def add_command(self, stamp_ns: int, linear: float, angular: float) -> bool:
+        """Take one velocity command the robot is driven with (stamp in ns, m/s, rad/s); False if ignored."""
+        return self.commanded.add(stamp_ns, linear, angular)
 
     def offer(self, stamp_ns: int, coefficients: np.ndarray) -> bool:
         """Offer one view's SH coefficients (stamp in ns); return whether it was stored as a snapshot.
@@ -209,8 +289,18 @@ class RouteTeacher:
         travelled = None if odometry is None else odometry[1]
         if not self._keep(descriptor, travelled):
             return False
-        self._store(stamp_ns, coefficients, NO_POSE if odometry is None else odometry[0])
+        commanded = self.commanded.at(stamp_ns)
+        self._store(
+            stamp_ns,
+            coefficients,
+            {
+                ODOM_POSE: NO_POSE if odometry is None else odometry[0],
+                COMMAND_POSE: NO_POSE if commanded is None else commanded[0],
+            },
+        )
         self._descriptor = descriptor
+        if commanded is not None:
+            self._commanded = (commanded[1] if self._commanded is None else self._commanded[0], commanded[1])
         if travelled is not None:
             self._travelled = travelled
             self._start = travelled if self._start is None else self._start
@@ -232,7 +322,7 @@ class RouteTeacher:
         change = float(np.linalg.norm(descriptor - self._descriptor))
         return change >= self.spacing * self.change_per_metre
 
-    def _store(self, stamp_ns: int, coefficients: np.ndarray, odometry_pose: np.ndarray) -> None:
+    def _store(self, stamp_ns: int, coefficients: np.ndarray, poses: dict[str, np.ndarray]) -> None:
         """Commit one snapshot (creating the map with the first); MapWriteFailed if it cannot be written."""
         try:
             if self.store is None:
@@ -244,7 +334,7 @@ class RouteTeacher:
                     metadata={'taught': 'live', 'spacing_m': self.spacing},
                     overwrite=self.overwrite,
                 )
-            self.store.add_snapshot(coefficients, stamp_ns, None, {ODOM_POSE: odometry_pose})
+            self.store.add_snapshot(coefficients, stamp_ns, None, poses)
         except MapError as exc:
             raise MapWriteFailed(str(exc)) from None
 

@@ -48,6 +48,7 @@ class Operator:
     """The test's side: publishes views and odometry, sends Teach goals (its own node and executor thread)."""
 
     def __init__(self, context):
+        from geometry_msgs.msg import TwistStamped
         from nav_msgs.msg import Odometry
         from rclpy.action import ActionClient
         from rclpy.node import Node
@@ -61,6 +62,7 @@ class Operator:
             ShCoefficients, '/skyline/sh', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         )
         self.odometry = self.node.create_publisher(Odometry, '/odom', 100)
+        self.commands = self.node.create_publisher(TwistStamped, '/cmd_vel', 100)
         self.client = ActionClient(self.node, Teach, '/skynav/teach')
         self.feedback = []
         self.executor, self.thread = spin_in_thread(self.node, context)
@@ -68,8 +70,10 @@ class Operator:
         wait(lambda: self.views.get_subscription_count() >= 1, what='the localize node to subscribe /skyline/sh')
         time.sleep(SERVER_SETTLE)  # as `skynav teach` does: until the server has matched this client, a goal is lost
 
-    def drive(self, recording, indices, odometry=True, period=0.04, shift=0):
-        """Publish views (and, just before each, /odom of the same instant) of a recording's frames."""
+    def drive(self, recording, indices, odometry=True, period=0.04, shift=0, commands=None):
+        """Publish views (and, just before each, /odom of the same instant; just after, the velocity command
+        commands[k], stamped like it) of a recording's frames."""
+        from geometry_msgs.msg import TwistStamped
         from nav_msgs.msg import Odometry
 
         from skynav_msgs.msg import ShCoefficients
@@ -88,6 +92,11 @@ class Operator:
             view.header.frame_id = 'camera_link'
             view.field_of_view = float(np.radians(200))
             self.views.publish(view)
+            if commands is not None:
+                command = TwistStamped()
+                command.header.stamp = view.header.stamp
+                command.twist.linear.x, command.twist.angular.z = (float(v) for v in commands[k])
+                self.commands.publish(command)
             time.sleep(period)
 
     def send(self, **fields):
@@ -190,6 +199,37 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     assert status == GoalStatus.STATUS_CANCELED and 1 < again.snapshots < result.snapshots
     assert len(nodes['localize'].store) == again.snapshots
     assert all(len(nodes[name].snapshots.store) == again.snapshots for name in ('compass', 'warping'))
+
+
+def test_without_odometry_the_velocity_commands_give_the_route_shape(graph, garden, tmp_path):
+    from scipy.spatial.transform import Rotation
+
+    nodes, operator = graph
+    drive = garden['teach']
+    # the commands that move the drive's ground truth from each frame to the next (an arc of the same chord and turn)
+    headings = Rotation.from_quat(drive.poses[:, 3:]).as_euler('zyx')[:, 0]
+    steps = np.linalg.norm(np.diff(drive.poses[:, :2], axis=0), axis=1)
+    turns = np.arctan2(np.sin(np.diff(headings)), np.cos(np.diff(headings)))
+    chords = np.where(np.abs(turns) > 1e-9, np.abs(turns / 2) / np.maximum(np.abs(np.sin(turns / 2)), 1e-12), 1.0)
+    seconds = np.diff(drive.stamps.astype(np.int64)) / 1e9
+    commands = np.column_stack([steps * chords / seconds, turns / seconds])
+    commands = np.vstack([commands, [[np.nan, 0.0]]])  # the last one broken: counted and ignored
+    path = tmp_path / 'commanded.db'
+    rejected = nodes['localize'].rejected.get('command', 0)
+    handle = operator.send(map_path=str(path), spacing=0.3)
+    operator.drive(drive, range(len(drive.stamps)), odometry=False, commands=commands)
+    wait(lambda: nodes['localize'].last_stamp == drive.stamps[-1], what='the last view taken')
+    _, result = operator.cancel(handle)
+    assert nodes['localize'].rejected['command'] == rejected + 1
+    with MapStore.open(path) as store:
+        kept = np.searchsorted(drive.stamps, store.stamps())
+        assert np.all(np.isnan(store.odometry_poses()))
+        shape = store.commanded_poses()[:, :2]
+    truth = drive.poses[kept, :2]
+    distances = np.linalg.norm(shape[:, None] - shape[None], axis=2)
+    true_distances = np.linalg.norm(truth[:, None] - truth[None], axis=2)
+    assert np.max(np.abs(distances - true_distances)) < 0.05
+    assert result.route_length == pytest.approx(np.sum(steps[kept[0] : kept[-1]]), rel=0.02)
 
 
 def test_max_length_ends_the_goal_with_success(graph, garden, tmp_path):

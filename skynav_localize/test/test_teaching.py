@@ -1,14 +1,18 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Live teaching's logic (RouteTeacher): snapshots by odometry or by view change, max_length, committed maps."""
+"""Live teaching's logic (RouteTeacher): snapshots by odometry or by view change, max_length, committed maps; dead
+reckoning from velocity commands (CommandedMotion)."""
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from skynav_core.maps import MapStore
 from skynav_localize.teaching import (
+    COMMAND_HOLD_NS,
     DEFAULT_ODOMETRY_TOLERANCE_NS,
     ODOM_POSE,
     BadGoal,
+    CommandedMotion,
     MapExists,
     MapWriteFailed,
     OdometryTrack,
@@ -181,3 +185,78 @@ def test_a_map_that_cannot_be_written_fails_with_map_write_failed(garden, tmp_pa
     folder.rmdir()  # the directory disappears between the goal and the first view
     with pytest.raises(MapWriteFailed):
         teacher.offer(int(drive.stamps[0]), drive.coefficients[0])
+
+
+SECOND = 1_000_000_000  # ns
+
+
+def test_commands_held_on_a_circle_come_back_to_the_start():
+    motion = CommandedMotion()
+    speed, rate, period = 0.3, 0.5, SECOND // 10  # m/s, rad/s, 10 Hz
+    turn_time = 2 * np.pi / rate  # s for one full circle
+    for k in range(int(turn_time * 10) + 1):
+        assert motion.add(k * period, speed, rate)
+    pose, travelled = motion.at(int(turn_time * SECOND))
+    np.testing.assert_allclose(pose[:2], [0.0, 0.0], atol=1e-9)
+    assert travelled == pytest.approx(speed * turn_time)
+    pose, _ = motion.at(int(turn_time * SECOND / 2))  # half way: diametrically opposite, facing back
+    np.testing.assert_allclose(pose[:2], [0.0, 2 * speed / rate], atol=1e-9)
+    assert abs(Rotation.from_quat(pose[3:]).as_euler('zyx')[0]) == pytest.approx(np.pi, abs=1e-9)
+
+
+def test_a_command_moves_the_robot_for_at_most_the_hold_and_nothing_before_the_first():
+    motion = CommandedMotion()
+    np.testing.assert_array_equal(motion.at(5 * SECOND)[0], [0, 0, 0, 0, 0, 0, 1])  # standing where teaching began
+    assert motion.add(SECOND, 0.4, 0.0)
+    pose, travelled = motion.at(SECOND + COMMAND_HOLD_NS // 2)
+    assert pose[0] == pytest.approx(0.4 * COMMAND_HOLD_NS / 2 / SECOND) and travelled == pytest.approx(pose[0])
+    pose, travelled = motion.at(10 * SECOND)  # the teleoperation went quiet: the base stopped after the hold
+    assert pose[0] == pytest.approx(0.4 * COMMAND_HOLD_NS / SECOND) and pose[1] == 0.0
+    assert motion.add(11 * SECOND, -0.2, 0.0)  # reversing shortens the way from the start, lengthens the path
+    pose, travelled = motion.at(11 * SECOND + COMMAND_HOLD_NS)
+    assert pose[0] == pytest.approx((0.4 - 0.2) * COMMAND_HOLD_NS / SECOND)
+    assert travelled == pytest.approx(0.6 * COMMAND_HOLD_NS / SECOND)
+
+
+def test_broken_stale_or_forgotten_commands():
+    motion = CommandedMotion(capacity=3)
+    assert motion.add(10, 0.1, 0.0)
+    assert not motion.add(10, 0.2, 0.0)  # not newer
+    assert not motion.add(20, np.nan, 0.0) and not motion.add(20, 0.1, np.inf)
+    for stamp in (20, 30, 40):
+        assert motion.add(stamp, 0.1, 0.0)
+    assert motion.at(15) is None  # older than every command kept: unknown
+    assert motion.at(25) is not None
+
+
+def test_without_odometry_the_commands_give_the_route_shape_and_the_view_change_the_spacing(garden, tmp_path):
+    drive = garden['teach']
+    stamps = drive.stamps.astype(np.int64)
+    headings = Rotation.from_quat(drive.poses[:, 3:]).as_euler('zyx')[:, 0]
+    steps = np.linalg.norm(np.diff(drive.poses[:, :2], axis=0), axis=1)
+    seconds = np.diff(stamps) / SECOND
+    # the commands that drive the ground truth from each frame to the next (an arc of the same chord and turn)
+    turns = np.arctan2(np.sin(np.diff(headings)), np.cos(np.diff(headings)))
+    chords = np.where(np.abs(turns) > 1e-9, np.abs(turns / 2) / np.maximum(np.abs(np.sin(turns / 2)), 1e-12), 1.0)
+    linear, angular = steps * chords / seconds, turns / seconds
+    plain = RouteTeacher(tmp_path / 'plain.db', spacing=0.3)
+    kept_plain = teach_drive(plain, drive, odometry=False)
+    teacher = RouteTeacher(tmp_path / 'garden.db', spacing=0.3)
+    kept = []
+    for k, stamp in enumerate(stamps):
+        if teacher.offer(int(stamp), drive.coefficients[k]):
+            kept.append(k)
+        if k < len(linear):
+            teacher.add_command(int(stamp), linear[k], angular[k])
+    assert kept == kept_plain  # the spacing is by the view's change, commands or not
+    true_length = float(np.sum(steps[kept[0] : kept[-1]]))
+    assert teacher.route_length == pytest.approx(true_length, rel=0.02)
+    with MapStore.open(teacher.finish()) as store:
+        assert np.all(np.isnan(store.descriptor_matrix(ODOM_POSE)))
+        commanded = store.commanded_poses()
+    # the shape: every distance between two snapshots as the ground truth has it (the frame is where teaching began)
+    truth = drive.poses[kept, :2]
+    shape = commanded[:, :2]
+    true_distances = np.linalg.norm(truth[:, None] - truth[None], axis=2)
+    distances = np.linalg.norm(shape[:, None] - shape[None], axis=2)
+    assert np.max(np.abs(distances - true_distances)) < 0.05

@@ -10,14 +10,17 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from skynav_msgs.action import FollowRoute, Home
 
-from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step
+from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step, TaughtRoute
 
 # how a goal ends besides the controller's REACHED and LOST
 CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
 
 Refusal = tuple[int, str]  # a Result error code and its text
+MIN_SHAPE_LENGTH = 0.1  # m: a route shape by commands shorter than this had none (the robot was not driven by /cmd_vel)
 
 
 @dataclass
@@ -34,6 +37,18 @@ class ActiveGoal:
     reached_index: int = -1
     steps: int = 0
     confidence: float = 0.0
+
+
+def route_shape(odometry: np.ndarray | None, commanded: np.ndarray | None) -> tuple[TaughtRoute | None, str]:
+    """Return the taught route's shape and what it comes from: the teach's odometry poses, else its poses by the
+    velocity commands ((N, 7) each, None if the map has none), else nothing (None, 'nothing')."""
+    route = TaughtRoute.from_poses(odometry) if odometry is not None else None
+    if route is not None:
+        return route, 'odometry'
+    route = TaughtRoute.from_poses(commanded) if commanded is not None else None
+    if route is not None and np.sum(np.linalg.norm(np.diff(route.positions, axis=0), axis=1)) >= MIN_SHAPE_LENGTH:
+        return route, 'commands'
+    return None, 'nothing'
 
 
 def follow_end(request: FollowRoute.Goal, count: int) -> int:

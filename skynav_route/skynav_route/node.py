@@ -265,14 +265,17 @@ class RouteNode(SkynavNode):
     # --- goals ----------------------------------------------------------------------------------
 
     def open_map(self, map_path: str) -> tuple[int, TaughtRoute | None, str]:
-        """Return the snapshot count, the route's shape (the teach's odometry; None without) and the path of the
+        """Return the snapshot count, the route's shape (goals.route_shape; None without) and the path of the
         goal's map (its own, or the node's); raise MapError."""
         path = map_path or self.values['map']
         if not path:
             raise MapError('no map: the goal names none and the route node has no `map` parameter')
         with MapStore.open(path) as store:
-            count, poses = len(store), store.odometry_poses()
-        route = TaughtRoute.from_poses(poses) if poses is not None else None
+            count, (route, source) = len(store), goals.route_shape(store.odometry_poses(), store.commanded_poses())
+        if source == 'nothing':
+            self.get_logger().info(f'{path}: no odometry or commands of the teach: steering on the home vectors alone')
+        elif source == 'commands':
+            self.get_logger().info(f"{path}: the route's shape by dead reckoning from the teach's velocity commands")
         return count, route, str(path)
 
     async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
@@ -322,8 +325,6 @@ class RouteNode(SkynavNode):
         refusal = goals.follow_refusal(request, count)
         if refusal is not None:
             return self.refuse(handle, result, refusal)
-        if route is None:
-            self.get_logger().info(f'{path}: no odometry of the teach: steering on the home vectors directly')
         end = goals.follow_end(request, count)
         controller = RouteFollower(
             request.start_index, end, limits(self.values, request.max_speed), self.settings, route

@@ -3,6 +3,7 @@
 
 import math
 
+import numpy as np
 import pytest
 from skynav_route.controller import LOST, Limits, Settings
 from skynav_route.parameters import PARAMETERS, check, limits, settings
@@ -116,3 +117,25 @@ def test_the_parameter_defaults_are_the_controllers_and_bad_values_are_refused()
     for name, value in (('max_speed', 0.0), ('approach', 0.0), ('heading_gain', math.nan), ('lost_frames', 0)):
         with pytest.raises(ValueError):
             check({**values, name: value})
+
+
+def poses_along(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Return (N, 7) ground-plane poses at (x, y), heading along the way."""
+    heading = np.arctan2(np.gradient(y), np.gradient(x))
+    zeros = np.zeros_like(x)
+    return np.column_stack([x, y, zeros, zeros, zeros, np.sin(heading / 2), np.cos(heading / 2)])
+
+
+def test_the_route_shape_is_the_odometry_else_the_commands_else_none():
+    line = poses_along(np.linspace(0, 5, 26), np.zeros(26))
+    arc = poses_along(np.sin(np.linspace(0, 1, 26)), 1 - np.cos(np.linspace(0, 1, 26)))
+    nowhere = poses_along(np.zeros(26), np.zeros(26))  # no command came while teaching: it never moved
+    missing = np.full((26, 7), np.nan)
+    route, source = goals.route_shape(line, arc)
+    assert source == 'odometry' and np.allclose(route.positions, line[:, :2])
+    route, source = goals.route_shape(missing, arc)
+    assert source == 'commands' and np.allclose(route.positions, arc[:, :2])
+    route, source = goals.route_shape(None, arc)
+    assert source == 'commands'
+    assert goals.route_shape(missing, nowhere) == (None, 'nothing')
+    assert goals.route_shape(None, None) == (None, 'nothing')

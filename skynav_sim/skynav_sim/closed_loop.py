@@ -477,6 +477,15 @@ TELEOP_END = 0.2  # m before the planned path's end where the operator ends teac
 TELEOP_FRAMES_PER_METRE = 20  # frames (4 s) per metre of route before a teach drive is given up
 
 
+def velocity_command(stamp: int, linear: float, angular: float) -> TwistStamped:
+    """Return a /cmd_vel command (m/s forward, rad/s left) stamped `stamp` (ns) in base_link."""
+    message = TwistStamped()
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+    message.header.frame_id = 'base_link'
+    message.twist.linear.x, message.twist.angular.z = float(linear), float(angular)
+    return message
+
+
 def teleoperate(pose: Pose2D, spline: Callable, total: float, reached: float) -> tuple[float, float, float]:
     """Return the operator's command (m/s, rad/s) towards the planned path and the arc length (m) reached on it.
 
@@ -519,10 +528,10 @@ def teach_route(
     """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map.
 
     The graph (skyline, SH, localize: it serves /skynav/teach) runs in process; the mower publishes /clock, /odom
-    (when its base has odometry) and its camera each frame and obeys the operator (skynav_sim.mower: slip,
-    odometry noise). At the route's end the operator cancels the goal, which finishes the map (the usual end of
-    teaching). RuntimeError when the graph does not take the goal or the drive fails. `progress` is called once
-    per camera frame.
+    (when its base has odometry) and its camera each frame and obeys the operator's commands on /cmd_vel
+    (skynav_sim.mower: slip, odometry noise), which the localize node hears too. At the route's end the operator
+    cancels the goal, which finishes the map (the usual end of teaching). RuntimeError when the graph does not take
+    the goal or the drive fails. `progress` is called once per camera frame.
     """
     spline, total = planned_route(world, route_seed, length)
     start, ahead = spline(0.0), spline(0.3) - spline(0.0)
@@ -570,7 +579,8 @@ def teach_route(
                 teaching.poses.append(np.array([mower.pose.x, mower.pose.y, mower.pose.heading]))
                 executor.spin_once(timeout_sec=0)
                 linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
-                mower.drive(linear, angular, FRAME_PERIOD)
+                graph.publish('/cmd_vel', velocity_command(stamp, linear, angular))  # the joystick's command
+                mower.drive(*robot.command(stamp), FRAME_PERIOD)
                 if progress is not None:
                     progress()
                 if mower.blocked:

@@ -42,6 +42,20 @@ def test_a_taught_route_has_snapshots_spaced_by_odometry(taught):
     assert f'taught {len(stamps)} snapshots' in stdout
 
 
+def test_the_operators_commands_give_the_route_shape_too(taught):
+    # the localize node hears the operator's /cmd_vel and dead reckons: the shape a robot without odometry keeps.
+    # The base obeys with up to 5 % slip (the simulator's default), which a shape by commands cannot see.
+    out, _ = taught
+    with MapStore.open(out / 'teach.db') as store:
+        commanded = store.commanded_poses()[:, :2]
+        stamps = store.stamps()
+    description = yaml.safe_load((out / 'teach.yaml').read_text())
+    truth = truth_at(stamps, np.array(description['truth']['stamps']), np.array(description['truth']['poses']))[:, :2]
+    distances = np.linalg.norm(commanded[:, None] - commanded[None], axis=2)
+    true_distances = np.linalg.norm(truth[:, None] - truth[None], axis=2)
+    assert np.all(np.abs(distances - true_distances) <= 0.05 * true_distances + 0.02)
+
+
 def test_sim_follow_follows_a_taught_route_at_another_time(taught, tmp_path):
     out, _ = taught
     result = run_skynav(

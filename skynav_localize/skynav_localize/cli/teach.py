@@ -14,6 +14,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 HELP = 'teach a route: store snapshots of the live views into a new map while the robot is driven'
 
 
@@ -76,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
     assert outcome is not None  # goal_result raised otherwise
     with open_map(path) as store:
         info = store.info()
-    driven = f', {result.route_length:.2f} m by odometry' if result.route_length > 0 else ''
+        odometry = store.odometry_poses()
+    source = 'odometry' if odometry is not None and np.isfinite(odometry).any() else 'the velocity commands'
+    driven = f', {result.route_length:.2f} m by {source}' if result.route_length > 0 else ''
     print(
         f'skynav teach: {outcome.status_name}: {info["snapshots"]} snapshots{driven} -> {args.map} '
         f'({info["file_bytes"] / 1e3:.0f} kB)',

@@ -209,7 +209,7 @@ def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
         '--no-odom',
         action='store_true',
         help='the mower publishes no /odom, as a robot without wheel odometry (teaching then spaces snapshots by '
-        'view change)',
+        "view change and takes the route's shape from the operator's velocity commands)",
     )
 
 

@@ -4,7 +4,8 @@
 A scripted operator drives the simulated mower along a planned free route of about --length m (with turns) at
 0.3 m/s, steering as with a joystick (the mower slips and its odometry drifts, skynav_sim.mower), while the graph
 in this process (skyline, SH, localize, which serves /skynav/teach) stores a snapshot every `teach_spacing` m by
-/odom into DIR/teach.db. At the route's end the operator cancels the goal, which finishes the map. DIR/teach.yaml
+/odom into DIR/teach.db (with --no-odom, when the view has changed enough; the route's shape then comes from the
+operator's /cmd_vel commands). At the route's end the operator cancels the goal, which finishes the map. DIR/teach.yaml
 says which world, seed, camera and time of day it was and holds the true pose of every frame, for scoring only:
 `skynav sim follow DIR/teach.yaml --map DIR/teach.db` then follows the route. Everything is synthetic.
 """
@@ -86,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
     driven = float(np.sum(np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)))
     description_path = args.out / 'teach.yaml'
     write_description(description_path, args.world, args.seed, hours, camera, map_path, teaching)
+    source = 'the velocity commands' if args.no_odom else 'odometry'
     print(
-        f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by odometry ({driven:.2f} m truly '
+        f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by {source} ({driven:.2f} m truly '
         f'driven, {len(poses)} frames)'
     )
     print(f'map: {map_path}\ndescription (with the true poses, for scoring): {description_path}')
