@@ -166,7 +166,7 @@ def drive_arc(pose: np.ndarray, linear: float, angular: float, seconds: float) -
 
 class CommandedMotion:
     """Dead reckoning from velocity commands: where base_link is if it obeyed each command exactly (held until the
-    next one, at most COMMAND_HOLD), in the frame where the first lookup left it standing (m, rad)."""
+    next one, at most COMMAND_HOLD), in the frame where it stood before the first (origin, heading 0; m, rad)."""
 
     def __init__(self, hold_ns: int = COMMAND_HOLD_NS, capacity: int = COMMAND_CAPACITY) -> None:
         self.hold_ns, self.capacity = int(hold_ns), capacity
