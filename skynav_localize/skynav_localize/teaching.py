@@ -31,6 +31,7 @@ import numpy as np
 
 from skynav_core.errors import SkynavError
 from skynav_core.maps import COMMAND_POSE, ODOM_POSE, MapError, MapStore
+from skynav_core.motion import arc, ground_pose
 
 from .descriptors import describe
 from .mapping import DEFAULT_MIN_TRAVEL, create_map
@@ -142,28 +143,6 @@ class OdometryTrack:
         return pose, float(travelled)
 
 
-def planar_pose(x: float, y: float, heading: float) -> np.ndarray:
-    """Return (x, y, 0, qx, qy, qz, qw) of a pose on the ground plane (m; heading in rad about z, left positive)."""
-    return np.array([x, y, 0.0, 0.0, 0.0, math.sin(heading / 2), math.cos(heading / 2)])
-
-
-def drive_arc(pose: np.ndarray, linear: float, angular: float, seconds: float) -> np.ndarray:
-    """Return the planar pose (x, y in m, heading in rad) reached from `pose` at a constant speed and turn rate."""
-    x, y, heading = pose
-    turn = angular * seconds
-    if abs(turn) < 1e-9:
-        step = linear * seconds
-        return np.array([x + step * math.cos(heading), y + step * math.sin(heading), heading])
-    radius = linear / angular
-    return np.array(
-        [
-            x + radius * (math.sin(heading + turn) - math.sin(heading)),
-            y + radius * (math.cos(heading) - math.cos(heading + turn)),
-            heading + turn,
-        ]
-    )
-
-
 class CommandedMotion:
     """Dead reckoning from velocity commands: where base_link is if it obeyed each command exactly (held until the
     next one, at most COMMAND_HOLD), in the frame where it stood before the first (origin, heading 0; m, rad)."""
@@ -171,7 +150,7 @@ class CommandedMotion:
     def __init__(self, hold_ns: int = COMMAND_HOLD_NS, capacity: int = COMMAND_CAPACITY) -> None:
         self.hold_ns, self.capacity = int(hold_ns), capacity
         self._stamps: list[int] = []  # ns, each command's stamp
-        self._states: list[tuple[np.ndarray, float, float, float]] = []  # (x, y, heading), path length, v, w there
+        self._states: list[tuple[tuple[float, float, float], float, float, float]] = []  # pose, path length, v, w
 
     def add(self, stamp_ns: int, linear: float, angular: float) -> bool:
         """Take one command (stamp in ns, m/s forward, rad/s left); False (ignored) if not newer or finite."""
@@ -190,16 +169,16 @@ class CommandedMotion:
         if self._stamps and stamp_ns < self._stamps[0] and len(self._stamps) == self.capacity:
             return None
         pose, travelled = self._state_at(stamp_ns)
-        return planar_pose(*pose), travelled
+        return ground_pose(*pose), travelled
 
-    def _state_at(self, stamp_ns: int) -> tuple[np.ndarray, float]:
-        """Return the planar pose and path length (m) at `stamp_ns`, from the last command before it."""
+    def _state_at(self, stamp_ns: int) -> tuple[tuple[float, float, float], float]:
+        """Return the planar pose (x, y, heading) and path length (m) at `stamp_ns`, from the last command before it."""
         last = int(np.searchsorted(np.asarray(self._stamps, dtype=np.int64), stamp_ns, side='right')) - 1
         if last < 0:
-            return np.zeros(3), 0.0
+            return (0.0, 0.0, 0.0), 0.0
         pose, travelled, linear, angular = self._states[last]
         seconds = min(stamp_ns - self._stamps[last], self.hold_ns) * 1e-9
-        return drive_arc(pose, linear, angular, seconds), travelled + abs(linear) * seconds
+        return arc(*pose, linear * seconds, angular * seconds), travelled + abs(linear) * seconds
 
 
 class RouteTeacher:

@@ -14,12 +14,11 @@ Pure numpy: the simulation's node (skynav_sim.closed_loop) publishes what it say
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from skynav_core.rotations import wrap_angle
+from skynav_core.motion import arc
 
 from .world import World
 
@@ -34,13 +33,7 @@ class Pose2D:
 
     def moved(self, distance: float, turn: float) -> Pose2D:
         """Return the pose after driving `distance` (m) along an arc that turns by `turn` (rad)."""
-        if abs(turn) < 1e-9:
-            dx, dy = distance, 0.0
-        else:  # exact arc of radius distance / turn
-            radius = distance / turn
-            dx, dy = radius * math.sin(turn), radius * (1.0 - math.cos(turn))
-        c, s = math.cos(self.heading), math.sin(self.heading)
-        return Pose2D(self.x + c * dx - s * dy, self.y + s * dx + c * dy, wrap_angle(self.heading + turn))
+        return Pose2D(*arc(self.x, self.y, self.heading, distance, turn))
 
     @property
     def position(self) -> np.ndarray:
