@@ -187,7 +187,8 @@ class TeachServer:
             path = teacher.finish()
         except TeachError as exc:
             error, path = exc, None
-        summary = f'{teacher.snapshots} snapshots, {teacher.route_length:.2f} m by {teacher.length_source}'
+        length = f'{teacher.route_length:.2f} m by {teacher.length_source}'
+        summary = f'{teacher.snapshots} snapshots, ' + ('route length unknown' if teacher.route_length <= 0 else length)
         if path is not None and error is None:
             await self.switch_maps(str(path))
         result = self.result(error.code if error else 'NONE', str(error) if error else '', teacher)
