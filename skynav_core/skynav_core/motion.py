@@ -1,13 +1,20 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Planar motion of a ground robot: a pose on the ground plane moved along an arc, and as a 3D pose."""
+"""Planar motion of a ground robot: a pose on the ground plane moved along an arc, as a 3D pose, and the velocity
+command that asks for it."""
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .rotations import wrap_angle
+
+if TYPE_CHECKING:
+    from geometry_msgs.msg import TwistStamped
+
+BASE_FRAME = 'base_link'  # the robot's body frame: velocity commands are given in it
 
 
 def arc(x: float, y: float, heading: float, distance: float, turn: float) -> tuple[float, float, float]:
@@ -25,3 +32,12 @@ def arc(x: float, y: float, heading: float, distance: float, turn: float) -> tup
 def ground_pose(x: float, y: float, heading: float) -> np.ndarray:
     """Return (x, y, 0, qx, qy, qz, qw) of a pose on the ground plane (m; heading in rad about z, left positive)."""
     return np.array([x, y, 0.0, 0.0, 0.0, math.sin(heading / 2), math.cos(heading / 2)])
+
+
+def fill_velocity_command(message: TwistStamped, stamp: int, linear: float, angular: float) -> TwistStamped:
+    """Fill a /cmd_vel command: forward speed (m/s) and turn rate (rad/s, left positive) in base_link, stamped
+    `stamp` (ns); return it."""
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(int(stamp), 1_000_000_000)
+    message.header.frame_id = BASE_FRAME
+    message.twist.linear.x, message.twist.angular.z = float(linear), float(angular)
+    return message

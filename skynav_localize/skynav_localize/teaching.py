@@ -234,10 +234,8 @@ class RouteTeacher:
 
     @property
     def length_source(self) -> str:
-        """Return what route_length is measured by: 'odometry', 'commands' or 'nothing'."""
-        if self._start is not None:
-            return 'odometry'
-        return 'commands' if self.route_length > 0 else 'nothing'
+        """Return what a route_length above 0 is measured by: 'odometry' or 'commands'."""
+        return 'odometry' if self._start is not None else 'commands'
 
     def add_odometry(self, stamp_ns: int, pose: np.ndarray) -> bool:
         """Take one odometry sample of base_link in odom (stamp in ns, x y z qx qy qz qw); False if ignored."""

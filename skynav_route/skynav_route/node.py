@@ -39,6 +39,7 @@ from std_msgs.msg import Bool
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
+from skynav_core.motion import fill_velocity_command
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.rotations import as_matrix
@@ -51,7 +52,6 @@ from .goals import BLOCKED, CANCELED, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal
 from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
-BASE_FRAME = 'base_link'
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
@@ -60,11 +60,7 @@ LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledg
 
 def twist(stamp: int, command: Command) -> TwistStamped:
     """Return a velocity command stamped `stamp` (ns) in base_link."""
-    message = TwistStamped()
-    message.header.stamp.sec, message.header.stamp.nanosec = divmod(int(stamp), 1_000_000_000)
-    message.header.frame_id = BASE_FRAME
-    message.twist.linear.x, message.twist.angular.z = float(command.linear), float(command.angular)
-    return message
+    return fill_velocity_command(TwistStamped(), stamp, command.linear, command.angular)
 
 
 class RouteNode(SkynavNode):

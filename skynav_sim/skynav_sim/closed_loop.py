@@ -35,6 +35,7 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import InProcessGraph, in_process
 from skynav_core.images import fill_image, stamp_ns
 from skynav_core.maps import MapStore, Snapshot
+from skynav_core.motion import fill_velocity_command
 from skynav_core.node import SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_localize.mapping import build_map
@@ -477,15 +478,6 @@ TELEOP_END = 0.2  # m before the planned path's end where the operator ends teac
 TELEOP_FRAMES_PER_METRE = 20  # frames (4 s) per metre of route before a teach drive is given up
 
 
-def velocity_command(stamp: int, linear: float, angular: float) -> TwistStamped:
-    """Return a /cmd_vel command (m/s forward, rad/s left) stamped `stamp` (ns) in base_link."""
-    message = TwistStamped()
-    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-    message.header.frame_id = 'base_link'
-    message.twist.linear.x, message.twist.angular.z = float(linear), float(angular)
-    return message
-
-
 def teleoperate(pose: Pose2D, spline: Callable, total: float, reached: float) -> tuple[float, float, float]:
     """Return the operator's command (m/s, rad/s) towards the planned path and the arc length (m) reached on it.
 
@@ -579,7 +571,8 @@ def teach_route(
                 teaching.poses.append(np.array([mower.pose.x, mower.pose.y, mower.pose.heading]))
                 executor.spin_once(timeout_sec=0)
                 linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
-                graph.publish('/cmd_vel', velocity_command(stamp, linear, angular))  # the joystick's command
+                joystick = fill_velocity_command(TwistStamped(), stamp, linear, angular)
+                graph.publish('/cmd_vel', joystick)
                 mower.drive(*robot.command(stamp), FRAME_PERIOD)
                 if progress is not None:
                     progress()
