@@ -66,6 +66,40 @@ def on_executor_thread(executor: Any, call: Callable[[], T], timeout: float = 30
     return task.result()
 
 
+class CanceledGoalHandle:
+    """A server's goal handle whose cancel the server took before the goal's execution began (rclpy's order when a
+    goal's cancel comes in the same wait as the goal); records how the server ended it."""
+
+    is_cancel_requested = True
+
+    def __init__(self, request: Any) -> None:
+        self.request = request
+        self.ended: list[str] = []
+        self.feedback: list[Any] = []
+
+    def canceled(self) -> None:
+        self.ended.append('canceled')
+
+    def succeed(self) -> None:
+        self.ended.append('succeeded')
+
+    def abort(self) -> None:
+        self.ended.append('aborted')
+
+    def publish_feedback(self, feedback: Any) -> None:
+        self.feedback.append(feedback)
+
+
+def run_without_waiting(coroutine: Any) -> Any:
+    """Return what `coroutine` returns; AssertionError if it waits for anything."""
+    try:
+        coroutine.send(None)
+    except StopIteration as end:
+        return end.value
+    coroutine.close()
+    raise AssertionError('the coroutine waited instead of returning')
+
+
 def skynav_command(*args: str) -> list[str]:
     """Return the command line that runs `skynav ARGS` with this interpreter."""
     return [sys.executable, '-m', 'skynav_bringup.cli', *args]

@@ -8,7 +8,8 @@ simulator's in-process graph; NO_INPUT, the map keeps what was stored). Its firs
 teaching has begun. The localize node hands it every view it takes and every /odom message (on_odometry). When the
 goal ends the map is closed into one file and the nodes switch to it: the localize node itself and those of
 `teach_map_nodes` (their `map` parameter is set through their parameter services), before the result is sent. One
-goal at a time: a second one ends at once with BUSY.
+goal at a time: a second one ends at once with BUSY. A goal canceled before its execution began ends at once,
+canceled, without a map (a client cancels a goal whose answer it did not get: skynav_core.goals).
 
 A robot without wheel odometry still leaves its route's shape in the map: the node hands the server every
 velocity command on /cmd_vel too (on_command: the operator's teleoperation while teaching), and the teacher dead
@@ -160,6 +161,9 @@ class TeachServer:
         if self.active is not None:
             goal_handle.abort()
             return self.result('BUSY', f'another Teach goal is running (writing {self.active.teacher.path})')
+        if goal_handle.is_cancel_requested:  # canceled before its execution began, when on_cancel found no goal
+            goal_handle.canceled()
+            return self.result('NONE', 'canceled before teaching began: no map was written')
         # <= 0: the node's default (spacing) or no limit (max_length); NaN is passed on, to be refused as BAD_GOAL
         spacing = request.spacing if not request.spacing <= 0 else self.settings['teach_spacing']
         max_length = request.max_length if not request.max_length <= 0 else 0.0

@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter
 from skynav_core.actions import error_name
 from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
-from skynav_core.testing import on_executor_thread
+from skynav_core.testing import CanceledGoalHandle, on_executor_thread, run_without_waiting
 
 TIMEOUT = 30.0  # s for discovery and results under load
 
@@ -270,6 +270,22 @@ def test_goals_that_cannot_be_taught_end_with_named_errors(graph, garden, tmp_pa
 
 
 KILLED_NODE = [sys.executable, '-m', 'skynav_core.run_node', 'skynav_localize.node:LocalizeNode']
+
+
+def test_a_teach_canceled_before_its_execution_began_writes_no_map(ros_context, tmp_path):
+    # rclpy takes a cancel that comes with its goal before the goal's execution starts, when no goal is active
+    from skynav_localize.node import LocalizeNode
+    from skynav_msgs.action import Teach
+
+    node = LocalizeNode(context=ros_context)
+    try:
+        handle = CanceledGoalHandle(Teach.Goal(map_path=str(tmp_path / 'taught.db'), spacing=0.3))
+        result = run_without_waiting(node.teach.execute(handle))
+        assert handle.ended == ['canceled'] and error_name(result) == 'NONE' and result.snapshots == 0
+        assert 'no map' in result.error_msg and node.teach.active is None
+        assert not (tmp_path / 'taught.db').exists()
+    finally:
+        node.destroy_node()
 
 
 def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, tmp_path):

@@ -19,7 +19,8 @@ near the goal's start_index when it names one; off again when the goal ends) and
 the `map` of localize, compass and warping.
 
 The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
-frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s.
+frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s. A goal canceled before its
+execution began never drives (a client cancels a goal whose answer it did not get: skynav_core.goals).
 """
 
 from __future__ import annotations
@@ -307,6 +308,9 @@ class RouteNode(SkynavNode):
         if self.active is not None:
             return 'busy', None
         goal = self.active = ActiveGoal(kind, handle, controller, Future())
+        if handle.is_cancel_requested:  # canceled before its execution began, when on_cancel found no active goal
+            self.finish(CANCELED)
+            return CANCELED, goal
         await self.configure_peers(peers)
         handle.publish_feedback(goals.first_feedback(kind))
         return await goal.done, goal

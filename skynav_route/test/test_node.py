@@ -21,6 +21,7 @@ from skynav_core.graph import in_process
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
 from skynav_core.nodes import installed_nodes
+from skynav_core.testing import CanceledGoalHandle, run_without_waiting
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
@@ -150,6 +151,27 @@ def test_one_stamped_command_per_frame_while_active_and_a_zero_command_on_cancel
             assert len(driver.commands) == 11 and is_zero(driver.commands[-1])
             driver.publish_frame(index=7)
             assert len(driver.commands) == 11  # idle again: nothing
+        finally:
+            driver.close()
+
+
+@pytest.mark.parametrize('kind', ['follow', 'home'])
+def test_a_goal_canceled_before_its_execution_began_never_drives(route_map, kind):
+    # rclpy takes a cancel that comes with its goal before the goal's execution starts, when no goal is active
+    with route_graph(route_map) as graph:
+        driver = Driver(graph)
+        try:
+            node = driver.node
+            if kind == 'follow':
+                handle = CanceledGoalHandle(FollowRoute.Goal(start_index=-1, end_index=-1, max_speed=0.3))
+                result = run_without_waiting(node.execute_follow(handle))
+            else:
+                handle = CanceledGoalHandle(Home.Goal(index=4))
+                result = run_without_waiting(node.execute_home(handle))
+            assert handle.ended == ['canceled'] and error_name(result) == 'NONE' and node.active is None
+            for _ in range(3):
+                driver.publish_frame(home_index=4)
+            assert len(driver.commands) == 1 and is_zero(driver.commands[0])  # the stop at its end, nothing else
         finally:
             driver.close()
 

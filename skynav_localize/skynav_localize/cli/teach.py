@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         line.end()
     result = goal_result(outcome, cancel_finishes=True, detail=lambda result: f'{result.snapshots} snapshots kept')
     assert outcome is not None  # goal_result raised otherwise
+    if not path.exists():  # canceled before teaching began
+        raise CliError(result.error_msg or f'the server wrote no map at {path}')
     with open_map(path) as store:
         info = store.info()
         odometry = store.odometry_poses()
