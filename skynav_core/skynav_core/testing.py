@@ -7,11 +7,13 @@ import dataclasses
 import fcntl
 import os
 import random
+import signal
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, TypeVar
 
@@ -117,6 +119,22 @@ def start_skynav(*args: str, cwd: str | os.PathLike | None = None, env: dict | N
     return subprocess.Popen(
         skynav_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd, env=env
     )
+
+
+@contextmanager
+def running(process: subprocess.Popen, stop_timeout: float = 60.0) -> Iterator[subprocess.Popen]:
+    """Hold a started `skynav` process (start_skynav) for a block, and stop it with SIGINT after the block; a
+    failure in the block carries what the process wrote (the graph's log, for `skynav launch`)."""
+    try:
+        yield process
+    except AssertionError as failure:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=stop_timeout)
+        raise AssertionError(f'{failure}\n--- the process wrote ---\n{out}{err}') from None
+    finally:
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+            process.communicate(timeout=stop_timeout)
 
 
 def one_line_error(stderr: str) -> bool:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.maps import MapStore
-from skynav_core.testing import claim_domain_id, one_line_error, run_skynav, start_skynav, wait_text
+from skynav_core.testing import claim_domain_id, one_line_error, run_skynav, running, start_skynav, wait_text
 from skynav_localize.cli.eval import positions_at
 
 BAGS = Path(__file__).parents[2] / 'bags'
@@ -38,8 +38,7 @@ def test_teach_over_a_replayed_drive_makes_a_map_like_map_build(tmp_path):
     taught = tmp_path / 'taught.db'
     params = tmp_path / 'params.yaml'  # no NO_INPUT while a loaded machine starts the replay
     params.write_text('localize:\n  ros__parameters:\n    teach_input_timeout: 60.0\n')
-    launch = start_skynav('launch', '--nodes', 'skyline', 'sh', 'localize', '--params', str(params))
-    try:
+    with running(start_skynav('launch', '--nodes', 'skyline', 'sh', 'localize', '--params', str(params))):
         # warm the graph up (its first frames are slow) on a drive recorded earlier than the teach drive
         replay(BAGS / 'synthetic_garden_skyline.mcap', 0)
         teach = start_skynav('teach', str(taught), '--wait', '60')
@@ -53,9 +52,6 @@ def test_teach_over_a_replayed_drive_makes_a_map_like_map_build(tmp_path):
         assert re.fullmatch(rf'skynav teach: canceled: \d+ snapshots -> {re.escape(str(taught))} \(\d+ kB\)', summary)
         again = run_skynav('teach', str(taught), '--wait', '30')
         assert again.returncode == 1 and one_line_error(again.stderr) and 'MAP_EXISTS' in again.stderr
-    finally:
-        launch.send_signal(signal.SIGINT)
-        launch.communicate(timeout=60)
     with MapStore.open(taught) as live, MapStore.open(built) as offline:
         assert 0.8 * len(offline) <= len(live) <= 1.3 * len(offline), (len(live), len(offline))
         spacing = np.linalg.norm(np.diff(positions_at(TEACH, live.stamps()), axis=0), axis=1)
