@@ -85,8 +85,10 @@ class CompassView:
     ) -> CompassView:
         """Return the view of cell values v f (samples), v f^2 (default v f: binary) and v (seen) on an SH grid."""
         # grid: a skynav_sh GaussLegendreGrid; its analysis is truncated at grid.max_degree
-        square = samples if square_samples is None else square_samples
-        weighted, weighted_square, visibility = grid.analysis(np.stack([samples, square, seen]))
+        if square_samples is None:  # binary: f^2 = f, one analysis fewer and the two terms exactly alike
+            weighted, visibility = grid.analysis(np.stack([samples, seen]))
+            return cls(weighted, weighted.copy(), visibility)
+        weighted, weighted_square, visibility = grid.analysis(np.stack([samples, square_samples, seen]))
         return cls(weighted, weighted_square, visibility)
 
     @classmethod
