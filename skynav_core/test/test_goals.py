@@ -108,7 +108,6 @@ class Server:
 def command(ros_context, monkeypatch):
     """Run one goal as a command does, its client losing the first answers of the kinds given; return
     (outcome, feedback it showed)."""
-    monkeypatch.setattr(goals, 'GOAL_ANSWER_WAIT', 2.0)
     monkeypatch.setattr(goals, 'RESULT_ASK_AGAIN', 1.0)
     monkeypatch.setattr(goals, 'ActionClient', LosingClient)
     node = Node('goal_test_command', context=ros_context)
