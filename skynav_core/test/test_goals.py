@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: Apache-2.0
 """skynav_core.goals: a command's goal survives the service answers that DDS loses.
 
-A Teach action server runs in this process, over DDS; the command's action client (a subclass that loses chosen
-answers on the way, as Fast DDS does when the server has not yet discovered the client's reader of answers) runs
-through skynav_core.goals.run_goal, as `skynav teach|follow|home` do.
+A Teach action server runs in this process, over DDS, and the command's action client runs through
+skynav_core.goals.run_goal, as `skynav teach|follow|home` do. Either side may be a subclass that loses chosen
+messages on the way to it: a client its first goal or result answer (as Fast DDS drops an answer while the server
+has not yet discovered the client's reader of answers), a server its first goal request.
 """
 
 import threading
