@@ -102,6 +102,14 @@ def run_without_waiting(coroutine: Any) -> Any:
     raise AssertionError('the coroutine waited instead of returning')
 
 
+def wait_until(condition: Callable[[], object], what: str, timeout: float = 30.0) -> None:
+    """Wait until condition() is true (a thread or another process makes it so); fail naming `what` after timeout s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f'timed out waiting for {what}'
+        time.sleep(0.01)
+
+
 def skynav_command(*args: str) -> list[str]:
     """Return the command line that runs `skynav ARGS` with this interpreter."""
     return [sys.executable, '-m', 'skynav_bringup.cli', *args]

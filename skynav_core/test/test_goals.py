@@ -18,6 +18,7 @@ from rclpy.node import Node
 
 from skynav_core import goals
 from skynav_core.cli import CliError
+from skynav_core.testing import wait_until
 from skynav_msgs.action import Teach
 
 ACTION = '/skynav/teach'
@@ -127,13 +128,6 @@ def command(ros_context, monkeypatch):
     node.destroy_node()
 
 
-def wait(condition, what):
-    deadline = time.monotonic() + TIMEOUT
-    while not condition():
-        assert time.monotonic() < deadline, f'timed out waiting for {what}'
-        time.sleep(0.01)
-
-
 def test_a_goal_the_server_never_got_is_sent_again(ros_context, command):
     server = Server(ros_context, lose={'goal'})
     try:
@@ -172,7 +166,7 @@ def test_a_stop_while_the_answer_is_lost_cancels_the_goal(ros_context, command):
         outcome, _ = command(lose={'goal'}, stop=Stop(lambda: bool(server.started)))
         # None: stopped before the goal was seen; or seen (its status) and then canceled
         assert outcome is None or (outcome.canceled and outcome.status_name == 'canceled')
-        wait(lambda: server.ended, 'the goal to end')
+        wait_until(lambda: server.ended, 'the goal to end')
         assert list(server.ended.values()) == ['canceled'] and len(server.started) == 1
     finally:
         server.close()

@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter
 from skynav_core.actions import error_name
 from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
-from skynav_core.testing import CanceledGoalHandle, on_executor_thread, run_without_waiting
+from skynav_core.testing import CanceledGoalHandle, on_executor_thread, run_without_waiting, wait_until
 
 TIMEOUT = 30.0  # s for discovery and results under load
 
@@ -34,14 +34,6 @@ def spin_in_thread(node, context):
     thread = threading.Thread(target=executor.spin, daemon=True)
     thread.start()
     return executor, thread
-
-
-def wait(condition, timeout=TIMEOUT, what='condition'):
-    """Wait until condition() is true; fail with `what` after timeout s."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f'timed out waiting for {what}'
-        time.sleep(0.01)
 
 
 class Operator:
@@ -67,7 +59,7 @@ class Operator:
         self.feedback = []
         self.executor, self.thread = spin_in_thread(self.node, context)
         assert self.client.wait_for_server(timeout_sec=TIMEOUT)
-        wait(lambda: self.views.get_subscription_count() >= 1, what='the localize node to subscribe /skyline/sh')
+        wait_until(lambda: self.views.get_subscription_count() >= 1, 'the localize node to subscribe /skyline/sh')
         time.sleep(SERVER_SETTLE)  # as `skynav teach` does: until the server has matched this client, a goal is lost
 
     def drive(self, recording, indices, odometry=True, period=0.04, shift=0, commands=None):
@@ -108,7 +100,7 @@ class Operator:
             self.executor,
             lambda: self.client.send_goal_async(goal, feedback_callback=lambda m: self.feedback.append(m.feedback)),
         )
-        wait(future.done, what='the goal to be accepted')
+        wait_until(future.done, 'the goal to be accepted')
         handle = future.result()
         assert handle.accepted
         return handle
@@ -116,13 +108,13 @@ class Operator:
     def result(self, handle):
         """Return (status, result) of a goal once it ended."""
         future = on_executor_thread(self.executor, handle.get_result_async)
-        wait(future.done, what='the result')
+        wait_until(future.done, 'the result')
         return future.result().status, future.result().result
 
     def cancel(self, handle):
         """Cancel a goal; return (status, result)."""
         future = on_executor_thread(self.executor, handle.cancel_goal_async)
-        wait(future.done, what='the cancel response')
+        wait_until(future.done, 'the cancel response')
         return self.result(handle)
 
     def close(self):
@@ -162,7 +154,7 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     path = tmp_path / 'taught.db'
     handle = operator.send(map_path=str(path), spacing=0.3)
     operator.drive(drive, range(len(drive.stamps)))
-    wait(lambda: nodes['localize'].last_stamp == drive.stamps[-1], what='the last view taken')
+    wait_until(lambda: nodes['localize'].last_stamp == drive.stamps[-1], 'the last view taken')
     assert nodes['localize'].received['/skyline/sh'] == len(drive.stamps)
     status, result = operator.cancel(handle)
     assert status == GoalStatus.STATUS_CANCELED and error_name(result) == 'NONE'
@@ -186,15 +178,15 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     # localization runs on the new map from the next view on
     matches = []
     operator.node.create_subscription(PlaceMatch, '/localization/match', matches.append, 10)
-    wait(lambda: operator.node.count_publishers('/localization/match') >= 1, what='the match publisher')
+    wait_until(lambda: operator.node.count_publishers('/localization/match') >= 1, 'the match publisher')
     time.sleep(0.5)  # the new subscription is matched on both sides
     operator.drive(drive, [40], odometry=False, shift=10**10)  # on a second drive, 10 s later
-    wait(lambda: matches, what='a match')
+    wait_until(lambda: matches, 'a match')
     assert matches[-1].map_name == 'taught' and matches[-1].index >= 0
     # taught again into the same file, which every node has open: they all load the new map
     handle = operator.send(map_path=str(path), spacing=0.5, overwrite=True)
     operator.drive(drive, range(10), shift=2 * 10**10)
-    wait(lambda: nodes['localize'].last_stamp == drive.stamps[9] + 2 * 10**10, what='the second drive taken')
+    wait_until(lambda: nodes['localize'].last_stamp == drive.stamps[9] + 2 * 10**10, 'the second drive taken')
     status, again = operator.cancel(handle)
     assert status == GoalStatus.STATUS_CANCELED and 1 < again.snapshots < result.snapshots
     assert len(nodes['localize'].store) == again.snapshots
@@ -218,7 +210,7 @@ def test_without_odometry_the_velocity_commands_give_the_route_shape(graph, gard
     rejected = nodes['localize'].rejected.get('command', 0)
     handle = operator.send(map_path=str(path), spacing=0.3)
     operator.drive(drive, range(len(drive.stamps)), odometry=False, commands=commands)
-    wait(lambda: nodes['localize'].last_stamp == drive.stamps[-1], what='the last view taken')
+    wait_until(lambda: nodes['localize'].last_stamp == drive.stamps[-1], 'the last view taken')
     _, result = operator.cancel(handle)
     assert nodes['localize'].rejected['command'] == rejected + 1
     with MapStore.open(path) as store:
@@ -297,9 +289,9 @@ def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, 
         operator = Operator(ros_context)
         operator.send(map_path=str(path), spacing=0.1)
         # the node's action server may answer before its view subscription is matched: views sent then are lost
-        wait(lambda: operator.views.get_subscription_count() > 0, what="the node's view subscription")
+        wait_until(lambda: operator.views.get_subscription_count() > 0, "the node's view subscription")
         operator.drive(drive, range(30), period=0.05)
-        wait(lambda: len(operator.feedback) >= 11, what='ten snapshots')
+        wait_until(lambda: len(operator.feedback) >= 11, 'ten snapshots')
         process.send_signal(signal.SIGKILL)
         process.wait(timeout=TIMEOUT)
         committed = operator.feedback[-1].snapshots  # each feedback follows its snapshot's commit
