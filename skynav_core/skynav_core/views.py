@@ -3,8 +3,9 @@
 
 For offline tools (map building, evaluations): the installed skyline and SH nodes run in this process
 over the recording (the same code and parameters as `skynav run`), and each /skyline/sh output is
-joined by stamp with the recording's UV image, ground-truth pose and frame label. recorded_frames reads
-what a recording holds per exposure (camera, ground-truth poses, images) for the readers of data sets.
+joined by stamp with the recording's UV image (a colour camera's blue plane stands in for it), ground-truth
+pose and frame label. recorded_frames reads what a recording holds per exposure (camera, ground-truth poses,
+images) for the readers of data sets; a colour camera's frames come as linear RGB (skynav_core.colour).
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ import yaml
 from skynav_core.bag import BagError, open_bag
 
 from .camera import EquidistantCamera
-from .camera_input import CAMERA_INFO_TOPIC
+from .camera_input import CAMERA_INFO_TOPICS, recorded_source
+from .colour import decode_compressed, decode_image
 from .images import DTYPES, image_to_array, stamp_ns
+from .topics import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
 
 POSE_TOPIC = '/ground_truth/pose'
 
@@ -83,6 +86,8 @@ def recorded_frames(
     """Return the camera, ground-truth poses and images of `image_topics` of an open recording (skynav_core.bag).
 
     Topics the recording lacks are left out (their tables empty); an image in another encoding is an ImageError.
+    The camera and the frame order come from the camera info of the recording's camera source; the colour
+    camera's topics give uint16 (H, W, 3) linear RGB.
     """
     frames = RecordedFrames(
         None,
@@ -91,16 +96,21 @@ def recorded_frames(
         {topic: {} for topic in image_topics},
         yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {},
     )
-    wanted = [t for t in (CAMERA_INFO_TOPIC, POSE_TOPIC, *image_topics) if t in bag.topics]
+    source = recorded_source(bag.topics)
+    info_topic = source.info if source else next((t for t in CAMERA_INFO_TOPICS if t in bag.topics), None)
+    wanted = [t for t in (info_topic, POSE_TOPIC, *image_topics) if t in bag.topics]
+    decoders = {COLOUR_IMAGE: decode_image, COLOUR_COMPRESSED: decode_compressed}
     for raw in bag.messages(wanted):
         message = bag.deserialize(raw)
         stamp = stamp_ns(message.header)
-        if raw.topic == CAMERA_INFO_TOPIC:  # one per exposure: the frame order of the recording
+        if raw.topic == info_topic:  # one per exposure: the frame order of the recording
             frames.camera = frames.camera or EquidistantCamera.from_camera_info(message)
             frames.stamps.append(stamp)
         elif raw.topic == POSE_TOPIC:
             p, q = message.pose.position, message.pose.orientation
             frames.poses[stamp] = np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
+        elif raw.topic in decoders:
+            frames.images[raw.topic][stamp] = decoders[raw.topic](message)
         else:
             frames.images[raw.topic][stamp] = image_to_array(message, encodings)
     return frames
@@ -111,7 +121,7 @@ def recording_views(
 ) -> RecordingViews:
     """Run the skyline and SH nodes over a recording in this process and return its views in stamp order.
 
-    `images` keeps each view's raw UV image, `masks` the skyline node's mask.
+    `images` keeps each view's raw UV image (a colour camera's linear blue plane), `masks` the skyline node's mask.
     """
     from skynav_core.graph import in_process  # noqa: PLC0415 (the graph loads rclpy; callers that only read views need no ROS)
     from skynav_core.nodes import installed_nodes  # noqa: PLC0415 (node discovery reads the ament index; only a run of the graph needs it)
@@ -123,9 +133,10 @@ def recording_views(
     coefficients: dict[int, tuple[np.ndarray, int, float, str]] = {}
     node_masks: dict[int, np.ndarray] = {}
     with open_bag(path) as bag:
-        needed = ['/camera/uv/image_raw', '/camera/uv/camera_info']
-        if missing := [t for t in needed if t not in bag.topics]:
-            raise BagError(f'{path}: no {", ".join(missing)}; the nodes need the camera topics')
+        source = recorded_source(bag.topics)
+        if source is None or source.info not in bag.topics:
+            raise BagError(f'{path}: no camera frames with their camera info; the nodes need the camera topics')
+        image_topic = source.images[0]
         with in_process(specs, ros_args) as graph:
             graph.keep_outputs = True
             graph.run(bag, progress=progress)
@@ -140,8 +151,10 @@ def recording_views(
                         float(message.field_of_view),
                         str(message.fill),
                     )
-        recorded = recorded_frames(bag, ['/camera/uv/image_raw'] if images else [])
-    labels, uvs = recorded.labels(), recorded.images.get('/camera/uv/image_raw', {})
+        recorded = recorded_frames(bag, [image_topic] if images else [])
+    labels, uvs = recorded.labels(), recorded.images.get(image_topic, {})
+    if image_topic != UV_IMAGE:
+        uvs = {stamp: rgb[..., 2] for stamp, rgb in uvs.items()}  # blue stands in for UV
     frame_index = {stamp: k for k, stamp in enumerate(sorted(set(recorded.stamps) | set(coefficients)))}
     views = [
         View(

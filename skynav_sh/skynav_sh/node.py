@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """The SH node: the skyline mask in, its real spherical-harmonic coefficients out.
 
-Subscribes /skyline/mask (mono8, 255 sky) and /camera/uv/camera_info; publishes /skyline/sh
+Subscribes /skyline/mask (mono8, 255 sky) and the camera info of the camera the masks come from (/camera/uv/camera_info
+or /camera/camera_info, parameter `camera`; with `auto` the one whose size fits the masks); publishes /skyline/sh
 (skynav_msgs/ShCoefficients: degree L, (L+1)^2 coefficients of the mask as a function on the
 sphere with sky = 1, the fill used outside the field of view, the field of view) with the mask's stamp.
 """
@@ -9,10 +10,11 @@ sphere with sky = 1, the fill used outside the field of view, the field of view)
 from __future__ import annotations
 
 import math
+from functools import partial
 
 from sensor_msgs.msg import CameraInfo, Image
 
-from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
+from skynav_core.camera_input import CAMERA_INFO_TOPICS, CameraInput
 from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.ros import run_node
@@ -31,7 +33,7 @@ class ShNode(SkynavNode):
     """Transforms each skyline mask into SH coefficients."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (MASK_TOPIC, CAMERA_INFO_TOPIC)
+    INPUT_TOPICS = (MASK_TOPIC, *CAMERA_INFO_TOPICS)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sh', **kwargs)
@@ -40,7 +42,8 @@ class ShNode(SkynavNode):
         self.expire_with_time(self.camera_input.expire)
         self.transform: FisheyeTransform | None = None
         self.input(MASK_TOPIC, Image, self.on_mask)
-        self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
+        for topic in CAMERA_INFO_TOPICS:
+            self.input(topic, CameraInfo, partial(self.on_camera_info, topic), SENSOR_QOS)
         self.output(SH_TOPIC, ShCoefficients)
         self.start()
 
@@ -53,12 +56,14 @@ class ShNode(SkynavNode):
         if values['supersampling'] < 1:
             raise ShError('supersampling must be at least 1')
         self.settings = values
-        self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
+        self.camera_input.configure(
+            values['camera'], values['camera_info_url'], math.radians(values['field_of_view_deg'])
+        )
         self.transform = None
 
-    def on_camera_info(self, info: CameraInfo) -> None:
+    def on_camera_info(self, topic: str, info: CameraInfo) -> None:
         """Adopt the camera geometry; transform the masks that waited for it."""
-        if self.camera_input.update(info):
+        if self.camera_input.update(info, topic):
             self.transform = None
         if self.camera_input.camera is not None:
             for stamp, mask in self.camera_input.release():
@@ -83,7 +88,7 @@ class ShNode(SkynavNode):
             return
         camera = self.camera_input.camera
         assert camera is not None  # masks wait until a camera is known
-        if self.transform is None:
+        if self.transform is None or self.transform.camera != camera:
             s = self.settings
             self.transform = FisheyeTransform(camera, s['max_degree'], s['fill'], s['supersampling'])
         with self.processing(stamp):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from skynav_core.camera_input import CAMERA_PARAMETERS
 from skynav_core.parameters import Parameter
 
 from .fisheye import FILLS
@@ -12,4 +13,5 @@ PARAMETERS = {
     'fill': Parameter('zero', f'value outside the field of view: {", ".join(FILLS)}'),
     'supersampling': Parameter(2, 'sub-samples per grid cell side (area-averaged sampling)'),
     'field_of_view_deg': Parameter(0.0, 'narrow the field of view to this full angle (deg); 0: whole image circle'),
+    **CAMERA_PARAMETERS,
 }

@@ -1,41 +1,45 @@
 # SPDX-License-Identifier: Apache-2.0
-"""The skyline node: UV and green images in, the sky/ground mask out.
+"""The skyline node: camera frames in, the sky/ground mask out.
 
-Subscribes /camera/uv/image_raw, /camera/green/image_raw and /camera/uv/camera_info; pairs the
-two channels of an exposure by stamp; publishes /skyline/mask (mono8, 255 sky, 0 ground and
-outside the image circle) with the input's stamp. UV-only methods do not wait for green.
+Takes one camera (parameter `camera`; docs/interfaces.md, "Cameras as robots have them"): the UV/green pair on
+/camera/uv/image_raw and /camera/green/image_raw, paired by stamp, with /camera/uv/camera_info; or one colour
+camera on /camera/image_raw (raw or Bayer) or /camera/image_raw/compressed (JPEG/PNG), with /camera/camera_info.
+Publishes /skyline/mask (mono8, the input's size, 255 sky, 0 ground and outside the image circle) with the input's
+stamp. UV-only methods do not wait for green; colour frames are segmented by `colour_method`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
-from skynav_core.camera_input import CAMERA_INFO_TOPIC, CameraInput
+from skynav_core.camera_input import CAMERA_INFO_TOPICS, CameraInput
+from skynav_core.colour import decode_compressed, decode_image
 from skynav_core.images import ImageError, fill_image, image_to_array, stamp_ns
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
+from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_IMAGE
 from skynav_skyline.errors import SkylineError
 
+from .colour import ColourSegmenter
 from .geometry import SkylineGeometry
-from .parameters import NODE_PARAMETERS, PARAMETERS, skyline_params
+from .parameters import NODE_PARAMETERS, PARAMETERS, colour_params, skyline_params
 from .segment import SkylineSegmenter
 
-UV_TOPIC = '/camera/uv/image_raw'
-GREEN_TOPIC = '/camera/green/image_raw'
 MASK_TOPIC = '/skyline/mask'
 CAMERA_FRAME = 'camera_link'
 
 
 class SkylineNode(SkynavNode):
-    """Segments each UV(/green) exposure into sky and ground."""
+    """Segments each camera exposure into sky and ground."""
 
     PARAMETERS = NODE_PARAMETERS
-    INPUT_TOPICS = (UV_TOPIC, GREEN_TOPIC, CAMERA_INFO_TOPIC)
+    INPUT_TOPICS = (UV_IMAGE, GREEN_IMAGE, COLOUR_IMAGE, COLOUR_COMPRESSED, *CAMERA_INFO_TOPICS)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('skyline', **kwargs)
@@ -43,20 +47,31 @@ class SkylineNode(SkynavNode):
         self.camera_input = CameraInput(self.reject, self.drop)
         self.expire_with_time(self.camera_input.expire)
         self.segmenter: SkylineSegmenter | None = None
-        self.input(UV_TOPIC, Image, partial(self.on_image, 'uv'), SENSOR_QOS)
-        self.input(GREEN_TOPIC, Image, partial(self.on_image, 'green'), SENSOR_QOS)
-        self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
+        self.colour_segmenter: ColourSegmenter | None = None
+        self.input(UV_IMAGE, Image, partial(self.on_image, 'uv'), SENSOR_QOS)
+        self.input(GREEN_IMAGE, Image, partial(self.on_image, 'green'), SENSOR_QOS)
+        self.input(COLOUR_IMAGE, Image, partial(self.on_colour, 'colour', decode_image), SENSOR_QOS)
+        self.input(
+            COLOUR_COMPRESSED,
+            CompressedImage,
+            partial(self.on_colour, 'colour-compressed', decode_compressed),
+            SENSOR_QOS,
+        )
+        for topic in CAMERA_INFO_TOPICS:
+            self.input(topic, CameraInfo, partial(self.on_camera_info, topic), SENSOR_QOS)
         self.output(MASK_TOPIC, Image)
         self.start()
 
     def configure(self, values: dict) -> None:
         """Build the segmentation settings from parameter values (ValueError for unusable ones)."""
         self.params = skyline_params({name: values[name] for name in PARAMETERS})
+        self.colour = colour_params({name: values[name] for name in PARAMETERS})
         if values['pair_tolerance_ms'] < 0:
             raise SkylineError('pair_tolerance_ms must not be negative')
         self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6), on_drop=self.drop_unpaired)
-        self.camera_input.set_fov_limit(math.radians(values['field_of_view_deg']))
-        self.segmenter = None  # rebuilt for the next frame
+        fov = math.radians(values['field_of_view_deg'])
+        self.camera_input.configure(values['camera'], values['camera_info_url'], fov)
+        self.segmenter = self.colour_segmenter = None  # rebuilt for the next frame
 
     def drop_unpaired(self, count: int) -> None:
         """Count frames whose other channel never came."""
@@ -68,52 +83,88 @@ class SkylineNode(SkynavNode):
         self.pairer.clear()
         self.camera_input.forget('time_restarted')
 
-    def on_camera_info(self, info: CameraInfo) -> None:
+    def on_camera_info(self, topic: str, info: CameraInfo) -> None:
         """Adopt the camera geometry; process what waited for it."""
-        if self.camera_input.update(info):
-            self.segmenter = None
+        if self.camera_input.update(info, topic):
+            self.segmenter = self.colour_segmenter = None
         if self.camera_input.camera is not None:
-            for frame in self.camera_input.release():
-                self.segment(*frame)
+            for segment in self.camera_input.release():
+                segment()
 
     def on_image(self, channel: str, image: Image) -> None:
-        """Collect one channel's frame; segment when the exposure is complete."""
+        """Collect one channel's frame of the UV/green pair; segment when the exposure is complete."""
         stamp = stamp_ns(image.header)
         try:
             pixels = image_to_array(image)
         except ImageError as exc:
             self.reject(exc.reason, f'{channel} image stamped {stamp}: {exc}')
             return
-        if not self.in_order(stamp, self.last_stamp, f'{channel} image'):
+        if not self.camera_input.admits('uv-green') or not self.in_order(stamp, self.last_stamp, f'{channel} image'):
             return
         if not self.params.uses_green:
             if channel == 'uv':
-                self.segment(stamp, (pixels, image.encoding), None)
+                self.taken(partial(self.segment, stamp, (pixels, image.encoding), None))
             return
         pair = self.pairer.add(channel, stamp, (pixels, image.encoding))
         if pair is not None:
-            self.segment(*pair)
+            self.taken(partial(self.segment, *pair))
+
+    def on_colour(self, source: str, decode: Callable, image: Image | CompressedImage) -> None:
+        """Decode one colour camera frame (raw, Bayer or compressed) to linear RGB and segment it."""
+        stamp = stamp_ns(image.header)
+        try:
+            rgb = decode(image)
+        except ImageError as exc:
+            self.reject(exc.reason, f'{source} frame stamped {stamp}: {exc}')
+            return
+        if self.camera_input.admits(source) and self.in_order(stamp, self.last_stamp, f'{source} frame'):
+            self.taken(partial(self.segment_colour, stamp, rgb))
+
+    def taken(self, segment: Callable[[], None]) -> None:
+        """Segment an exposure now, or hold it until the camera is known."""
+        if self.camera_input.camera is None:
+            self.camera_input.hold(segment, self.now_ns())
+        else:
+            segment()
+
+    def geometry(self) -> SkylineGeometry:
+        """Return the skyline geometry of the camera in use."""
+        assert self.camera_input.camera is not None  # exposures wait until a camera is known
+        return SkylineGeometry.from_camera(self.camera_input.camera)
 
     def segment(self, stamp: int, uv: tuple[np.ndarray, str], green: tuple[np.ndarray, str] | None) -> None:
-        """Publish the mask of one exposure (or hold it until the camera is known)."""
+        """Publish the mask of one UV/green exposure."""
         if green is not None and uv[0].shape != green[0].shape:
             self.reject(
                 'size_mismatch',
                 f'UV {uv[0].shape[::-1]} and green {green[0].shape[::-1]} images stamped {stamp} differ in size',
             )
             return
-        if self.camera_input.camera is None:
-            self.camera_input.hold((stamp, uv, green), self.now_ns())
-            return
         if not self.camera_input.matches(uv[0].shape):
             return
         if self.segmenter is None:
-            self.segmenter = SkylineSegmenter(SkylineGeometry.from_camera(self.camera_input.camera), self.params)
+            self.segmenter = SkylineSegmenter(self.geometry(), self.params)
+        segmenter = self.segmenter
+        self.publish_mask(
+            stamp,
+            lambda: segmenter.segment(
+                uv[0], None if green is None else green[0], uv[1], None if green is None else green[1]
+            ),
+        )
+
+    def segment_colour(self, stamp: int, rgb: np.ndarray) -> None:
+        """Publish the mask of one colour exposure (uint16 linear RGB)."""
+        if not self.camera_input.matches(rgb.shape):
+            return
+        if self.colour_segmenter is None:
+            self.colour_segmenter = ColourSegmenter(self.geometry(), self.colour)
+        self.publish_mask(stamp, partial(self.colour_segmenter.segment, rgb))
+
+    def publish_mask(self, stamp: int, segment: Callable[[], np.ndarray]) -> None:
+        """Publish the mask `segment` makes of the exposure stamped `stamp`; reject the exposure if it cannot."""
         with self.processing(stamp):
             try:
-                mask = self.segmenter.segment(
-                    uv[0], None if green is None else green[0], uv[1], None if green is None else green[1]
-                )
+                mask = segment()
             except ValueError as exc:
                 self.reject('invalid_image', f'exposure stamped {stamp}: {exc}')
                 return

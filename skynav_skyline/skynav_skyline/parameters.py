@@ -10,9 +10,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from skynav_core.camera_input import CAMERA_PARAMETERS
 from skynav_core.parameters import Parameter, read_parameter_file
 from skynav_core.parameters import defaults as table_defaults
 
+from .colour import COLOUR_DISCRIMINANT, COLOUR_METHODS, SEED_MARGIN, ColourParams
 from .segment import METHODS, SkylineParams
 
 # The segmentation's parameters. The angle and thresholds were learned by `skynav skyline train` on synthetic
@@ -50,12 +52,20 @@ PARAMETERS = {
     'ring_width_deg': Parameter(2.0, 'least width of such a band of ground along a ray (degrees of off-axis angle)'),
     'black_level_uv': Parameter(0.0, 'UV black level (counts, or radiance for 32FC1)'),
     'black_level_green': Parameter(0.0, 'green black level (counts, or radiance for 32FC1)'),
+    'colour_method': Parameter(
+        COLOUR_DISCRIMINANT,
+        f'method for colour frames: one of {", ".join(COLOUR_METHODS)} (the others on blue for UV and green)',
+    ),
+    'seed_margin': Parameter(
+        SEED_MARGIN, 'colour model: least distance of a seed pixel from its threshold to train it (log units)'
+    ),
 }
 
 
 #: The node's table: the segmentation's parameters and what only the node uses.
 NODE_PARAMETERS = {
     **PARAMETERS,
+    **CAMERA_PARAMETERS,
     'field_of_view_deg': Parameter(0.0, 'narrow the field of view to this full angle (deg); 0: whole image circle'),
     'pair_tolerance_ms': Parameter(2.0, 'UV and green frames this close in stamp form a pair (ms)'),
 }
@@ -85,6 +95,16 @@ def skyline_params(values: dict[str, Any]) -> SkylineParams:
         ring_width_deg=float(merged['ring_width_deg']),
         black_level=(float(merged['black_level_uv']), float(merged['black_level_green'])),
     )
+
+
+def colour_params(values: dict[str, Any]) -> ColourParams:
+    """Return the colour segmentation settings of parameter values (defaults for missing ones); ValueError if not.
+
+    Decoded colour frames are linear with a black level of 0, so the UV and green black levels do not apply.
+    """
+    merged = {**defaults(), **values}
+    seed = skyline_params({**merged, 'channels': 'uv-green', 'black_level_uv': 0.0, 'black_level_green': 0.0})
+    return ColourParams(str(merged['colour_method']), seed, float(merged['seed_margin']))
 
 
 def load_parameter_file(path: str) -> dict[str, Any]:

@@ -385,10 +385,7 @@ class SkylineSegmenter:
     def _run_row(
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
     ) -> Segmentation:
-        """Return the segmentation of the image-circle pixels of an image pair, as one row.
-
-        The row's `threshold` is a scalar, or for the sector methods the (bounded) threshold of each sector.
-        """
+        """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
         p = self.params
         if p.uses_green and green is None:
             raise SkylineError("channel mode 'uv-green' needs the green image")
@@ -407,7 +404,25 @@ class SkylineSegmenter:
             stride=stride,
         )
         contrast = project(features.x, features.y, p.projection_angle)
-        trusted = features.trusted(circle, p.uses_green)
+        return self.classify_row(
+            contrast,
+            features.trusted(circle, p.uses_green),
+            features.by_threshold(circle, p.uses_green),
+            features.sky_by_rule(circle),
+            features.uv.dark,
+        )
+
+    def classify_row(
+        self, contrast: np.ndarray, trusted: np.ndarray, decided: np.ndarray, by_rule: np.ndarray, dark: np.ndarray
+    ) -> Segmentation:
+        """Return the segmentation of the image circle's pixels (one row) from their contrast (log units).
+
+        The method's thresholds come from the `trusted` pixels' histograms; `decided` pixels are sky above them,
+        `by_rule` pixels are sky whatever the threshold, `dark` ones clearly ground; then the structure steps.
+        The row's `threshold` is a scalar, or for the sector methods the (bounded) threshold of each sector.
+        """
+        p = self.params
+        stride = self._stride
         if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
             raise SkylineError(
                 f'fewer than {MIN_TRUSTED_PIXELS} trusted pixels inside the image circle '
@@ -442,30 +457,28 @@ class SkylineSegmenter:
                 threshold = self._bounded(sectors.thresholds)
             else:
                 threshold = float(self._bounded(np.array([reference]))[0])
-        decided = features.by_threshold(circle, p.uses_green)
         if sectors is None:
             above = contrast > threshold
         else:
             assert isinstance(threshold, np.ndarray)  # one per sector
             above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
-        sky = features.sky_by_rule(circle) | (decided & above)
+        sky = by_rule | (decided & above)
         if p.fills_holes or p.cuts_rings:
-            strong = self._clearly_ground(features, contrast, threshold, sectors, decided) if p.fills_holes else None
+            strong = self._clearly_ground(dark, contrast, threshold, sectors, decided) if p.fills_holes else None
             sky = self._apply_structure(sky, strong)
         mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
 
     def _clearly_ground(
         self,
-        features: Features,
+        dark: np.ndarray,
         contrast: np.ndarray,
         threshold: np.ndarray | float,
         sectors: SectorThresholds | None,
         decided: np.ndarray,
     ) -> np.ndarray:
-        """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or UV dark."""
+        """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or `dark`."""
         margin = self.params.hole_margin
-        dark = features.uv.dark
         if not math.isfinite(margin):
             return dark
         if sectors is None:

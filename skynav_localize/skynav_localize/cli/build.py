@@ -20,10 +20,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from skynav_core.camera_input import CAMERA_TOPICS
 from skynav_core.cli import add_skip_damaged
 
 HELP = 'build a map from a teach drive'
-CAMERA_TOPICS = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

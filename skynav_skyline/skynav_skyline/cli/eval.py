@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
     from skynav_core.evaluation import check_methods, check_recordings
 
-    from ..parameters import defaults, load_parameter_file, skyline_params
+    from ..parameters import colour_params, defaults, load_parameter_file, skyline_params
 
     check_methods(args.methods, METHODS)
     check_recordings(args.bags)
@@ -74,6 +74,8 @@ def run(args: argparse.Namespace) -> int:
                 configurations[(method, channels, 'off')] = replace(params, hole_margin=0.0, ring_share=math.inf)
     if not configurations:
         raise CliError('nothing to evaluate (no usable method and channel combination)')
+    colour = colour_params(values)
+    configurations[(colour.method, 'colour', structure_label(colour.seed))] = colour
     rates, samples, synthetic = evaluate(args.bags, configurations)
     print(report(rates, values))
     if comparison := structure_report(rates):
@@ -89,13 +91,18 @@ def structure_label(params) -> str:
 
 
 def evaluate(paths, configurations):
-    """Return per-frame rates {(method, channels, structure): [(world, time, rate)]}, pixel samples, synthetic?"""
+    """Return per-frame rates {(method, channels, structure): [(world, time, rate)]}, pixel samples, synthetic?
+
+    Configurations of ColourParams (channels 'colour') run on colour frames only; the UV/green ones run on every
+    frame (a colour frame's blue plane standing in for UV).
+    """
     import numpy as np
     from tqdm import tqdm
 
     from skynav_core.bag import open_bag
 
     from ..classify import classification_rate
+    from ..colour import ColourParams, ColourSegmenter
     from ..dataset import count_frames, labelled_frames
     from ..features import extract_features
     from ..geometry import SkylineGeometry
@@ -114,10 +121,18 @@ def evaluate(paths, configurations):
             for frame in labelled_frames(path):
                 circle = frame.camera.image_circle()
                 for key, params in configurations.items():
+                    colour = isinstance(params, ColourParams)
+                    if colour and frame.rgb is None:
+                        continue
                     geometry_key = (frame.camera, key)
                     if geometry_key not in segmenters:
-                        segmenters[geometry_key] = SkylineSegmenter(SkylineGeometry.from_camera(frame.camera), params)
-                    mask = segmenters[geometry_key].segment(frame.uv, frame.green, *frame.encoding)
+                        geometry = SkylineGeometry.from_camera(frame.camera)
+                        segmenters[geometry_key] = (ColourSegmenter if colour else SkylineSegmenter)(geometry, params)
+                    segmenter = segmenters[geometry_key]
+                    if colour:
+                        mask = segmenter.segment(frame.rgb)
+                    else:
+                        mask = segmenter.segment(frame.uv, frame.green, *frame.encoding)
                     rates[key].append((frame.world, frame.time, classification_rate(mask, frame.truth, circle)))
                 features = extract_features(frame.uv, frame.green, *frame.encoding, circle)
                 trusted = features.trusted(circle, True)
@@ -136,31 +151,40 @@ def report(rates: dict, values: dict) -> str:
 
     from ..dataset import TIME_LABELS
 
-    first = next(iter(rates.values()))
+    rates = {key: frames for key, frames in rates.items() if frames}  # colour rows: colour frames only
+    first = max(rates.values(), key=len)
     worlds = list(dict.fromkeys(world for world, _, _ in first))
     times = [t for t in (*TIME_LABELS, 'all') if any(time == t for _, time, _ in first)]
     lines = [
         f'classification rate (%) of {len(first)} exposures; default: {values.get("method", "?")} '
-        f'{values.get("channels", "?")}; structure: the structure steps (enclosed ground, ground ring)'
+        f'{values.get("channels", "?")} (colour frames: {values.get("colour_method", "?")}, blue standing in for UV '
+        'in the UV/green rows); structure: the structure steps (enclosed ground, ground ring)'
     ]
     for world in worlds:
         count = sum(1 for w, _, _ in first if w == world)
         rows = []
         for key, values_ in rates.items():
             mine = [(t, r) for w, t, r in values_ if w == world]
+            if not mine:
+                continue
             cells = [
                 np.mean([r for tt, r in mine if tt == t]) if any(tt == t for tt, _ in mine) else np.nan for t in times
             ]
             rows.append(rate_row(key, cells, [r for _, r in mine]))
         lines += ['', f'{world} ({count} exposures)', rate_table(times, rows)]
     rows = [
-        rate_row(
-            key, [np.mean([r for w, _, r in values_ if w == world]) for world in worlds], [r for _, _, r in values_]
-        )
+        rate_row(key, [_mean([r for w, _, r in values_ if w == world]) for world in worlds], [r for _, _, r in values_])
         for key, values_ in rates.items()
     ]
     lines += ['', 'all worlds', rate_table(worlds, rows)]
     return '\n'.join(lines)
+
+
+def _mean(values: list[float]) -> float:
+    """Return the mean of some rates, NaN of none."""
+    import math
+
+    return sum(values) / len(values) if values else math.nan
 
 
 def rate_row(key: tuple[str, str, str], cells: list[float], everything: list[float]) -> list:
