@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from skynav_core.evaluation import Column, add_methods_argument, text_table
 
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if not plot.parent.is_dir():
         raise CliError(f'{plot.parent}: no such directory')
     values = load_parameter_file(args.params) if args.params else defaults()
-    configurations = {}
+    configurations: dict[tuple[str, str, str], Any] = {}  # SkylineParams, or ColourParams for colour frames
     default_method, default_channels = (str({**defaults(), **values}[name]) for name in ('method', 'channels'))
     for method in args.methods:
         for channels in args.channels:
