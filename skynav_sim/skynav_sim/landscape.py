@@ -15,9 +15,9 @@ map origin, as Stellarium paints it around the observer: a camera at the centre,
 camera's height on level ground, sees exactly the photograph; elsewhere it sees it with the parallax of that
 one distance. Below the panorama lies the landscape's ground texture, a disc around the
 nadir. Where the panorama is transparent the view sees the synthetic sky. Its colours
-(sRGB, linearised) stand in for the two bands: blue for ultraviolet, green for green;
-a surface's radiance is that colour, as an albedo, under the synthetic daylight's
-irradiance on a horizontal plane (the photograph keeps its own shading).
+(sRGB, linearised) are the visible bands' albedos, red, green and blue, and blue stands
+in for ultraviolet; a surface's radiance is that colour, as an albedo, under the synthetic
+daylight's irradiance on a horizontal plane in the same band (the photograph keeps its own shading).
 
 Azimuth here is the compass's: from north (+y of `map`) towards east (+x); panoramas
 run left to right with it, as a camera turned to the right takes them.
@@ -32,16 +32,17 @@ import shutil
 import subprocess
 import tarfile
 import tempfile
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from skynav_core.colour import srgb_to_linear
 from skynav_sim.errors import SimError
 
 from .robot import CAMERA_HEIGHT
+from .sky import UV_GREEN
 
 LANDSCAPES = ('garching', 'guereins', 'hurricane', 'geneva')
 PACKAGE = 'stellarium-data'
@@ -54,6 +55,8 @@ POLYGON_COLUMNS = 7200
 REMAP_WIDTH = 1024  # points per row of the maps handed to cv2.remap
 FETCH_TIMEOUT = 600.0  # s for apt-get and unpacking
 _COMPLETE = '.complete'
+#: The photograph's channel (linear R, G, B) that is each band's albedo: blue stands in for ultraviolet.
+BAND_CHANNEL = {'uv': 2, 'blue': 2, 'green': 1, 'red': 0}
 
 
 class LandscapeUnavailable(SimError, RuntimeError):
@@ -130,12 +133,6 @@ def _run(command: list[str], folder: str) -> int:
         ).returncode
     except (OSError, subprocess.TimeoutExpired):
         return 127
-
-
-def srgb_to_linear(values: np.ndarray | Sequence[float]) -> np.ndarray:
-    """Return linear intensities (0-1) of sRGB-encoded values (0-1)."""
-    values = np.asarray(values, np.float32)
-    return np.where(values <= 0.04045, values / 12.92, ((values + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def bilinear(image: np.ndarray, columns: np.ndarray, rows: np.ndarray, border: int) -> np.ndarray:
@@ -268,7 +265,7 @@ def _polygonal(name: str, folder: Path, section: configparser.SectionProxy) -> L
     bottom = -10.0
     rows = int((top - bottom) * POLYGON_ROWS_PER_DEGREE)
     row_altitude = np.radians(top - (np.arange(rows) + 0.5) / POLYGON_ROWS_PER_DEGREE)
-    colour = srgb_to_linear([float(v) for v in section['ground_color'].split(',')])
+    colour = srgb_to_linear(np.array([float(v) for v in section['ground_color'].split(',')]))
     panorama = np.zeros((rows, POLYGON_COLUMNS, 4), np.float32)
     panorama[..., :3] = colour
     panorama[..., 3] = row_altitude[:, None] <= skyline[None, :]
@@ -335,15 +332,17 @@ class Backdrop:
         return t, azimuth, altitude
 
     def shade(
-        self, origin: np.ndarray, directions: np.ndarray, sky
+        self, origin: np.ndarray, directions: np.ndarray, sky, bands: tuple[str, ...] = UV_GREEN
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
-        """Return radiance per band, whether each ray sees sky, and the distance to what it sees (inf for sky)."""
+        """Return radiance per band of `bands`, whether each ray sees sky, and the distance to what it sees (m, inf
+        for sky); rays from `origin` along `directions` (N, 3), both in map."""
         distance, azimuth, altitude = self.intersect(origin, directions)
         ground, colour = self.landscape.sample(azimuth, altitude)
         sky_hit = ~ground
         radiance = {}
         clouds = sky.cloud_density(directions[sky_hit], origin) if sky_hit.any() else None
-        for band, channel in (('uv', 2), ('green', 1)):
+        for band in bands:
+            channel = BAND_CHANNEL[band]
             values = np.zeros(len(directions))
             if sky_hit.any():
                 values[sky_hit] = sky.radiance(band, directions[sky_hit], origin, clouds)

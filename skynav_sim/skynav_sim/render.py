@@ -1,5 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Ray casting of a fish-eye view: UV and green radiance, ground-truth sky mask and depth per pixel.
+"""Ray casting of a fish-eye view: radiance per band, ground-truth sky mask and depth per pixel.
+
+A renderer shades only the bands its camera needs: ultraviolet and green for the UV/green pair, red, green
+and blue for a colour camera (skynav_sim.sky).
 
 Each pixel centre inside the image circle is cast as one ray through the
 camera model; pixels on the sky/ground boundary get four more rays at the
@@ -19,9 +22,9 @@ from scipy.spatial.transform import Rotation
 
 from skynav_core.camera import EquidistantCamera
 
-from .materials import GREEN_RANGE, TEXTURE_SCALE, UV_RANGE, Surface
+from .materials import BAND_RANGES, TEXTURE_SCALE, Surface
 from .noise import FractalNoise
-from .sky import BANDS, Sky
+from .sky import BANDS, UV_GREEN, Sky
 
 if TYPE_CHECKING:  # world.py builds on the robot, which builds on this module
     from .world import World
@@ -32,6 +35,11 @@ SHADOW_EXTENT = 40.0  # m: half side of the ground region where cast shadows are
 SHADOW_CELL = 0.1  # m
 FAR_GROUND = Surface.SOIL  # what a downward ray that left the terrain is taken to hit
 _TEXTURE = FractalNoise(seed=20170701, scale=1.0, octaves=3)
+# A second texture moves a surface's colour within its ranges: where it is positive, red lies higher in its range
+# and blue lower (warmer), where negative the other way (cooler), as patches of a lawn or a wall differ in hue.
+_HUE_TEXTURE = FractalNoise(seed=20260621, scale=3.0, octaves=2)  # patches 3 feature sizes wide
+HUE_VARIATION = 0.3  # share of a band's range the hue texture moves red and blue at most (opposite ways)
+HUE_SHIFT = {'red': 1.0, 'blue': -1.0}  # direction each visible band moves with the hue texture
 
 
 @dataclass
@@ -51,19 +59,36 @@ class CameraPose:
 class View:
     """One rendered frame."""
 
-    uv: np.ndarray  # (H, W) float32 radiance, W m^-2 sr^-1 nm^-1; 0 outside the image circle
-    green: np.ndarray  # (H, W) float32 radiance
+    radiance: dict[str, np.ndarray]  # band -> (H, W) float32 radiance, W m^-2 sr^-1 nm^-1; 0 outside the circle
     sky: np.ndarray  # (H, W) bool, sky by majority of the pixel's area; False outside the image circle
     depth: np.ndarray  # (H, W) float32 distance to the surface seen (m), inf for sky and outside
     inside: np.ndarray  # (H, W) bool, pixel centre inside the image circle
 
+    @property
+    def uv(self) -> np.ndarray:
+        """Return the ultraviolet radiance (H, W)."""
+        return self.radiance['uv']
+
+    @property
+    def green(self) -> np.ndarray:
+        """Return the green radiance (H, W)."""
+        return self.radiance['green']
+
+    def rgb(self) -> np.ndarray:
+        """Return the red, green and blue radiance as one (H, W, 3) float32 array."""
+        return np.stack([self.radiance[band] for band in ('red', 'green', 'blue')], axis=-1)
+
 
 class Renderer:
-    """Renders views of one world through one camera."""
+    """Renders views of one world through one camera, in the bands the camera sees."""
 
-    def __init__(self, world: World, camera: EquidistantCamera) -> None:
+    def __init__(self, world: World, camera: EquidistantCamera, bands: tuple[str, ...] = UV_GREEN) -> None:
+        """Prepare rays of every pixel; `bands` are those of skynav_sim.sky.BANDS to shade."""
+        if unknown := [band for band in bands if band not in BANDS]:
+            raise ValueError(f'unknown band {", ".join(unknown)} (known: {", ".join(BANDS)})')
         self.world = world
         self.camera = camera
+        self.bands = tuple(bands)
         self.inside = camera.image_circle()
         self.pixels = np.argwhere(self.inside)  # (N, 2) rows v, u
         self.directions = camera.pixel_directions()[self.inside]
@@ -89,7 +114,7 @@ class Renderer:
             sub_directions = pose.rotation.apply(self.camera.unproject(samples.reshape(-1, 2)))
             sub_radiance, sub_sky, _ = self._shade(origin, sub_directions, sky, shadows)
             count = len(self.subpixel_offsets)
-            for band in BANDS:
+            for band in self.bands:
                 radiance[band][edge_index] = (
                     radiance[band][edge_index] + sub_radiance[band].reshape(-1, count).sum(axis=1)
                 ) / (count + 1)
@@ -102,7 +127,7 @@ class Renderer:
 
         mask = np.zeros(shape, bool)
         mask[self.inside] = sky_hit
-        return View(image(radiance['uv'], 0.0), image(radiance['green'], 0.0), mask, image(depth, np.inf), self.inside)
+        return View({band: image(radiance[band], 0.0) for band in self.bands}, mask, image(depth, np.inf), self.inside)
 
     def shadow_map(self, sky: Sky) -> ShadowMap | None:
         """Return the cached map of cast shadows on the ground for the sun of `sky` (None without sun)."""
@@ -118,15 +143,15 @@ class Renderer:
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
         """Return radiance per band, whether each ray sees sky, and the distance to what it sees."""
         if self.world.backdrop is not None:
-            return self.world.backdrop.shade(origin, directions, sky)
+            return self.world.backdrop.shade(origin, directions, sky, self.bands)
         distance, primitive = trace(self.world, origin, directions)
         downward_escape = ~np.isfinite(distance) & (directions[:, 2] < 0)
         distance = np.where(downward_escape, MAX_DISTANCE, distance)
         sky_hit = ~np.isfinite(distance)
-        radiance = {band: np.zeros(len(directions)) for band in BANDS}
+        radiance = {band: np.zeros(len(directions)) for band in self.bands}
         if sky_hit.any():
             clouds = sky.cloud_density(directions[sky_hit], origin)
-            for band in BANDS:
+            for band in self.bands:
                 radiance[band][sky_hit] = sky.radiance(band, directions[sky_hit], origin, clouds)
         ground = ~sky_hit
         if ground.any():
@@ -148,9 +173,23 @@ class Renderer:
             )
             facing_sun = np.clip(normals @ sky.sun, 0.0, None) * lit
             sky_view = 0.5 * (1.0 + normals[:, 2])
-            for band, ranges in (('uv', UV_RANGE), ('green', GREEN_RANGE)):
-                low, high = ranges[materials, 0], ranges[materials, 1]
-                albedo = low + (high - low) * texture
+            hue = None
+            if any(band in HUE_SHIFT for band in self.bands):
+                hue = np.clip(
+                    _HUE_TEXTURE(
+                        points[:, 0] / TEXTURE_SCALE[materials] - 0.53 * points[:, 2],
+                        points[:, 1] / TEXTURE_SCALE[materials] + 0.29 * points[:, 2],
+                    )
+                    / 0.6,
+                    -1,
+                    1,
+                )
+            for band in self.bands:
+                low, high = BAND_RANGES[band][materials, 0], BAND_RANGES[band][materials, 1]
+                shade = texture
+                if hue is not None and band in HUE_SHIFT:
+                    shade = np.clip(texture + HUE_VARIATION * HUE_SHIFT[band] * hue, 0.0, 1.0)
+                albedo = low + (high - low) * shade
                 irradiance = sky.direct[band] * facing_sun + sky.diffuse[band] * sky_view
                 radiance[band][ground] = albedo * irradiance / np.pi
         return radiance, sky_hit, distance

@@ -1,15 +1,17 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Daylight in two bands, ultraviolet (~360 nm) and green (~530 nm): sun, sky dome and clouds.
+"""Daylight in four bands, ultraviolet (~360 nm), blue (~460 nm), green (~530 nm) and red (~610 nm): sun, sky
+dome and clouds. A UV/green camera needs the first and third, a colour camera the last three.
 
 Units: spectral irradiance W m^-2 nm^-1, spectral radiance W m^-2 sr^-1 nm^-1,
-for both bands alike (the contract's one fixed unit for 32FC1 images).
+for every band alike (the contract's one fixed unit for 32FC1 images).
 
 The model, kept simple and physical where it matters for sky/ground separation:
 - Direct sunlight is attenuated by Beer-Lambert extinction along the air mass
   (Kasten-Young), with the optical depth of each band (Rayleigh plus aerosol):
-  ultraviolet is attenuated far more, so low sun light is green-rich.
+  ultraviolet is attenuated far more, so low sun light is green-rich; Rayleigh scattering goes as
+  wavelength^-4, so among the visible bands blue is scattered most and a low sun is red.
 - The sky's diffuse irradiance is the scattered part of the beam, which makes
-  the sky ultraviolet-rich compared with the direct light; after sunset it
+  the sky ultraviolet-rich (and blue) compared with the direct light; after sunset it
   fades exponentially with the sun's depression (civil twilight).
 - The sky's radiance over the dome follows the Perez all-weather form (darkening
   or brightening toward the horizon, a bright circumsolar region), scaled so its
@@ -17,7 +19,9 @@ The model, kept simple and physical where it matters for sky/ground separation:
   is more uniform (weaker circumsolar peak) than green.
 - Clouds are a seeded fractal layer at CLOUD_ALTITUDE; they are bright in green
   and barely brighter than the clear sky in ultraviolet, as observed for UV
-  imagery (Carey & Stuerzl 2011; Differt & Moeller 2016), at every time of day.
+  imagery (Carey & Stuerzl 2011; Differt & Moeller 2016), at every time of day. In the visible
+  bands a cloud scatters sun and sky light of every wavelength alike (Mie scattering on droplets),
+  so it is white (bright, near neutral), tinted only by the light that falls on it.
 Times from dawn to noon span well over two orders of magnitude of brightness.
 """
 
@@ -31,21 +35,35 @@ from skynav_sim.errors import SimError
 
 from .noise import FractalNoise
 
-BANDS = ('uv', 'green')
-EXTRATERRESTRIAL = {'uv': 1.05, 'green': 1.86}  # solar spectral irradiance at the top of the atmosphere, W m^-2 nm^-1
-OPTICAL_DEPTH = {'uv': 0.70, 'green': 0.24}  # Rayleigh + aerosol optical depth at 360 nm and 530 nm
+BANDS = ('uv', 'blue', 'green', 'red')  # every band the daylight model knows
+UV_GREEN = ('uv', 'green')  # what the UV/green camera sees
+RGB = ('red', 'green', 'blue')  # what a colour camera sees, in its channel order
+# Solar spectral irradiance at the top of the atmosphere, W m^-2 nm^-1, at 360, 460, 530 and 610 nm (Wehrli 1985;
+# ASTM E-490), each a mean over about 10 nm.
+EXTRATERRESTRIAL = {'uv': 1.05, 'blue': 2.05, 'green': 1.86, 'red': 1.73}
+# Rayleigh + aerosol optical depth. Rayleigh at sea level (Bucholtz 1995: 0.56, 0.20, 0.11, 0.064 at 360, 460, 530,
+# 610 nm, about wavelength^-4); aerosol an Angstroem law through the ultraviolet and green values' remainders
+# (0.14 and 0.13: exponent 0.28, a clear continental atmosphere), 0.13 at 460 nm and 0.12 at 610 nm.
+OPTICAL_DEPTH = {'uv': 0.70, 'blue': 0.33, 'green': 0.24, 'red': 0.19}
 DOWNWARD_SCATTER = 0.55  # share of the scattered beam that reaches the ground as skylight
 TWILIGHT_ELEVATION = np.radians(3.0)  # below this sun elevation the skylight fades exponentially ...
 TWILIGHT_FADE = np.radians(1.6)  # ... by e per this depression
 # Perez coefficients (a, b, c, d, e): horizon gradient, circumsolar peak and back-scatter per band (clear sky).
-PEREZ = {'uv': (-0.6, -0.35, 3.0, -2.0, 0.25), 'green': (-1.0, -0.32, 10.0, -3.0, 0.45)}
+# Blue lies between ultraviolet and green by wavelength; red continues the trend: the longer the wavelength, the
+# more of the skylight is the aerosol's forward scatter (a brighter circumsolar region and horizon).
+PEREZ = {
+    'uv': (-0.6, -0.35, 3.0, -2.0, 0.25),
+    'blue': (-0.85, -0.33, 7.0, -2.6, 0.37),
+    'green': (-1.0, -0.32, 10.0, -3.0, 0.45),
+    'red': (-1.1, -0.30, 12.0, -3.0, 0.5),
+}
 SUN_ANGULAR_RADIUS = np.radians(0.8)  # drawn a little larger than the real 0.27 degrees so it covers pixels
 CLOUD_ALTITUDE = 1500.0  # m
 # Ultraviolet light is mostly diffuse already, so a cloud looks about as bright as the clear sky behind
-# it; in green a cloud scatters the direct sunlight too and shines far brighter than blue sky.
+# it; in the visible bands a cloud scatters the direct sunlight too and shines far brighter than blue sky.
 CLOUD_UV_CONTRAST = 1.08  # cloud / clear-sky radiance in the same direction, ultraviolet
-CLOUD_GREEN_BRIGHTNESS = 0.85  # green cloud radiance as a share of (direct normal + diffuse) / pi: a cloud
-# high in the air faces even a low sun
+CLOUD_BRIGHTNESS = 0.85  # visible cloud radiance as a share of (direct normal + diffuse) / pi, the same share in
+# every visible band (white); a cloud high in the air faces even a low sun
 
 
 def air_mass(elevation: float) -> float:
@@ -123,7 +141,7 @@ class Sky:
         self.clouds = FractalNoise(self.cloud_seed, scale=900.0, octaves=4, persistence=0.55)
 
     def global_irradiance(self, band: str) -> float:
-        """Return direct plus diffuse irradiance on a horizontal plane in `band`."""
+        """Return direct plus diffuse irradiance (W m^-2 nm^-1) on a horizontal plane in `band`."""
         return self.direct[band] * max(self.sun[2], 0.0) + self.diffuse[band]
 
     def _perez(self, band: str, directions: np.ndarray) -> np.ndarray:
@@ -173,7 +191,7 @@ class Sky:
             cloud_radiance = CLOUD_UV_CONTRAST * clear
         else:
             lit = self.direct[band] + self.diffuse[band]
-            cloud_radiance = np.maximum(clear, CLOUD_GREEN_BRIGHTNESS * lit / np.pi)
+            cloud_radiance = np.maximum(clear, CLOUD_BRIGHTNESS * lit / np.pi)
         sky = clear * (1 - clouds) + cloud_radiance * clouds
         if self.elevation > -SUN_ANGULAR_RADIUS:
             on_sun = directions @ self.sun > np.cos(SUN_ANGULAR_RADIUS)

@@ -9,7 +9,7 @@ from scipy.ndimage import binary_erosion
 from scipy.spatial.transform import Rotation
 
 from skynav_core.camera import EquidistantCamera
-from skynav_sim.landscape import LANDSCAPES, Backdrop, load, srgb_to_linear
+from skynav_sim.landscape import LANDSCAPES, Backdrop, load
 from skynav_sim.render import CameraPose, Renderer
 from skynav_sim.robot import CAMERA_HEIGHT
 from skynav_sim.sky import Sky
@@ -85,15 +85,15 @@ def test_rendered_view_at_the_centre_shows_the_landscape_skyline(name):
 
 
 def test_ground_radiance_follows_the_photographs_colours_per_band(landscapes):
-    # blue stands in for ultraviolet, green for green: a ray at the nadir sees the ground texture's centre
-    world = Backdrop(landscapes['hurricane'])
+    # red, green and blue are the visible bands' albedos and blue stands in for ultraviolet: a ray at the nadir
+    # sees the ground texture's centre
+    world = Backdrop(landscapes['guereins'])
     sky = Sky(10.0)
-    radiance, sky_hit, _ = world.shade(np.array([0.0, 0.0, CAMERA_HEIGHT]), np.array([[0.0, 0.0, -1.0]]), sky)
-    _, colour = landscapes['hurricane'].sample(np.zeros(1), np.full(1, -np.pi / 2))
+    radiance, sky_hit, _ = world.shade(
+        np.array([0.0, 0.0, CAMERA_HEIGHT]), np.array([[0.0, 0.0, -1.0]]), sky, ('uv', 'blue', 'green', 'red')
+    )
+    _, colour = landscapes['guereins'].sample(np.zeros(1), np.full(1, -np.pi / 2))
     assert not sky_hit[0]
-    for band, channel in (('uv', 2), ('green', 1)):
+    assert len(set(np.round(colour[0], 4))) == 3  # a coloured ground, so a channel mixed up would show
+    for band, channel in (('uv', 2), ('blue', 2), ('green', 1), ('red', 0)):
         assert radiance[band][0] == pytest.approx(colour[0, channel] * sky.global_irradiance(band) / np.pi)
-
-
-def test_srgb_decoding_is_the_standard_curve():
-    np.testing.assert_allclose(srgb_to_linear([0.0, 0.04045, 0.5, 1.0]), [0.0, 0.0031308, 0.2140, 1.0], atol=1e-4)
