@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Contact sheets: what a synthetic recording shows (UV, green, ground-truth mask) and where (a top view)."""
+"""Contact sheets: what a synthetic recording shows (UV, green, ground-truth mask; or a colour camera's frame, its
+blue channel and the mask) and where (a top view)."""
 
 from __future__ import annotations
 
@@ -30,12 +31,13 @@ class SheetFrame:
     """One frame of the sheet: the images as captured and where the camera was."""
 
     index: int
-    uv: np.ndarray
+    uv: np.ndarray  # a colour camera: its blue channel (linear), which stands in for UV
     green: np.ndarray
     mask: np.ndarray  # 255 sky / 0 ground
     position: np.ndarray  # (3,) camera_link in map (m)
     quaternion: np.ndarray  # (4,) x, y, z, w
     caption: str
+    colour: np.ndarray | None = None  # a colour camera's frame: (H, W, 3) uint8 sRGB, shown as it is
 
 
 def _display(image: np.ndarray) -> np.ndarray:
@@ -111,11 +113,17 @@ def draw(
     )
     top.set_title(f'top view ({ground}); red: frames shown, arrow = robot forward')
     for row, frame in enumerate(frames):
-        for column, (image, name) in enumerate(
+        panels = (
             ((frame.uv, 'UV'), (frame.green, 'green'), (frame.mask, 'ground-truth mask'))
-        ):
+            if frame.colour is None
+            else ((frame.colour, 'colour (sRGB)'), (frame.uv, 'blue (linear)'), (frame.mask, 'ground-truth mask'))
+        )
+        for column, (image, name) in enumerate(panels):
             ax = figure.add_subplot(grid[row, column + 1])
-            ax.imshow(_display(image), cmap='gray', vmin=0, vmax=1)
+            if image.ndim == 3:
+                ax.imshow(image)
+            else:
+                ax.imshow(_display(image), cmap='gray', vmin=0, vmax=1)
             ax.set_xticks([])
             ax.set_yticks([])
             ax.set_title(

@@ -43,8 +43,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar='K1,K2,K3,K4',
         help=f'Kannala-Brandt coefficients D (default {DEFAULT_DISTORTION})',
     )
+    add_camera_argument(camera)
     camera.add_argument(
-        '--encoding', choices=('mono8', 'mono16', '32FC1'), default='mono16', help='image encoding (default mono16)'
+        '--encoding',
+        default=None,
+        metavar='ENCODING',
+        help='image encoding: mono8, mono16 or 32FC1 of the UV/green pair (default mono16); rgb8, bgr8, rgba8, bgra8, '
+        'bayer_rggb8, bayer_bggr8, bayer_gbrg8, bayer_grbg8 or their 16-bit forms of a colour camera (default rgb8; '
+        '8-bit sRGB, 16-bit linear); rgb8 or rgb16 (PNG only) of a colour-compressed one (default rgb8)',
+    )
+    camera.add_argument(
+        '--codec',
+        choices=('jpeg', 'png'),
+        default='jpeg',
+        help="colour-compressed: image_transport's compressed format (default jpeg)",
+    )
+    camera.add_argument(
+        '--jpeg-quality',
+        type=int,
+        default=None,
+        metavar='Q',
+        help='colour-compressed JPEG: quality 1-100 (default 95, as image_transport)',
     )
     light = parser.add_argument_group('daylight')
     light.add_argument(
@@ -94,6 +113,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         metavar='DEG',
         help='homing: each place sits on a bump that tilts the camera up to DEG more (default 0)',
+    )
+
+
+#: The UV/green pair's default encoding (today's recordings) and a colour camera's.
+DEFAULT_ENCODING = {'uv-green': 'mono16', 'colour': 'rgb8', 'colour-compressed': 'rgb8'}
+
+
+def add_camera_argument(parser) -> None:
+    """Add --camera: the UV/green pair (default), or one colour camera delivering raw or compressed frames."""
+    parser.add_argument(
+        '--camera',
+        choices=('uv-green', 'colour', 'colour-compressed'),
+        default='uv-green',
+        help='the UV/green pair on /camera/{uv,green}/image_raw (default); one colour camera on /camera/image_raw; '
+        'or one on /camera/image_raw/compressed (JPEG or PNG), all synthetic',
+    )
+
+
+def camera_output(args: argparse.Namespace):
+    """Return the CameraOutput the options --camera, --encoding, --codec and --jpeg-quality describe (a command
+    without them: its --camera with the defaults); raise ValueError for an impossible one."""
+    from ..colour_sensor import DEFAULT_JPEG_QUALITY
+    from ..recording import CameraOutput
+
+    kind = getattr(args, 'camera', 'uv-green')
+    encoding = getattr(args, 'encoding', None) or DEFAULT_ENCODING[kind]
+    quality = getattr(args, 'jpeg_quality', None)
+    if quality is not None and not (kind == 'colour-compressed' and getattr(args, 'codec', 'jpeg') == 'jpeg'):
+        raise ValueError('--jpeg-quality is for --camera colour-compressed with --codec jpeg')
+    return CameraOutput(
+        kind, encoding, getattr(args, 'codec', 'jpeg'), DEFAULT_JPEG_QUALITY if quality is None else quality
     )
 
 

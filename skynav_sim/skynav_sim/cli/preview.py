@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Draw a contact sheet of a synthetic scenario or recording: UV, green, ground-truth mask, and a top view.
+"""Draw a contact sheet of a synthetic scenario or recording: UV, green, ground-truth mask, and a top view (a
+colour camera's frames: the frame as delivered, its blue channel and the mask).
 
 Either render a few frames of a scenario (the same options as `skynav sim bag`) or read them from a
 recording with --bag; the top view shows the world's relief, its objects and every camera pose.
@@ -53,6 +54,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The image topics of each camera a recording may hold, in the order a preview looks for them.
+CAMERA_TOPICS = (
+    ('/camera/uv/image_raw', '/camera/green/image_raw'),
+    ('/camera/image_raw',),
+    ('/camera/image_raw/compressed',),
+)
+
+
 def _chosen(count: int, wanted: int) -> list[int]:
     """Return up to `wanted` frame indices spread evenly over `count` frames."""
     import numpy as np
@@ -64,6 +73,7 @@ def _from_scenario(args):
     import numpy as np
 
     from skynav_core.cli import CliError
+    from skynav_core.colour import linear_to_srgb8
     from skynav_core.rotations import tilt
 
     from ..preview import SheetFrame
@@ -72,29 +82,32 @@ def _from_scenario(args):
 
     try:
         camera = options.camera(args)
+        output = options.camera_output(args)
         world, frames, _ = options.scenario(args)
     except (ValueError, RuntimeError) as exc:
         raise CliError(str(exc), exit_code=2 if isinstance(exc, ValueError) else 1) from None
     chosen = _chosen(len(frames), args.frames)
     sheet = []
-    for index, capture in zip(chosen, captures(world, camera, [frames[i] for i in chosen], args.encoding, args.seed)):
+    for index, capture in zip(chosen, captures(world, camera, [frames[i] for i in chosen], output, args.seed)):
         f = capture.frame
+        signal = capture.exposure.signal
         sheet.append(
             SheetFrame(
                 index,
-                capture.uv,
-                capture.green,
+                capture.uv if signal is None else signal[..., 2],
+                capture.green if signal is None else signal[..., 1],
                 capture.view.sky.astype(np.uint8) * 255,
                 f.pose.position,
                 f.pose.quaternion,
                 f'{f.label}, {f.hours:.2f} h, clouds {f.cloud_cover:g}, '
                 f'tilt {np.degrees(tilt(f.pose.rotation)):.0f} deg',
+                None if signal is None else linear_to_srgb8(signal),
             )
         )
     positions = np.array([f.pose.position for f in frames])
     title = (
         f'SYNTHETIC {args.scenario}: {args.world} world, seed {args.seed}, {len(frames)} frames, '
-        f'{camera.width}x{camera.height}, fov {args.fov:g} deg, {args.encoding}'
+        f'{camera.width}x{camera.height}, fov {args.fov:g} deg, {output.kind} camera, {output.encoding}'
     )
     return sheet, positions, world, title
 
@@ -104,25 +117,26 @@ def _from_bag(args):
     import yaml
 
     from skynav_core.bag import open_bag
+    from skynav_core.colour import LINEAR_FULL_SCALE, linear_to_srgb8
 
     from ..preview import SheetFrame
     from ..world import generate
 
     with open_bag(args.bag) as bag:
-        for topic in ('/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/ground_truth/pose'):
+        cameras = [names for names in CAMERA_TOPICS if all(topic in bag.topics for topic in names)]
+        for topic in (cameras[0] if cameras else CAMERA_TOPICS[0]) + ('/ground_truth/mask', '/ground_truth/pose'):
             if topic not in bag.topics:
                 from skynav_core.cli import CliError
 
                 raise CliError(f'{args.bag} has no {topic}; a preview needs images, masks and poses')
+        wanted = [*cameras[0], '/ground_truth/mask', '/ground_truth/pose']
         by_stamp: dict[int, dict] = {}
-        for message in bag.messages(
-            ['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/ground_truth/pose']
-        ):
+        for message in bag.messages(wanted):
             data = bag.deserialize(message)
             stamp = data.header.stamp.sec * 10**9 + data.header.stamp.nanosec
             by_stamp.setdefault(stamp, {})[message.topic] = data
         info = yaml.safe_load(bag.custom_data.get('skynav_sim', '') or '{}') or {}
-    complete = [by_stamp[s] for s in sorted(by_stamp) if len(by_stamp[s]) == 4]
+    complete = [by_stamp[s] for s in sorted(by_stamp) if len(by_stamp[s]) == len(wanted)]
     labels = info.get('frames', [])
     chosen = _chosen(len(complete), args.frames)
     sheet = []
@@ -135,15 +149,17 @@ def _from_bag(args):
             if label
             else ''
         )
+        colour = _linear_rgb(parts)
         sheet.append(
             SheetFrame(
                 index,
-                _pixels(parts['/camera/uv/image_raw']),
-                _pixels(parts['/camera/green/image_raw']),
+                _pixels(parts['/camera/uv/image_raw']) if colour is None else colour[..., 2],
+                _pixels(parts['/camera/green/image_raw']) if colour is None else colour[..., 1],
                 _pixels(parts['/ground_truth/mask']),
                 np.array([pose.position.x, pose.position.y, pose.position.z]),
                 np.array([pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w]),
                 caption,
+                None if colour is None else linear_to_srgb8(colour / LINEAR_FULL_SCALE),
             )
         )
     positions = np.array(
@@ -155,6 +171,19 @@ def _from_bag(args):
         f', {info.get("scenario")} in the {info.get("world")} world, seed {info.get("seed")}' if info else ''
     )
     return sheet, positions, world, title
+
+
+def _linear_rgb(parts: dict):
+    """Return the linear RGB (H, W, 3, uint16) of a colour camera's frame among a stamp's messages (None: no such
+    frame), decoded as the nodes decode it."""
+    from skynav_core.colour import decode_compressed, decode_image
+    from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE
+
+    if COLOUR_IMAGE in parts:
+        return decode_image(parts[COLOUR_IMAGE])
+    if COLOUR_COMPRESSED in parts:
+        return decode_compressed(parts[COLOUR_COMPRESSED])
+    return None
 
 
 def _pixels(image):
