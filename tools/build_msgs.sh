@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Build the skynav_msgs interface package with plain CMake and install it into
-# a virtualenv that holds the ROS 2 Jazzy wheels from PyPI.
+# Build an interface package (default skynav_msgs; the Makefile also builds
+# vendor/tf2_msgs) with plain CMake and install it into a virtualenv that holds
+# the ROS 2 Jazzy wheels from PyPI.
 #
-#   tools/build_msgs.sh VENV BUILD_DIR
+#   tools/build_msgs.sh VENV BUILD_DIR [PACKAGE_DIR]
 #
 # colcon is not needed: one ament_cmake package configures, builds and installs
 # like any CMake project once AMENT_PREFIX_PATH names the venv (ament's index
@@ -12,14 +13,16 @@ set -euo pipefail
 venv=$(realpath "$1")
 build=$2
 root=$(cd "$(dirname "$0")/.." && pwd)
+source=$(realpath "${3:-$root/skynav_msgs}")
+package=$(basename "$source")
 
 export AMENT_PREFIX_PATH="$venv"
 export PATH="$venv/bin:$PATH"
 log="$build.log"
 mkdir -p "$(dirname "$build")"
-echo "building skynav_msgs into $venv (log: $log)"
+echo "building $package into $venv (log: $log)"
 {
-  cmake -S "$root/skynav_msgs" -B "$build" -G Ninja \
+  cmake -S "$source" -B "$build" -G Ninja \
     -DCMAKE_BUILD_TYPE=Release \
     -DCMAKE_INSTALL_PREFIX="$venv" \
     -DCMAKE_PREFIX_PATH="$venv" \
@@ -28,4 +31,4 @@ echo "building skynav_msgs into $venv (log: $log)"
     -DCMAKE_PROJECT_INCLUDE="$root/cmake/strip_wheel_include_dirs.cmake" &&
   cmake --build "$build" &&
   cmake --install "$build"
-} >"$log" 2>&1 || { tail -n 30 "$log" >&2; echo "skynav_msgs failed to build; full log: $log" >&2; exit 1; }
+} >"$log" 2>&1 || { tail -n 30 "$log" >&2; echo "$package failed to build; full log: $log" >&2; exit 1; }

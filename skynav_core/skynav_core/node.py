@@ -17,7 +17,10 @@ A skynav node is an ordinary rclpy node with three habits:
   `reset_time()` forgets what depended on the old time, so later inputs are taken again;
 - its parameters are turned into working state by one method, `configure(values)`, which raises
   ValueError for values it cannot use: at start-up the node then keeps its defaults, at run time the
-  change is refused with that reason.
+  change is refused with that reason;
+- it knows how the camera is mounted (`mount`: camera_link's rotation in base_link, skynav_core.mount): from
+  the parameter `camera_mount_rpy_deg` that every node takes, or, in a node that calls `listen_for_mount()`,
+  from /tf_static once that links base_link and camera_link (it wins over the parameter).
 
 It publishes a DiagnosticStatus on /diagnostics once a second: output rate, processing time per
 input, latency (from the receipt of the input to the publication of its output, live only), and
@@ -34,20 +37,32 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any, ClassVar, Protocol
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.context import Context
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from tf2_msgs.msg import TFMessage
 
+from .mount import StaticTransforms, describe, mount_from_rpy_deg
 from .parameters import COMMON_PARAMETERS, ParameterTable
 
 # Camera topics: best effort matches any publisher (drivers often publish best effort).
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
 # skynav's own topics: reliable, a short queue.
 STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# /tf_static as tf2's static listener takes it: latched (transient local), reliable, a long history
+TF_STATIC_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+TF_STATIC_TOPIC = '/tf_static'
+MOUNT_PARAMETER = 'camera_mount_rpy_deg'
 DIAGNOSTICS_PERIOD = 1.0  # s
 PROCESSING_WINDOW = 100  # inputs whose processing times the diagnostics summarise
 # rmw's value of a message-info sequence number the middleware does not provide.
@@ -112,9 +127,51 @@ class SkynavNode(Node):
             self.get_logger().error(f'unusable parameters ({exc}); using the default {jump.default} s')
             self.set_parameters([Parameter('max_stamp_jump_s', value=jump.default)])
             self.max_stamp_jump_ns = self._stamp_jump_ns(jump.default)
+        self.parameter_mount = self._declare_mount()  # camera_link in base_link by camera_mount_rpy_deg
+        self.static_mount: np.ndarray | None = None  # ...by /tf_static, once heard (listen_for_mount)
+        self.static_transforms = StaticTransforms()
         self.output('/diagnostics', DiagnosticArray)
         if router is None:
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
+
+    # --- the camera's mount -----------------------------------------------------------------
+
+    def _declare_mount(self) -> np.ndarray:
+        """Declare camera_mount_rpy_deg (ints or floats alike) and return its mount; the default's if unusable."""
+        mount = COMMON_PARAMETERS[MOUNT_PARAMETER]
+        descriptor = ParameterDescriptor(description=mount.description, dynamic_typing=True)
+        value = self.declare_parameter(MOUNT_PARAMETER, mount.default, descriptor).value
+        try:
+            return mount_from_rpy_deg(value)
+        except ValueError as exc:
+            self.rejected['parameters'] += 1
+            self.get_logger().error(f'unusable parameter ({exc}); using the default {mount.default}')
+            self.set_parameters([Parameter(MOUNT_PARAMETER, value=mount.default)])
+            return mount_from_rpy_deg(mount.default)
+
+    @property
+    def mount(self) -> np.ndarray:
+        """Return camera_link's rotation (3, 3) in base_link: /tf_static's once heard, else the parameter's."""
+        return self.static_mount if self.static_mount is not None else self.parameter_mount
+
+    def listen_for_mount(self) -> None:
+        """Take base_link -> camera_link from /tf_static too (the nodes that turn camera_link into base_link)."""
+        self.input(TF_STATIC_TOPIC, TFMessage, self.on_static_transforms, TF_STATIC_QOS)
+
+    def on_static_transforms(self, message: Any) -> None:
+        """Keep a /tf_static message's transforms; once they link base_link and camera_link, that is the mount."""
+        for problem in self.static_transforms.add(message):
+            self.reject('transform', problem)
+        try:
+            mount = self.static_transforms.mount()
+        except ValueError as exc:
+            self.reject('transform', str(exc))
+            return
+        if mount is None or (self.static_mount is not None and np.allclose(mount, self.static_mount, atol=1e-9)):
+            return
+        self.static_mount = mount
+        overridden = '' if np.allclose(mount, self.parameter_mount, atol=1e-9) else f' (over {MOUNT_PARAMETER})'
+        self.get_logger().info(f'camera mount from {TF_STATIC_TOPIC}: {describe(mount)}{overridden}')
 
     # --- parameters -------------------------------------------------------------------------
 
@@ -151,12 +208,14 @@ class SkynavNode(Node):
         values = self.parameter_values()
         values.update({p.name: p.value for p in parameters if p.name in values})
         jumps = [p.value for p in parameters if p.name == 'max_stamp_jump_s']
+        mounts = [p.value for p in parameters if p.name == MOUNT_PARAMETER]
         try:
             jump = self._stamp_jump_ns(jumps[-1]) if jumps else self.max_stamp_jump_ns
+            mount = mount_from_rpy_deg(mounts[-1]) if mounts else self.parameter_mount
             self.configure(values)
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
-        self.max_stamp_jump_ns = jump
+        self.max_stamp_jump_ns, self.parameter_mount = jump, mount
         return SetParametersResult(successful=True)
 
     @staticmethod

@@ -97,4 +97,9 @@ COMMON_PARAMETERS: ParameterTable = {
     'max_stamp_jump_s': Parameter(
         1.0, "an input stamped over this before or after the last one taken restarts the node's time (s)"
     ),
+    'camera_mount_rpy_deg': Parameter(
+        [0.0, 0.0, 0.0],
+        'camera_link turned against base_link: roll, pitch, yaw (deg, fixed axes X, Y, Z as REP-103); /tf_static '
+        'wins when it gives base_link -> camera_link',
+    ),
 }

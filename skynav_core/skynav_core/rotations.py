@@ -1,12 +1,13 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Rotations in skynav's conventions, for one rotation or a stack: matrices, quaternions, ZYZ angles, tilt.
+"""Rotations in skynav's conventions, for one rotation or a stack: matrices, quaternions, ZYZ and RPY angles, tilt.
 
 Conventions (docs/interfaces.md, "Frames and angles"): a rotation acts on column vectors; quaternions are
 (x, y, z, w), as geometry_msgs/Quaternion orders them; ZYZ angles (alpha, beta, gamma) in rad mean
-R = Rz(alpha) Ry(beta) Rz(gamma), and beta is the angle by which R tilts the z axis. The compass rotation between
-a snapshot and the current view is R with d_snapshot = R d_current; from ground-truth orientations Q_s and Q_c of
-camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes: (3, 3) or (..., 3, 3) matrices,
-(4,) or (..., 4) quaternions, scalars or arrays of angles.
+R = Rz(alpha) Ry(beta) Rz(gamma), and beta is the angle by which R tilts the z axis; RPY angles (roll, pitch, yaw)
+in rad mean R = Rz(yaw) Ry(pitch) Rx(roll), turns about the fixed axes X, Y, Z (REP-103, URDF). The compass
+rotation between a snapshot and the current view is R with d_snapshot = R d_current; from ground-truth
+orientations Q_s and Q_c of camera_link in map it is Q_s^-1 Q_c. Every function broadcasts over leading axes:
+(3, 3) or (..., 3, 3) matrices, (4,) or (..., 4) quaternions, scalars or arrays of angles.
 """
 
 from __future__ import annotations
@@ -82,6 +83,34 @@ def yaw_matrix(angle) -> np.ndarray:
     out[..., 0, 1], out[..., 1, 0] = -s, s
     out[..., 2, 2] = 1.0
     return out
+
+
+def rpy_matrix(roll, pitch, yaw) -> np.ndarray:
+    """Return the matrices Rz(yaw) Ry(pitch) Rx(roll) (..., 3, 3) of roll, pitch and yaw (rad; arrays broadcast):
+    REP-103's and URDF's RPY, turns about the fixed axes X, then Y, then Z."""
+    angles = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (roll, pitch, yaw)))
+    cr, sr, cp, sp, cy, sy = (f(x) for x in angles for f in (np.cos, np.sin))
+    return np.stack(
+        [
+            np.stack([cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr], -1),
+            np.stack([sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr], -1),
+            np.stack([-sp, cp * sr, cp * cr], -1),
+        ],
+        -2,
+    )
+
+
+def rpy_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray] | tuple[float, float, float]:
+    """Return (roll, pitch, yaw) in rad of rotations (rpy_matrix's angles), pitch in [-pi/2, pi/2]; at pitch +-pi/2,
+    where only yaw - roll (or yaw + roll) is defined, roll is 0. One rotation gives floats."""
+    r = as_matrix(rotation)
+    pitch = np.arctan2(-r[..., 2, 0], np.hypot(r[..., 0, 0], r[..., 1, 0]))
+    locked = np.hypot(r[..., 2, 1], r[..., 2, 2]) < 1e-12
+    roll = np.where(locked, 0.0, np.arctan2(r[..., 2, 1], r[..., 2, 2]))
+    yaw = np.where(locked, np.arctan2(-r[..., 0, 1], r[..., 1, 1]), np.arctan2(r[..., 1, 0], r[..., 0, 0]))
+    if r.ndim == 2:
+        return float(roll), float(pitch), float(yaw)
+    return roll, pitch, yaw
 
 
 def zyz_angles(rotation: RotationLike) -> tuple[np.ndarray, np.ndarray, np.ndarray] | tuple[float, float, float]:
