@@ -3,8 +3,10 @@
 
 Pure numpy, no ROS: the node (skynav_route.node) turns messages into `View`s and `Command`s into /cmd_vel.
 
-Every direction is in base_link (= camera_link's axes: x forward, y left, z up). A direction's *ground angle* is
-its azimuth atan2(y, x) in the robot's x-y plane (rad, left positive).
+Every direction and rotation is in base_link (x forward, y left, z up): the node turns the stages' camera_link
+home vector and compass rotation into it by the camera's mount (skynav_route.inputs), so a camera mounted turned or
+tilted steers like one on the robot's axes. A direction's *ground angle* is its azimuth atan2(y, x) in the robot's
+x-y plane (rad, left positive).
 
 Route following (`RouteFollower`): where am I, and which way does the route run there? The robot's heading in the
 teach's odometry frame is known closely: the compass rotation R (d_snapshot = R d_current) against the matched
@@ -109,7 +111,7 @@ class View:
     stamp: int
     match_index: int = -1  # PlaceMatch.index of this frame
     match_accepted: bool = False
-    rotation: np.ndarray | None = None  # (3, 3) compass R against `rotation_index`, d_snapshot = R d_current
+    rotation: np.ndarray | None = None  # (3, 3) compass R against `rotation_index` in base_link: d_snap = R d_current
     rotation_index: int = -1
     home_direction: np.ndarray | None = None  # (3,) unit home vector in base_link
     home_residual: float = 1.0

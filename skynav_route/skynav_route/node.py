@@ -2,8 +2,10 @@
 """The route node: serves /skynav/follow_route and /skynav/home and drives the robot through /cmd_vel.
 
 Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and,
-when a robot has them, /odom and /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED,
-as skynav does not drive around objects); publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as
+when a robot has them, /odom, /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED,
+as skynav does not drive around objects) and /tf_static (base_link -> camera_link, over the parameter
+camera_mount_rpy_deg: the compass rotation and home vector are turned into base_link, skynav_route.inputs);
+publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as
 docs/interfaces.md ("Driving") says: while a goal is active, exactly one command per camera frame it processes,
 stamped with that frame's stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, blocked,
 stale inputs, shutdown); nothing while idle. It never reads /ground_truth/*.
@@ -41,15 +43,15 @@ from std_msgs.msg import Bool
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
 from skynav_core.motion import fill_velocity_command
-from skynav_core.node import SkynavNode
+from skynav_core.node import TF_STATIC_TOPIC, SkynavNode
 from skynav_core.ros import run_node
-from skynav_core.rotations import as_matrix
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
 from . import goals
 from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, View
 from .goals import BLOCKED, CANCELED, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal
+from .inputs import frame_view
 from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
@@ -75,6 +77,7 @@ class RouteNode(SkynavNode):
         '/homing/home_vector',
         '/odom',
         '/bumper',
+        TF_STATIC_TOPIC,
     )
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
     stops_on_signal = True
@@ -96,6 +99,7 @@ class RouteNode(SkynavNode):
         self.input('/homing/home_vector', HomeVector, self.on_home_vector)
         self.input('/odom', Odometry, self.on_odom)
         self.input('/bumper', Bool, self.on_bumper)
+        self.listen_for_mount()
         self.output(CMD_TOPIC, TwistStamped)
         self.servers = [
             ActionServer(self, kind, name, execute_callback=execute, cancel_callback=self.on_cancel)
@@ -161,19 +165,9 @@ class RouteNode(SkynavNode):
     # --- driving --------------------------------------------------------------------------------
 
     def view(self, stamp: int) -> View:
-        """Return what the controller knows of the frame stamped `stamp`."""
-        view = View(stamp)
+        """Return what the controller knows of the frame stamped `stamp`, in base_link (the camera's mount)."""
         match, compass, home = self.matches.get(stamp), self.compass.get(stamp), self.homes.get(stamp)
-        if match is not None:
-            view.match_index, view.match_accepted = int(match.index), bool(match.accepted)
-        if compass is not None:
-            q = compass.rotation
-            view.rotation, view.rotation_index = as_matrix([q.x, q.y, q.z, q.w]), int(compass.snapshot_index)
-        if home is not None:
-            d = np.array([home.direction.x, home.direction.y, home.direction.z])
-            if np.all(np.isfinite(d)) and np.linalg.norm(d) > 0 and math.isfinite(home.residual):
-                view.home_direction, view.home_residual = d / np.linalg.norm(d), float(home.residual)
-                view.home_index = int(home.snapshot_index)
+        view = frame_view(stamp, match, compass, home, self.mount)
         if self.odom is not None:
             previous = self.odom_at_frame if self.odom_at_frame is not None else self.odom
             view.odometry = float(np.linalg.norm(self.odom - previous))

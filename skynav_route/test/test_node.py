@@ -316,3 +316,106 @@ def test_a_goal_without_a_map_aborts_no_map(tmp_path, route_map):
             assert error_name(result.result().result) == 'NO_MAP'
         finally:
             driver.close()
+
+
+def mount_transform(rpy_deg, parent='base_link', child='camera_link'):
+    """Return a tf2_msgs/TFMessage of one transform parent -> child turned by roll, pitch, yaw (deg)."""
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+
+    from skynav_core.rotations import as_quaternion, rpy_matrix
+
+    transform = TransformStamped(child_frame_id=child)
+    transform.header.frame_id = parent
+    transform.transform.translation.z = 0.3
+    q = transform.transform.rotation
+    q.x, q.y, q.z, q.w = map(float, as_quaternion(rpy_matrix(*np.radians(rpy_deg))))
+    return TFMessage(transforms=[transform])
+
+
+def home_turn(driver, static=None):
+    """Send a Home goal, answer 3 frames whose home vector is the camera's +x (and publish `static` on /tf_static
+    first); return the last command's turn rate (rad/s)."""
+    if static is not None:
+        driver.graph.publish('/tf_static', static)
+    driver.send(Home, '/skynav/home', Home.Goal(index=9))
+    for _ in range(3):
+        driver.publish_frame(home_index=9)
+    return driver.commands[-1].twist.angular.z
+
+
+# the home vector points along the camera's +x: ahead of a camera on the robot's axes, left of one turned right
+@pytest.mark.parametrize(
+    'mount, turn', [(None, 0), ('[0, 0, 90]', 1), ('[0.0, 4.0, -90.0]', -1), ('[0.0, 0.0, 180.0]', None)]
+)
+def test_the_route_node_steers_on_home_vectors_turned_by_the_mount_parameter(route_map, mount, turn):
+    with route_graph(route_map, *([f'camera_mount_rpy_deg:={mount}'] if mount else [])) as graph:
+        driver = Driver(graph)
+        try:
+            angular = home_turn(driver)
+            assert driver.node.rejected == {}
+        finally:
+            driver.close()
+    if turn is None:  # home behind: a hard turn either way, no speed
+        assert abs(angular) > 0.5 and driver.commands[-1].twist.linear.x == 0.0
+    else:
+        assert np.sign(round(angular, 9)) == turn and (turn == 0 or abs(angular) > 0.5)
+
+
+def test_tf_static_wins_over_the_mount_parameter(route_map):
+    # a robot_state_publisher says the camera is turned right, the parameter says left: /tf_static is believed
+    with route_graph(route_map, 'camera_mount_rpy_deg:=[0.0, 0.0, 90.0]') as graph:
+        driver = Driver(graph)
+        try:
+            static = mount_transform([0.0, 0.0, -90.0], 'mast_link')
+            static.transforms.append(mount_transform([0.0, 0.0, 0.0], 'base_link', 'mast_link').transforms[0])
+            assert home_turn(driver, static) < -0.5
+            assert driver.node.rejected == {}
+            np.testing.assert_allclose(driver.node.mount[:, 0], [0.0, -1.0, 0.0], atol=1e-12)
+        finally:
+            driver.close()
+
+
+def test_an_unusable_mount_is_refused_and_the_node_keeps_its_mount(route_map):
+    from rclpy.parameter import Parameter
+
+    with route_graph(route_map, 'camera_mount_rpy_deg:=[0.0, 90.0]') as graph:
+        node = graph.nodes[0]
+        assert node.rejected == {'parameters': 1}  # at start-up: the default, with one log line
+        assert node.get_parameter('camera_mount_rpy_deg').value == [0.0, 0.0, 0.0]
+        assert np.array_equal(node.mount, np.eye(3))
+        assert node.set_parameters([Parameter('camera_mount_rpy_deg', value=[0.0, 0.0, 90.0])])[0].successful
+        for bad in ([1.0, float('nan'), 0.0], 'yaw 90', [0.0, 0.0, 0.0, 1.0]):
+            result = node.set_parameters([Parameter('camera_mount_rpy_deg', value=bad)])[0]
+            assert not result.successful and 'camera_mount_rpy_deg' in result.reason and '\n' not in result.reason
+        np.testing.assert_allclose(node.mount[:, 0], [0.0, 1.0, 0.0], atol=1e-12)  # still turned left
+        broken = mount_transform([0.0, 0.0, -90.0])
+        broken.transforms[0].transform.rotation.z = float('nan')
+        node.on_static_transforms(broken)  # a broken /tf_static: one reject, and the mount stays
+        assert node.rejected['transform'] == 1 and node.static_mount is None
+
+
+def test_a_latched_tf_static_published_before_the_node_started_reaches_it(ros_context):
+    # as robot_state_publisher publishes it: once, reliable, transient local, depth 1
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from skynav_route.node import RouteNode
+    from tf2_msgs.msg import TFMessage
+
+    from skynav_core.mount import mount_rpy_deg
+    from skynav_core.testing import wait_until
+
+    robot = Node('robot_state_publisher', context=ros_context)
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    robot.create_publisher(TFMessage, '/tf_static', qos).publish(mount_transform([0.0, 4.0, 90.0]))
+    node = RouteNode(context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    try:
+        wait_until(lambda: executor.spin_once(timeout_sec=0.05) or node.static_mount is not None, 'the mount', 20.0)
+        assert mount_rpy_deg(node.mount) == pytest.approx((0.0, 4.0, 90.0))
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        robot.destroy_node()
+        executor.shutdown()

@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 """The viz node: what a person watches live (Foxglove, `skynav view`; RViz) and in `skynav run`'s recording.
 
-Subscribes /camera/uv/image_raw, /camera/uv/camera_info, /skyline/mask, /localization/match and
-/homing/home_vector; publishes, per camera frame and stamped with its stamp (docs/interfaces.md, "Visualization"):
+Subscribes /camera/uv/image_raw, /camera/uv/camera_info, /skyline/mask, /localization/match,
+/homing/home_vector and /tf_static (the camera's mount, which turns the home vector onto odometry poses);
+publishes, per camera frame and stamped with its stamp (docs/interfaces.md, "Visualization"):
 
 - /skynav/viz/markers (visualization_msgs/MarkerArray, frame `odom` or `map`: skynav_viz.scene): the taught route's
   snapshots, the matched snapshot, the home vector's snapshot, the home vector and the route direction;
@@ -32,7 +33,7 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.maps import MapStore, map_for_parameter
-from skynav_core.node import SENSOR_QOS, SkynavNode
+from skynav_core.node import SENSOR_QOS, TF_STATIC_TOPIC, SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.rotations import as_matrix
 from skynav_msgs.msg import HomeVector, PlaceMatch
@@ -84,7 +85,7 @@ class VizNode(SkynavNode):
     """Publishes the markers, the overlay image, confidence and state of every camera frame."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (UV_TOPIC, CAMERA_INFO_TOPIC, MASK_TOPIC, MATCH_TOPIC, HOME_TOPIC)
+    INPUT_TOPICS = (UV_TOPIC, CAMERA_INFO_TOPIC, MASK_TOPIC, MATCH_TOPIC, HOME_TOPIC, TF_STATIC_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('viz', **kwargs)
@@ -99,6 +100,7 @@ class VizNode(SkynavNode):
         self.input(MASK_TOPIC, Image, lambda m: self.take(m, 'mask'))
         self.input(MATCH_TOPIC, PlaceMatch, lambda m: self.take(m, 'match'))
         self.input(HOME_TOPIC, HomeVector, lambda m: self.take(m, 'home'))
+        self.listen_for_mount()
         self.output(MARKERS_TOPIC, MarkerArray)
         self.output(OVERLAY_TOPIC, CompressedImage)
         self.output(CONFIDENCE_TOPIC, Float64)
@@ -227,7 +229,9 @@ class VizNode(SkynavNode):
         route = self.route
         if route is None:
             return None
-        shown = scene.scene(route, int(match.index), bool(match.accepted), home, self.values['arrow_length'])
+        shown = scene.scene(
+            route, int(match.index), bool(match.accepted), home, self.values['arrow_length'], self.mount
+        )
         size = self.values['snapshot_size']
         drawn = route.drawn
         markers = [

@@ -3,13 +3,14 @@
 
 Snapshot places come from the map (docs/interfaces.md, "Maps"): the odometry poses of base_link in `odom` that
 live teaching stored (the descriptor skynav_core.maps.ODOM_POSE) where the map has them, else the
-ground-truth poses of camera_link in `map` of a map built from a recording. base_link and camera_link share their
-axes, so a pose's rotation turns a direction of the snapshot's camera_link into the route's frame either way.
+ground-truth poses of camera_link in `map` of a map built from a recording. The snapshot's camera_link is oriented
+as the ground-truth pose says, or as the odometry pose times the camera's mount M (camera_link in base_link,
+skynav_core.mount).
 
 The robot is drawn where localization places it: at the matched snapshot. The home vector (a direction in the
 current camera_link) is turned into the route's frame through the snapshot it points to: with that snapshot's
-orientation Q_t and the home vector's rotation R (d_snapshot = R d_current), the current orientation is Q_t R,
-so the home vector is Q_t R d there. Logic only (no rclpy).
+camera orientation Q_t and the home vector's rotation R (d_snapshot = R d_current), the current camera orientation
+is Q_t R, so the home vector is Q_t R d there. Logic only (no rclpy).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from skynav_core.maps import MapStore
 from skynav_core.rotations import as_matrix
 
 ODOM_FRAME, MAP_FRAME = 'odom', 'map'
+IDENTITY = np.eye(3)  # the mount of a camera on the robot's axes
 # state of a frame, as a plottable number (/skynav/viz/state)
 NO_MAP, LOCALIZING, LOCALIZED = 0, 1, 2
 STATE_NAMES = {NO_MAP: 'no map (no snapshot matched)', LOCALIZING: 'match not accepted', LOCALIZED: 'match accepted'}
@@ -103,14 +105,24 @@ def route_arrow(route: Route, index: int, length: float) -> Arrow | None:
     return Arrow(start, start + length * step / norm)
 
 
-def home_arrow(route: Route, origin: int, target: int, direction: np.ndarray, rotation: np.ndarray, length: float):
+def home_arrow(
+    route: Route,
+    origin: int,
+    target: int,
+    direction: np.ndarray,
+    rotation: np.ndarray,
+    length: float,
+    mount: np.ndarray = IDENTITY,
+):
     """Return an arrow of `length` m at snapshot `origin` along a home vector towards snapshot `target`, or None.
 
-    `direction` is the home vector in the current camera_link, `rotation` (3, 3) its rotation to the target's view.
+    `direction` is the home vector in the current camera_link, `rotation` (3, 3) its rotation to the target's view,
+    `mount` (3, 3) camera_link's rotation in base_link (the odometry poses are base_link's).
     """
     if not (route.known(origin) and route.known(target)):
         return None
-    vector = route.rotations[target] @ rotation @ np.asarray(direction, float)
+    camera = route.rotations[target] @ mount if route.frame_id == ODOM_FRAME else route.rotations[target]
+    vector = camera @ rotation @ np.asarray(direction, float)
     norm = float(np.linalg.norm(vector))
     if not np.isfinite(norm) or norm == 0:
         return None
@@ -124,13 +136,15 @@ def scene(
     accepted: bool,
     home: tuple[int, np.ndarray, np.ndarray] | None,
     length: float,
+    mount: np.ndarray = IDENTITY,
 ) -> Scene:
-    """Return the scene of a frame from its place match and its home vector (target index, direction, rotation)."""
+    """Return the scene of a frame from its place match and its home vector (target index, direction, rotation),
+    with the camera mounted as `mount` (3, 3) says."""
     matched = match_index if route.known(match_index) else None
     target = home[0] if home is not None and route.known(home[0]) else None
     arrow = None
     if matched is not None and home is not None:
-        arrow = home_arrow(route, matched, home[0], home[1], home[2], length)
+        arrow = home_arrow(route, matched, home[0], home[1], home[2], length, mount)
     direction = route_arrow(route, matched, length) if matched is not None else None
     return Scene(matched, bool(accepted) and matched is not None, target, arrow, direction)
 

@@ -86,6 +86,24 @@ def test_the_home_vector_is_turned_into_the_route_frame_through_its_snapshot(tmp
     np.testing.assert_allclose(shown.home.end, arrow.end)
 
 
+def test_on_odometry_poses_a_mounted_cameras_home_vector_is_turned_by_the_mount(tmp_path):
+    # the camera is turned 90 deg left and pitched 4 deg on the robot; the map holds base_link's odometry poses
+    mount = Rotation.from_euler('xyz', [0.0, 4.0, 90.0], degrees=True)
+    places = [pose(0, 0, 70.0), pose(1, 1, 0), pose(2, 1, 0), pose(3, 4, -40.0)]
+    with write_map(tmp_path / 'mounted.db', odometry=places) as store:
+        route = scene.route_of(store)
+    assert route is not None and route.frame_id == scene.ODOM_FRAME
+    current, target = (Rotation.from_quat(places[k][3:]) * mount for k in (0, 3))  # the cameras' orientations
+    rotation = relative_rotation(target, current)
+    direction = home_direction(places[3][:3], places[0][:3], current)
+    expected = (places[3][:3] - places[0][:3]) / np.linalg.norm(places[3][:3] - places[0][:3])
+    shown = scene.scene(route, 0, True, (3, direction, rotation), 1.0, mount.as_matrix())
+    assert shown.home is not None
+    np.testing.assert_allclose(shown.home.end - shown.home.start, expected, atol=1e-12)
+    unmounted = scene.scene(route, 0, True, (3, direction, rotation), 1.0)  # the mount left out: off by far
+    assert unmounted.home is not None and np.linalg.norm(unmounted.home.end - shown.home.end) > 0.5
+
+
 def test_a_frame_without_a_match_shows_no_robot(tmp_path):
     with write_map(tmp_path / 'route.db', truth=STRAIGHT) as store:
         route = scene.route_of(store)
