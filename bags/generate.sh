@@ -37,6 +37,12 @@ sim compass --world garden  --seed 1 --count 15 --max-tilt 30 --max-translation 
 sim compass --world mineral --seed 2 --count 15 --max-tilt 30 --max-translation 0.5 --time noon \
     "${common[@]}" --out "$out/synthetic_mineral_compass.mcap"
 
+# The garden repeat drive through one colour camera delivering JPEG on /camera/image_raw/compressed (what most
+# drivers deliver), at image_transport's default quality (95).
+sim repeat  --world garden  --seed 1 --length 8 --speed 0.9 --time morning --clouds 0.3 \
+    --offset 0.25 --shake 3 --wobble 25 --size 320x240 --fov 200 --camera colour-compressed --codec jpeg \
+    --jpeg-quality 95 --out "$out/synthetic_garden_colour_repeat.mcap"
+
 # Labelled skyline sets: 2 places at each of 5 times of day, clear and cloudy, in each world style.
 for world in garden park mineral; do
     sim skyline --world "$world" --seed 4 --count 2 "${common[@]}" --out "$out/synthetic_${world}_skyline.mcap"

@@ -22,6 +22,13 @@ INPUT_TOPICS = {
     '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
     '/ground_truth/mask': 'sensor_msgs/msg/Image',
 }
+#: The topics of a recording of one colour camera delivering JPEG (synthetic_garden_colour_repeat.mcap).
+COLOUR_TOPICS = {
+    '/camera/image_raw/compressed': 'sensor_msgs/msg/CompressedImage',
+    '/camera/camera_info': 'sensor_msgs/msg/CameraInfo',
+    '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
+    '/ground_truth/mask': 'sensor_msgs/msg/Image',
+}
 
 
 def test_the_bundle_is_complete_and_small():
@@ -36,11 +43,14 @@ def test_the_bundle_is_complete_and_small():
 def test_bundled_bag(path):
     assert path.name.startswith('synthetic_')
     with Reader(path) as reader:  # rosbags reads it
-        assert {c.topic: c.msgtype for c in reader.connections} == INPUT_TOPICS
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert topics in (INPUT_TOPICS, COLOUR_TOPICS)
         count = reader.message_count
     with open_bag(path) as bag:
         description = yaml.safe_load(bag.custom_data['skynav_sim'])
         assert description['synthetic'] is True
+        assert (topics == COLOUR_TOPICS) == ('camera' in description)  # a colour recording says which camera
+        assert description.get('camera', {'synthetic': True})['synthetic'] is True
         stamps: dict[str, list[int]] = {}
         for message in bag.messages():
             data = bag.deserialize(message)
@@ -49,13 +59,15 @@ def test_bundled_bag(path):
             assert message.log_time == stamp
             if message.topic.endswith('image_raw'):
                 assert data.encoding in ('mono8', 'mono16', '32FC1') and data.header.frame_id == 'camera_link'
+            if message.topic.endswith('compressed'):
+                assert data.format == 'rgb8; jpeg compressed bgr8' and data.header.frame_id == 'camera_link'
             if message.topic == '/ground_truth/mask':
                 assert data.encoding == 'mono8' and set(np.unique(data.data)) <= {0, 255}
-            if message.topic == '/camera/uv/camera_info':
+            if message.topic.endswith('camera_info'):
                 camera = EquidistantCamera.from_camera_info(data)
                 assert camera.field_of_view <= np.radians(220) + 1e-9
     frames = len(description['frames'])
-    assert count == 5 * frames
+    assert count == len(topics) * frames
     with path.open('rb') as stream:  # every checksum is there, and the mcap library finds them right
         records = list(StreamReader(stream, validate_crcs=True, emit_chunks=True).records)
     chunks = [r for r in records if isinstance(r, Chunk)]
@@ -64,7 +76,7 @@ def test_bundled_bag(path):
     assert next(r for r in records if isinstance(r, Footer)).summary_crc
     for topic, times in stamps.items():
         assert len(times) == frames and np.all(np.diff(times) > 0), topic  # strictly increasing
-        assert times == stamps['/camera/uv/image_raw'], topic  # one stamp per exposure on every topic
+        assert times == stamps['/ground_truth/pose'], topic  # one stamp per exposure on every topic
 
 
 def test_skynav_replays_every_bundled_bag():

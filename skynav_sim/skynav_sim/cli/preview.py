@@ -167,8 +167,11 @@ def _from_bag(args):
     ).reshape(-1, 2)
     world = generate(info['world'], int(info['world_seed'])) if 'world' in info else None
     kind = 'SYNTHETIC ' if info.get('synthetic') else ''
-    title = f'{kind}recording {args.bag}: {len(complete)} frames' + (
-        f', {info.get("scenario")} in the {info.get("world")} world, seed {info.get("seed")}' if info else ''
+    camera = info.get('camera', {})
+    title = (
+        f'{kind}recording {args.bag}: {len(complete)} frames'
+        + (f', {info.get("scenario")} in the {info.get("world")} world, seed {info.get("seed")}' if info else '')
+        + (f', {camera.get("kind")} camera ({camera.get("encoding")})' if camera else '')
     )
     return sheet, positions, world, title
 
