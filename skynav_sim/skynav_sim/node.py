@@ -153,6 +153,7 @@ def _namespace(values: dict) -> argparse.Namespace:
         'max_tilt': 30.0,
         'max_translation': 0.5,
         'bump_tilt': 0.0,
+        'detour': 0.0,
     }
     return argparse.Namespace(**{**defaults, **values})
 
