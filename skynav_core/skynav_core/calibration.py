@@ -33,6 +33,7 @@ import cv2
 import numpy as np
 
 from .camera import EquidistantCamera, angles_from_directions
+from .colour import linear_to_srgb8
 from .errors import SkynavError
 
 # Detector flags: EXHAUSTIVE tries every candidate quad (boards at the rim are small and sheared). Measured on 21
@@ -158,9 +159,7 @@ def grey_for_detection(pixels: np.ndarray, linear: bool, order: str = 'rgb') -> 
     white = float(np.percentile(values, LINEAR_WHITE_PERCENTILE))
     if not white > 0:
         return np.zeros(values.shape, np.uint8)
-    scaled = np.clip(values / white, 0.0, 1.0)
-    encoded = np.where(scaled <= 0.0031308, 12.92 * scaled, 1.055 * scaled ** (1 / 2.4) - 0.055)
-    return np.rint(encoded * 255).astype(np.uint8)
+    return linear_to_srgb8(values / white)
 
 
 def find_corners(grey: np.ndarray, board: Board, flags: int = DETECTOR_FLAGS) -> np.ndarray | None:
@@ -257,8 +256,8 @@ def find_image_circle(brightest: np.ndarray) -> ImageCircle:
     for _ in range(3):
         cx, cy, radius = _fit_circle(points[keep])
         keep = np.abs(np.hypot(points[:, 0] - cx, points[:, 1] - cy) - radius) < CIRCLE_OUTLIER_PX
-    # The contour runs through the outermost disc pixels' centres: the edge itself lies half a pixel farther out.
-    return ImageCircle(cx, cy, radius + 0.5)
+    # The contour runs through the centres of the outermost pixels brighter than the level, which the edge crosses.
+    return ImageCircle(cx, cy, radius)
 
 
 def _fit_circle(points: np.ndarray) -> tuple[float, float, float]:

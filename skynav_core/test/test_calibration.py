@@ -120,6 +120,16 @@ def test_the_image_circle_is_found_in_the_views(rendered):
     assert abs(circle.radius - lens_radius) < 1.5
 
 
+def test_a_circle_cut_by_the_frame_is_fitted_to_the_edge_inside_it():
+    views = np.zeros((480, 640), np.uint8)
+    # A disc of radius 260 px about (321.25, 238.5) (drawn at 1/16 px): the frame cuts off its top and bottom.
+    cv2.circle(views, (round(321.25 * 16), round(238.5 * 16)), 260 * 16, 180, -1, cv2.LINE_AA, shift=4)
+    circle = find_image_circle(views)
+    assert circle.fitted
+    assert circle.cx == pytest.approx(321.25, abs=0.3) and circle.cy == pytest.approx(238.5, abs=0.3)
+    assert circle.radius == pytest.approx(260, abs=0.7)
+
+
 def test_a_frame_filling_disc_falls_back_to_the_frame():
     bright = np.full((48, 64), 200, np.uint8)
     circle = find_image_circle(bright)
