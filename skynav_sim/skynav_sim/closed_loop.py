@@ -21,14 +21,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import TransformStamped, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
+from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Bool
+from tf2_msgs.msg import TFMessage
 
 from skynav_core.actions import error_name
 from skynav_core.camera import EquidistantCamera
@@ -36,8 +38,10 @@ from skynav_core.graph import InProcessGraph, in_process
 from skynav_core.images import fill_image, stamp_ns
 from skynav_core.maps import MapStore, Snapshot
 from skynav_core.motion import fill_velocity_command
-from skynav_core.node import SkynavNode
+from skynav_core.mount import BASE_FRAME, mount_from_rpy_deg
+from skynav_core.node import TF_STATIC_QOS, TF_STATIC_TOPIC, SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
+from skynav_core.rotations import as_quaternion
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home, Teach
 
@@ -45,7 +49,7 @@ from .drive_eval import cross_track, path_length
 from .mower import Mower, Pose2D
 from .recording import CAMERA_FRAME, start_stamp
 from .render import CameraPose, Renderer
-from .robot import bump, camera_pose
+from .robot import CAMERA_HEIGHT, base_positions, bump, camera_pose
 from .scenarios import route as planned_route
 from .sensor import Sensor
 from .sky import Sky
@@ -109,6 +113,7 @@ class SimMowerNode(SkynavNode):
         self.output('/odom', Odometry)
         self.output('/bumper', Bool)
         self.output('/clock', Clock)
+        self.output(TF_STATIC_TOPIC, TFMessage, TF_STATIC_QOS)
         self.commands: list[TwistStamped] = []
         self.input('/cmd_vel', TwistStamped, self.commands.append)
 
@@ -127,6 +132,17 @@ class SimMowerNode(SkynavNode):
         message.pose.pose.orientation.z = float(np.sin(pose.heading / 2))
         message.pose.pose.orientation.w = float(np.cos(pose.heading / 2))
         self.emit('/odom', message)
+
+    def publish_mount(self, stamp: int, mount: np.ndarray) -> None:
+        """Publish base_link -> camera_link (the camera CAMERA_HEIGHT above the base, turned by `mount` (3, 3)) on
+        /tf_static, as a robot_state_publisher does from a URDF."""
+        transform = TransformStamped(child_frame_id=CAMERA_FRAME)
+        transform.header.stamp.sec, transform.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+        transform.header.frame_id = BASE_FRAME
+        transform.transform.translation.z = CAMERA_HEIGHT
+        q = transform.transform.rotation
+        q.x, q.y, q.z, q.w = (float(v) for v in as_quaternion(mount))
+        self.emit(TF_STATIC_TOPIC, TFMessage(transforms=[transform]))
 
     def publish_bumper(self, contact: bool) -> None:
         """Publish whether the mower's bumper touches an object."""
@@ -170,11 +186,14 @@ class Simulation:
         encoding: str = 'mono8',
         bump_tilt: float = 0.0,
         clouds: float = 0.0,
+        mount: np.ndarray | None = None,
     ) -> None:
         """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump);
-        `clouds` is the cloud cover (0 clear .. 1 overcast)."""
+        `clouds` is the cloud cover (0 clear .. 1 overcast); `mount` (3, 3) turns the camera on the robot
+        (camera_link in base_link; None: the base's axes)."""
         self.world, self.camera, self.encoding, self.seed = world, camera, encoding, seed
         self.bump_tilt = bump_tilt
+        self.mount = Rotation.from_matrix(mount) if mount is not None else None
         self.renderer = Renderer(world, camera)
         self.sky = Sky(hours, clouds, cloud_seed=seed)
         self.sensor = Sensor()
@@ -184,7 +203,7 @@ class Simulation:
     def capture(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray, CameraPose]:
         """Render the robot's view at (x, y) facing `heading`; return UV, green and the camera pose."""
         rng = np.random.default_rng([self.seed, self.frames, 97])
-        pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt))
+        pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt), self.mount)
         view = self.renderer.render(pose, self.sky)
         self.frames += 1
         return (
@@ -222,10 +241,12 @@ def drive_goal(
     max_frames: int,
     progress: Callable[[], None] | None = None,
     odometry: bool = True,
+    mount: np.ndarray | None = None,
 ) -> Run:
     """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run.
 
-    `progress` is called once per camera frame; without `odometry` the base publishes no /odom.
+    `progress` is called once per camera frame; without `odometry` the base publishes no /odom; a `mount` (3, 3)
+    is published on /tf_static before the goal.
     """
     robot = graph.nodes[-1]
     assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
@@ -237,6 +258,9 @@ def drive_goal(
     client = ActionClient(client_node, action[0], action[1])
     run = Run(mower.pose.position, np.asarray(goal_place, float), [mower.pose.position], [mower.pose.heading])
     feedback: list[Any] = []
+    if mount is not None:
+        graph.advance(simulation.stamp())
+        robot.publish_mount(simulation.stamp(), mount)
     try:
         if not spin_until(executor, client.server_is_ready, GOAL_WAIT):
             raise RuntimeError(f'no action server {action[1]} in the simulated graph')
@@ -303,15 +327,38 @@ def drive_goal(
     return run
 
 
+MOUNT_DECLARATIONS = ('tf_static', 'parameter', 'none')  # how the graph learns of the camera's mount
+
+
 @dataclass(frozen=True)
 class Base:
-    """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed, and
-    whether it has wheel odometry (publishes /odom)."""
+    """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed, whether
+    it has wheel odometry (publishes /odom), its camera's mount (roll, pitch, yaw in degrees, fixed axes X, Y, Z:
+    camera_link in base_link, rendered) and how the graph learns of it: the robot publishes it on /tf_static, the
+    nodes get the parameter camera_mount_rpy_deg, or nothing tells them (they take the camera on the base's axes)."""
 
     slip: float = 0.05
     odometry_noise: float = 0.02
     seed: int = 0
     odometry: bool = True
+    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    declare_mount: str = 'tf_static'
+
+    @property
+    def mount(self) -> np.ndarray:
+        """Return the camera's mount (3, 3): camera_link's rotation in base_link."""
+        return mount_from_rpy_deg(list(self.mount_rpy_deg))
+
+    @property
+    def published_mount(self) -> np.ndarray | None:
+        """Return the mount the robot publishes on /tf_static (None when the graph learns it otherwise)."""
+        return self.mount if self.declare_mount == 'tf_static' else None
+
+    def mount_arguments(self) -> list[str]:
+        """Return the graph's ROS arguments that declare the mount by parameter (none unless so declared)."""
+        if self.declare_mount != 'parameter':
+            return []
+        return ['-p', f'camera_mount_rpy_deg:=[{", ".join(repr(float(v)) for v in self.mount_rpy_deg)}]']
 
 
 def home_runs(
@@ -332,9 +379,9 @@ def home_runs(
     """Home from each start to snapshot 0 of the map at `goal` with a Home goal (views bumped up to bump_tilt deg,
     under a sky of `clouds` cover)."""
     runs = []
-    arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
+    arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
     for k, (start, heading) in enumerate(starts):
-        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds)
+        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount)
         mower = Mower(
             world,
             Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -345,7 +392,15 @@ def home_runs(
         with in_process(graph_specs(tuple(n for n in GRAPH_NODES if n != 'localize')), arguments) as graph:
             goal_message = Home.Goal(map_path='', index=0, max_speed=SPEED)
             run = drive_goal(
-                graph, simulation, mower, (Home, '/skynav/home'), goal_message, goal, max_frames, odometry=base.odometry
+                graph,
+                simulation,
+                mower,
+                (Home, '/skynav/home'),
+                goal_message,
+                goal,
+                max_frames,
+                odometry=base.odometry,
+                mount=base.published_mount,
             )
         runs.append(run)
         if progress is not None:
@@ -364,9 +419,11 @@ def snapshot_map(
     name: str = 'home',
     ros_args: list[str] | None = None,
     bump_tilt: float = 0.0,
+    mount: np.ndarray | None = None,
 ):
-    """Render the view at `place`, run it through the skyline and SH nodes, and store it as a one-snapshot map."""
-    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt)
+    """Render the view at `place` (the camera turned on the robot by `mount`, 3x3), run it through the skyline and
+    SH nodes, and store it as a one-snapshot map."""
+    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, mount=mount)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
     specs.append(NodeSpec('sim_mower', 'skynav_sim', 'skynav_sim.closed_loop:SimMowerNode'))
     with in_process(specs, ros_args) as graph:
@@ -433,15 +490,15 @@ def follow_route(
     """Follow the route of a map from `start` with a FollowRoute goal from snapshot `start_index` (-1: wherever
     localization places the robot) to its last snapshot.
 
-    Returns the run and the route (snapshot positions x, y in m: the map's poses unless `route` gives the true
-    ones of a taught map; for scoring only, the loop never sees them). The sky has `clouds` cover; `progress` is
-    called once per camera frame.
+    Returns the run and the route (snapshot places x, y of base_link in m: from the map's camera_link poses unless
+    `route` gives the true ones of a taught map; for scoring only, the loop never sees them). The sky has `clouds`
+    cover; `progress` is called once per camera frame.
     """
     if route is None:
         with MapStore.open(map_path) as store:
-            route = store.positions()[:, :2]
-    arguments = ['-p', f'map:={map_path}', *(ros_args or [])]
-    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds)
+            route = base_positions(store.poses(), base.mount)
+    arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
+    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount)
     mower = Mower(
         world,
         Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -461,6 +518,7 @@ def follow_route(
             max_frames,
             progress,
             base.odometry,
+            base.published_mount,
         )
     return run, route
 
@@ -534,9 +592,10 @@ def teach_route(
         base.slip,
         base.odometry_noise,
     )
-    simulation = Simulation(world, camera, hours, seed)
+    simulation = Simulation(world, camera, hours, seed, mount=base.mount)
     teaching = Teaching()
-    with in_process(graph_specs(('skyline', 'sh', 'localize')), ros_args) as graph:
+    arguments = [*base.mount_arguments(), *(ros_args or [])]
+    with in_process(graph_specs(('skyline', 'sh', 'localize')), arguments) as graph:
         robot = graph.nodes[-1]
         assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
         executor = SingleThreadedExecutor(context=robot.context)
@@ -546,6 +605,8 @@ def teach_route(
         client = ActionClient(client_node, Teach, '/skynav/teach')
         try:
             graph.advance(simulation.stamp())  # the goal starts at the first frame's time (sim time)
+            if base.published_mount is not None:
+                robot.publish_mount(simulation.stamp(), base.published_mount)
             if not spin_until(executor, client.server_is_ready, GOAL_WAIT):
                 raise RuntimeError('no /skynav/teach action server in the simulated graph')
             goal = Teach.Goal(map_path=str(map_path), map_name='', spacing=0.0, max_length=0.0, overwrite=True)

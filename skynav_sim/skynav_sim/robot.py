@@ -3,14 +3,18 @@
 
 base_link (REP-103: x forward, y left, z up) sits on the plane fitted through
 the terrain under the four wheels, so the robot tilts as the ground does.
-camera_link has the same axes (the fish-eye looks up along +z) and is mounted
-CAMERA_HEIGHT above base_link.
+camera_link sits CAMERA_HEIGHT above base_link, the fish-eye looking up along
+its +z; its axes are base_link's, or turned against them by a mount (the
+rotation of camera_link in base_link, skynav_core.mount): the camera's
+orientation in map is the base's times the mount.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from skynav_core.rotations import as_matrix
 
 from .render import CameraPose
 from .terrain import Terrain
@@ -39,12 +43,29 @@ def base_pose(terrain: Terrain, x: float, y: float, heading: float) -> tuple[np.
     return np.array([x, y, a + b * x + c * y]), rotation
 
 
-def camera_pose(terrain: Terrain, x: float, y: float, heading: float, jitter: Rotation | None = None) -> CameraPose:
-    """Return the camera_link pose of a robot at (x, y) facing `heading`, optionally shaken by `jitter`."""
+def camera_pose(
+    terrain: Terrain,
+    x: float,
+    y: float,
+    heading: float,
+    jitter: Rotation | None = None,
+    mount: Rotation | None = None,
+) -> CameraPose:
+    """Return the camera_link pose of a robot at (x, y) facing `heading`, optionally shaken by `jitter` (a bump
+    under the wheels), its camera turned on it by `mount` (camera_link in base_link; None: the base's axes)."""
     position, rotation = base_pose(terrain, x, y, heading)
     if jitter is not None:
         rotation = rotation * jitter
-    return CameraPose(position + rotation.apply([0.0, 0.0, CAMERA_HEIGHT]), rotation)
+    orientation = rotation * mount if mount is not None else rotation
+    return CameraPose(position + rotation.apply([0.0, 0.0, CAMERA_HEIGHT]), orientation)
+
+
+def base_positions(camera_poses: np.ndarray, mount: np.ndarray | None = None) -> np.ndarray:
+    """Return the ground positions (N, 2) of base_link (m, map) of camera_link poses (N, 7) (x, y, z, qx, qy, qz, qw)
+    of a camera CAMERA_HEIGHT above base_link, turned on it by `mount` (3, 3; None: the base's axes)."""
+    poses = np.asarray(camera_poses, float)
+    bases = as_matrix(poses[:, 3:]) if mount is None else as_matrix(poses[:, 3:]) @ np.asarray(mount, float).T
+    return poses[:, :2] - CAMERA_HEIGHT * bases[:, :2, 2]
 
 
 def bump(rng: np.random.Generator, most: float) -> Rotation | None:

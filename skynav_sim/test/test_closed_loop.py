@@ -90,9 +90,10 @@ def test_route_following_stays_on_the_taught_route(camera, garden_map, odometry)
     world, seed, teach_camera, truth = teach_world(TEACH)
     assert teach_camera.width == camera.width and world.style == 'garden' and truth is None
     from skynav_core.maps import MapStore
+    from skynav_sim.robot import base_positions
 
     with MapStore.open(garden_map) as store:
-        route = store.positions()[:, :2]
+        route = base_positions(store.poses())  # the base's places under the map's true camera poses
     heading = np.arctan2(*(route[3] - route[0])[::-1])
     left = np.array([-np.sin(heading), np.cos(heading)])
     start = route[0] + 0.3 * left
@@ -145,7 +146,9 @@ def test_follow_command_refuses_bad_input_in_one_line(case, code, garden_map, tm
     assert one_line_error(result.stderr), result.stderr
 
 
-@pytest.mark.parametrize('extra', [['--bump-tilt', '95'], ['--bump-tilt', '-1'], ['--starts', '0']])
+@pytest.mark.parametrize(
+    'extra', [['--bump-tilt', '95'], ['--bump-tilt', '-1'], ['--starts', '0'], ['--mount-rpy', '0', '4', 'nan']]
+)
 def test_home_command_refuses_bad_input_in_one_line(extra, tmp_path):
     result = run_skynav('sim', 'home', '--out', str(tmp_path), *extra)
     assert result.returncode == 2, result.stderr

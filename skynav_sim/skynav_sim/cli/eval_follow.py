@@ -76,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
     teach_hours, hours = check_arguments(args)
     camera = options.closed_loop_camera(args)
+    base = options.base(args)
     plots_folder(args.out)
     pairs = [(world, seed) for world in args.worlds for seed in args.seeds]
     frames = args.length / (TELEOP_SPEED * FRAME_PERIOD) + args.length / (SPEED * FRAME_PERIOD)
@@ -84,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
         f'clear, followed at {hours:.1f} h with cloud cover {args.clouds:g}, from {args.offset:+.2f} m beside the '
         f'start turned {args.turn:+.0f} deg'
         + (', placed by localization' if args.start_index < 0 else '')
-        + (', without wheel odometry (no /odom)' if args.no_odom else ''),
+        + (', without wheel odometry (no /odom)' if args.no_odom else '')
+        + options.describe_mount(base),
         flush=True,
     )
     began = time.monotonic()
@@ -130,6 +132,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
     folder = args.out / f'{style}_seed{seed}'
     folder.mkdir(parents=True, exist_ok=True)
     map_path = (folder / 'teach.db').resolve()
+    base = options.base(args)
     try:
         teaching = teach_route(
             world,
@@ -138,14 +141,14 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
             seed,
             args.length,
             map_path,
-            options.base(args),
+            base,
             route_seed=route_seed,
             progress=progress,
         )
     except RuntimeError as exc:
         return f'the teach failed ({exc}): left out'
     taught = goal_result(GoalOutcome(teaching.status, teaching.result, True), cancel_finishes=True)
-    write_description(folder / 'teach.yaml', style, seed, teach_hours, camera, map_path, teaching)
+    write_description(folder / 'teach.yaml', style, seed, teach_hours, camera, map_path, teaching, base.mount_rpy_deg)
     with MapStore.open(map_path) as store:
         stamps = np.asarray(store.stamps(), dtype=np.int64)
     route = truth_at(stamps, np.array(teaching.stamps), np.array(teaching.poses))[:, :2]
@@ -167,7 +170,7 @@ def evaluate_route(args, style: str, seed: int, camera, teach_hours: float, hour
         clouds=args.clouds,
         progress=progress,
         start_index=args.start_index,
-        base=options.base(args),
+        base=base,
     )
     path = np.array(run.path)
     error, along = cross_track(path, route)

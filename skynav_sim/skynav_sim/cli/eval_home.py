@@ -69,12 +69,15 @@ def run(args: argparse.Namespace) -> int:
 
     teach_hours, hours = check_arguments(args)
     camera = options.closed_loop_camera(args)
+    base = options.base(args)
     plots_folder(args.out)
     pairs = [(world, seed) for world in args.worlds for seed in args.seeds]
     print(
         f'homing (synthetic): {args.starts} starts {args.min_distance:g}-{args.max_distance:g} m from home in each '
         f'of {len(pairs)} worlds, snapshot at {teach_hours:.1f} h clear, homing at {hours:.1f} h with cloud cover '
-        f'{args.clouds:g}' + (', without wheel odometry (no /odom)' if args.no_odom else ''),
+        f'{args.clouds:g}'
+        + (', without wheel odometry (no /odom)' if args.no_odom else '')
+        + options.describe_mount(base),
         flush=True,
     )
     began = time.monotonic()
@@ -85,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             world = generate(style, seed)
             goal = snapshot_place(world, ScenarioParameters())
             map_path = args.out / f'{style}_seed{seed}_home.db'
-            snapshot_map(world, camera, goal, 0.0, teach_hours, seed, map_path)
+            snapshot_map(world, camera, goal, 0.0, teach_hours, seed, map_path, mount=base.mount)
             starts = random_starts(
                 world, goal, args.starts, args.min_distance, args.max_distance, np.random.default_rng(seed)
             )
@@ -102,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
                 args.max_frames,
                 progress=lambda _: bar.update(),
                 clouds=args.clouds,
-                base=options.base(args),
+                base=base,
             )
             clear = [clear_line(world, start, goal) for start, _ in starts]
             results.append((style, seed, runs, clear))

@@ -106,14 +106,28 @@ def teach_world(teach: Path):
     return generate(description['world'], int(description.get('world_seed', seed))), seed, camera, truth
 
 
+def teach_mount(teach: Path) -> tuple[float, float, float]:
+    """Return the camera's mount (roll, pitch, yaw in degrees) of a teach drive: what `skynav sim teach` wrote in its
+    description; a teach recording's camera is on the base's axes."""
+    import yaml
+
+    if teach.suffix not in ('.yaml', '.yml'):
+        return (0.0, 0.0, 0.0)
+    roll, pitch, yaw = (yaml.safe_load(teach.read_text()) or {}).get('mount_rpy_deg', [0.0, 0.0, 0.0])
+    return float(roll), float(pitch), float(yaw)
+
+
 def run(args: argparse.Namespace) -> int:
     """Follow the route once; return the exit code."""
+    import dataclasses
+
     import numpy as np
 
     from skynav_core.cli import CliError
     from skynav_core.maps import MapError, MapStore
 
     from ..closed_loop import FRAME_PERIOD, SPEED, follow_route, route_deviation, truth_at
+    from ..robot import base_positions
     from ..sky import parse_time
     from . import options
 
@@ -126,6 +140,9 @@ def run(args: argparse.Namespace) -> int:
     if not (0 <= args.slip < 1 and 0 <= args.odometry_noise < 1 and 0 <= args.bump_tilt <= 90):
         raise CliError('--slip and --odometry-noise must be within 0..1, --bump-tilt within 0..90', exit_code=2)
     world, seed, camera, truth = teach_world(args.teach)
+    base = options.base(args)
+    if args.mount_rpy is None:  # the robot of the teach: its camera mounted as it was then
+        base = dataclasses.replace(base, mount_rpy_deg=teach_mount(args.teach))
     try:
         with MapStore.open(args.map) as store:
             poses, stamps = store.poses(), store.stamps()
@@ -133,7 +150,10 @@ def run(args: argparse.Namespace) -> int:
     except MapError as exc:
         raise CliError(str(exc)) from None
     # a taught map has no true poses: those of its snapshots' frames come from the teach drive's description
-    route = poses[:, :2] if truth is None else truth_at(np.asarray(stamps, dtype=np.int64), *truth)[:, :2]
+    if truth is None:  # the base's places under the recording's true camera poses
+        route = base_positions(poses, base.mount) if np.all(np.isfinite(poses)) else poses[:, :2]
+    else:
+        route = truth_at(np.asarray(stamps, dtype=np.int64), *truth)[:, :2]
     if count < 2 or not np.all(np.isfinite(route)):
         raise CliError(
             f'{args.map}: route following needs a map of at least 2 snapshots with true poses ({args.teach})'
@@ -147,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f'following the {length:.1f} m route of {args.map.name} ({count} snapshots) in the synthetic '
         f'{world.style} world (seed {seed}) at {hours:.1f} h, from {args.offset:+.2f} m beside its start, '
-        f'turned {args.turn:+.0f} deg',
+        f'turned {args.turn:+.0f} deg{options.describe_mount(base)}',
         flush=True,
     )
     run, route = follow_route(
@@ -159,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
         hours,
         seed,
         max_frames,
-        base=options.base(args),
+        base=base,
         bump_tilt=args.bump_tilt,
         route=route,
         start_index=args.start_index,

@@ -21,6 +21,7 @@ HELP = 'closed-loop homing of a simulated robot with the skynav nodes'
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim home`."""
     from ..world import STYLES
+    from .options import add_mount_arguments
 
     parser.add_argument('--world', choices=STYLES, default='park', help='world style (default park)')
     parser.add_argument('--seed', type=int, default=3, help='world seed (default 3)')
@@ -40,6 +41,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (200)')
+    add_mount_arguments(parser)
     parser.add_argument(
         '--out',
         type=Path,
@@ -71,11 +73,22 @@ def run(args: argparse.Namespace) -> int:
         camera = options.camera(argparse.Namespace(size=args.size, fov=args.fov, distortion=options.DEFAULT_DISTORTION))
     except ValueError as exc:
         raise CliError(str(exc), exit_code=2) from None
+    base = options.base(args)
     args.out.mkdir(parents=True, exist_ok=True)
     world = generate(args.world, args.seed)
     goal = snapshot_place(world, ScenarioParameters())
     map_path = args.out / 'home.db'
-    snapshot_map(world, camera, goal, 0.0, hours, args.seed, map_path, bump_tilt=args.bump_tilt)
+    snapshot_map(
+        world,
+        camera,
+        goal,
+        0.0,
+        hours,
+        args.seed,
+        map_path,
+        bump_tilt=args.bump_tilt,
+        mount=base.mount,
+    )
     starts = random_starts(
         world, goal, args.starts, args.min_distance, args.max_distance, np.random.default_rng(args.seed)
     )
@@ -93,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
             args.max_frames,
             progress=lambda _: bar.update(),
             bump_tilt=args.bump_tilt,
+            base=base,
         )
     print(report(runs, args))
     plot = args.out / 'homing_paths.png'

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Arguments shared by `skynav sim bag` and `skynav sim preview` (world, scenario, camera, daylight), by
-`skynav eval follow|home` (worlds, seeds, times, clouds) and by the closed-loop commands (the mower's base)."""
+`skynav eval follow|home` (worlds, seeds, times, clouds) and by the closed-loop commands (the mower's base and its
+camera's mount)."""
 
 from __future__ import annotations
 
@@ -242,15 +243,17 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int,
     )
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     add_odometry_argument(parser)
+    add_mount_arguments(parser)
 
 
 def add_base_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the simulated mower's base: --slip, --odometry-noise and --no-odom."""
+    """Add the simulated mower's base: --slip, --odometry-noise and --no-odom; its camera's mount."""
     parser.add_argument('--slip', type=float, default=0.05, help="the mower's wheel slip, a share (default 0.05)")
     parser.add_argument(
         '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
     )
     add_odometry_argument(parser)
+    add_mount_arguments(parser)
 
 
 def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
@@ -263,14 +266,55 @@ def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_mount_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add --mount-rpy, the camera's mount on the simulated mower, and --declare-mount, how the graph learns it."""
+    from ..closed_loop import MOUNT_DECLARATIONS
+
+    parser.add_argument(
+        '--mount-rpy',
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=('ROLL', 'PITCH', 'YAW'),
+        help="the camera turned on the mower: camera_link in base_link, degrees about the fixed axes X, Y, Z (REP-103's"
+        ' RPY; default 0 0 0)',
+    )
+    parser.add_argument(
+        '--declare-mount',
+        choices=MOUNT_DECLARATIONS,
+        default=MOUNT_DECLARATIONS[0],
+        help='how the graph learns of the mount: the mower publishes it on /tf_static (default), the parameter '
+        "camera_mount_rpy_deg, or none (the nodes take the camera to be on the base's axes: what the mount is worth)",
+    )
+
+
+def describe_mount(base: Base) -> str:
+    """Return the words a closed-loop command's header adds for a mounted camera ('' for one on the base's axes)."""
+    if not any(base.mount_rpy_deg) and base.declare_mount == 'tf_static':
+        return ''
+    roll, pitch, yaw = base.mount_rpy_deg
+    told = {'tf_static': 'on /tf_static', 'parameter': 'by camera_mount_rpy_deg', 'none': 'NOT declared'}
+    return f', the camera mounted roll {roll:g}, pitch {pitch:g}, yaw {yaw:g} deg ({told[base.declare_mount]})'
+
+
 def base(args: argparse.Namespace) -> Base:
-    """Return the simulated mower's base of the arguments (the evaluations have no --slip or --odometry-noise)."""
+    """Return the simulated mower's base of the arguments (the evaluations have no --slip or --odometry-noise, `skynav
+    sim home` no --no-odom); CliError (exit 2) for a mount that is not finite."""
+    import math
+
+    from skynav_core.cli import CliError
+
     from ..closed_loop import Base
 
+    mount = tuple(getattr(args, 'mount_rpy', None) or Base.mount_rpy_deg)
+    if not all(math.isfinite(v) for v in mount):
+        raise CliError('--mount-rpy must be three finite angles in degrees', exit_code=2)
     return Base(
         getattr(args, 'slip', Base.slip),
         getattr(args, 'odometry_noise', Base.odometry_noise),
-        odometry=not args.no_odom,
+        odometry=not getattr(args, 'no_odom', False),
+        mount_rpy_deg=(mount[0], mount[1], mount[2]),
+        declare_mount=getattr(args, 'declare_mount', Base.declare_mount),
     )
 
 

@@ -60,12 +60,13 @@ def run(args: argparse.Namespace) -> int:
         camera = options.camera(args)
     except ValueError as exc:
         raise CliError(str(exc), exit_code=2) from None
+    base = options.base(args)
     args.out.mkdir(parents=True, exist_ok=True)
     world = generate(args.world, args.seed)
     map_path = (args.out / 'teach.db').resolve()
     print(
         f'teaching a {args.length:g} m route by scripted teleoperation in the synthetic {args.world} world '
-        f'(seed {args.seed}) at {hours:.1f} h',
+        f'(seed {args.seed}) at {hours:.1f} h{options.describe_mount(base)}',
         flush=True,
     )
     try:
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
             args.seed,
             args.length,
             map_path,
-            options.base(args),
+            base,
             route_seed=args.route_seed,
         )
     except RuntimeError as exc:
@@ -86,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
     poses = np.array(teaching.poses)
     driven = float(np.sum(np.linalg.norm(np.diff(poses[:, :2], axis=0), axis=1)))
     description_path = args.out / 'teach.yaml'
-    write_description(description_path, args.world, args.seed, hours, camera, map_path, teaching)
+    write_description(description_path, args.world, args.seed, hours, camera, map_path, teaching, base.mount_rpy_deg)
     source = 'the velocity commands' if args.no_odom else 'odometry'
     print(
         f'taught {result.snapshots} snapshots over {result.route_length:.2f} m by {source} ({driven:.2f} m truly '
@@ -96,8 +97,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_description(path: Path, world: str, seed: int, hours: float, camera, map_path: Path, teaching) -> None:
-    """Write what `skynav sim follow` needs of a teach drive: world, seed, camera, time and every frame's true pose."""
+def write_description(
+    path: Path,
+    world: str,
+    seed: int,
+    hours: float,
+    camera,
+    map_path: Path,
+    teaching,
+    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> None:
+    """Write what `skynav sim follow` needs of a teach drive: world, seed, camera (and its mount on the mower: roll,
+    pitch, yaw in degrees), time and every frame's true pose."""
     import numpy as np
     import yaml
 
@@ -113,6 +124,7 @@ def write_description(path: Path, world: str, seed: int, hours: float, camera, m
             key: (list(value) if isinstance(value, (list, tuple)) else value)
             for key, value in camera.camera_info_fields().items()
         },
+        'mount_rpy_deg': [float(v) for v in mount_rpy_deg],
         'map': str(map_path),
         'truth': {'stamps': [int(s) for s in teaching.stamps], 'poses': poses.round(5).tolist()},
     }
