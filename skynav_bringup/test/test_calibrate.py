@@ -167,3 +167,25 @@ def test_a_compressed_frame_is_decoded_for_the_detector(views):
     message.data = message.data[: len(data) // 2]  # a truncated JPEG: refused with the decoder's reason
     broken = _message_frame(bag, raw, 'jpeg')
     assert broken.grey is None and 'cannot decode' in broken.reason and 'truncated' in broken.reason
+
+
+def test_a_mono_frame_is_taken_as_linear(views):
+    from types import SimpleNamespace
+
+    from skynav_bringup.cli.calibrate import _message_frame
+    from skynav_core.bag import RawMessage
+    from skynav_core.calibration import Board, find_corners
+    from skynav_core.colour import SRGB8_TO_LINEAR16
+
+    _, images = views
+    grey = cv2.cvtColor(images[0], cv2.COLOR_RGB2GRAY)
+    linear = SRGB8_TO_LINEAR16[grey]  # mono16, linear as the contract has it
+    fields = {'encoding': 'mono16', 'height': 480, 'width': 640, 'step': 1280, 'is_bigendian': 0}
+    message = SimpleNamespace(**fields, data=linear.tobytes())
+    raw = RawMessage('/camera/uv/image_raw', 'sensor_msgs/msg/Image', 0, b'')
+    frame = _message_frame(SimpleNamespace(deserialize=lambda raw: message), raw, 'mono16')
+    assert frame.grey is not None and frame.grey.dtype == np.uint8
+    assert np.corrcoef(frame.grey.ravel(), grey.ravel())[0, 1] > 0.99  # back on an sRGB-like curve, not linear
+    board = Board(9, 6, 0.025)
+    found, from_8_bit = find_corners(frame.grey, board), find_corners(grey, board)
+    assert found is not None and np.abs(found - from_8_bit).max() < 0.3

@@ -25,6 +25,9 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import numpy as np
 
+    from skynav_core.bag import BagReader, RawMessage
+    from skynav_core.calibration import Board, Calibration
+
 HELP = 'calibrate a fish-eye camera from checkerboard views; write its camera YAML'
 # Image topics a recording's views are taken from, in the order the default prefers them.
 DEFAULT_TOPICS = ('/camera/image_raw', '/camera/image_raw/compressed', '/camera/uv/image_raw')
@@ -143,7 +146,7 @@ def _recording_source(path: Path, topic: str | None, max_frames: int) -> Source:
     return Source(f'{path} ({topic})', len(chosen), frames())
 
 
-def _message_frame(bag, raw, name: str) -> Frame:
+def _message_frame(bag: BagReader, raw: RawMessage, name: str) -> Frame:
     """Return the view of one recorded Image or CompressedImage message (colour decoded to linear, mono as linear)."""
     from skynav_core.bag import BagError
     from skynav_core.calibration import grey_for_detection
@@ -246,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def report(result, board, out: Path, plot_path: Path) -> str:
+def report(result: Calibration, board: Board, out: Path, plot_path: Path) -> str:
     """Return the report of a calibration as text: views, circle, camera, RMS, coverage and the files written."""
     import numpy as np
 
