@@ -28,7 +28,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from scipy.spatial.transform import Rotation
-from sensor_msgs.msg import CameraInfo, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import Bool
 from tf2_msgs.msg import TFMessage
 
@@ -42,12 +42,13 @@ from skynav_core.mount import BASE_FRAME, mount_from_rpy_deg
 from skynav_core.node import TF_STATIC_QOS, TF_STATIC_TOPIC, SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_core.rotations import as_quaternion
+from skynav_core.topics import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home, Teach
 
 from .drive_eval import cross_track, path_length
 from .mower import Mower, Pose2D
-from .recording import CAMERA_FRAME, start_stamp
+from .recording import CAMERA_FRAME, CameraOutput, Exposure, expose, start_stamp
 from .render import CameraPose, Renderer
 from .robot import CAMERA_HEIGHT, base_positions, bump, camera_pose
 from .scenarios import route as planned_route
@@ -110,6 +111,9 @@ class SimMowerNode(SkynavNode):
         for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
             self.output(topic, Image)
         self.output('/camera/uv/camera_info', CameraInfo)
+        self.output(COLOUR_IMAGE, Image)  # a colour camera, when the simulation has one
+        self.output(COLOUR_COMPRESSED, CompressedImage)
+        self.output(COLOUR_CAMERA_INFO, CameraInfo)
         self.output('/odom', Odometry)
         self.output('/bumper', Bool)
         self.output('/clock', Clock)
@@ -148,19 +152,17 @@ class SimMowerNode(SkynavNode):
         """Publish whether the mower's bumper touches an object."""
         self.emit('/bumper', Bool(data=bool(contact)))
 
-    def publish_frame(
-        self, stamp: int, uv: np.ndarray, green: np.ndarray, encoding: str, camera: EquidistantCamera
-    ) -> None:
-        """Publish one exposure as the camera topics carry it."""
+    def publish_frame(self, stamp: int, exposure: Exposure, output: CameraOutput, camera: EquidistantCamera) -> None:
+        """Publish one exposure of the camera `output` as its topics carry it."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
         info = CameraInfo()
         for key, value in camera.camera_info_fields().items():
             setattr(info, key, value)
-        messages = [
-            ('/camera/uv/camera_info', info),
-            ('/camera/uv/image_raw', fill_image(Image(), uv, encoding)),
-            ('/camera/green/image_raw', fill_image(Image(), green, encoding)),
-        ]
+        messages: list[tuple[str, Any]] = [(output.info_topic, info)]
+        for topic, pixels in exposure.images.items():
+            messages.append((topic, fill_image(Image(), pixels, output.encoding)))
+        for topic, (format_text, data) in exposure.compressed.items():
+            messages.append((topic, CompressedImage(format=format_text, data=data)))
         for topic, message in messages:
             message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
             message.header.frame_id = CAMERA_FRAME
@@ -184,33 +186,32 @@ class Simulation:
         hours: float,
         seed: int,
         encoding: str = 'mono8',
+        output: CameraOutput | None = None,
         bump_tilt: float = 0.0,
         clouds: float = 0.0,
         mount: np.ndarray | None = None,
     ) -> None:
-        """Prepare the renderer; `bump_tilt` (degrees) tilts every view by up to that much more (robot.bump);
+        """Prepare the renderer of the camera `output` (None: the UV/green pair in `encoding`); `bump_tilt` (degrees)
+        tilts every view by up to that much more (robot.bump);
         `clouds` is the cloud cover (0 clear .. 1 overcast); `mount` (3, 3) turns the camera on the robot
         (camera_link in base_link; None: the base's axes)."""
         self.world, self.camera, self.encoding, self.seed = world, camera, encoding, seed
+        self.output = output or CameraOutput('uv-green', encoding)
         self.bump_tilt = bump_tilt
         self.mount = Rotation.from_matrix(mount) if mount is not None else None
-        self.renderer = Renderer(world, camera)
+        self.renderer = Renderer(world, camera, self.output.bands)
         self.sky = Sky(hours, clouds, cloud_seed=seed)
         self.sensor = Sensor()
         self.frames = 0
         self.hours = hours
 
-    def capture(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray, CameraPose]:
-        """Render the robot's view at (x, y) facing `heading`; return UV, green and the camera pose."""
+    def capture(self, x: float, y: float, heading: float) -> tuple[Exposure, CameraPose]:
+        """Render the robot's view at (x, y) facing `heading`; return what its camera delivers and the camera pose."""
         rng = np.random.default_rng([self.seed, self.frames, 97])
         pose = camera_pose(self.world.terrain, x, y, heading, bump(rng, self.bump_tilt), self.mount)
         view = self.renderer.render(pose, self.sky)
         self.frames += 1
-        return (
-            self.sensor.capture(view.uv, view.inside, self.encoding, rng),
-            self.sensor.capture(view.green, view.inside, self.encoding, rng),
-            pose,
-        )
+        return expose(view, self.output, rng, self.sensor), pose
 
     def stamp(self) -> int:
         """Return the stamp of the next frame (ns), FRAME_PERIOD apart."""
@@ -283,10 +284,10 @@ def drive_goal(
             robot.publish_clock(stamp)
             if odometry:
                 robot.publish_odometry(stamp, mower.odometry)
-            uv, green, pose = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+            exposure, pose = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
             run.tilts.append(float(np.degrees(np.arccos(np.clip(pose.rotation.as_matrix()[2, 2], -1.0, 1.0)))))
             answered, heard = len(robot.commands), len(feedback)
-            robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
+            robot.publish_frame(stamp, exposure, simulation.output, simulation.camera)
             run.commands = len(robot.commands)
             linear, angular = robot.command(stamp)
             if len(robot.commands) > answered:  # lockstep: its feedback too before the next frame
@@ -341,6 +342,7 @@ class Base:
     odometry_noise: float = 0.02
     seed: int = 0
     odometry: bool = True
+    camera: CameraOutput = CameraOutput()  # what the mower's camera delivers (default: the UV/green pair, mono8)
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     declare_mount: str = 'tf_static'
 
@@ -381,7 +383,9 @@ def home_runs(
     runs = []
     arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
     for k, (start, heading) in enumerate(starts):
-        simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount)
+        simulation = Simulation(
+            world, camera, hours, seed, output=base.camera, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount
+        )
         mower = Mower(
             world,
             Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -420,19 +424,20 @@ def snapshot_map(
     ros_args: list[str] | None = None,
     bump_tilt: float = 0.0,
     mount: np.ndarray | None = None,
+    output: CameraOutput | None = None,
 ):
-    """Render the view at `place` (the camera turned on the robot by `mount`, 3x3), run it through the skyline and
-    SH nodes, and store it as a one-snapshot map."""
-    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, mount=mount)
+    """Render the view at `place` (the camera turned on the robot by `mount`, 3x3; the camera `output`, None: the
+    UV/green pair), run it through the skyline and SH nodes, and store it as a one-snapshot map."""
+    simulation = Simulation(world, camera, hours, seed, output=output, bump_tilt=bump_tilt, mount=mount)
     specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
     specs.append(NodeSpec('sim_mower', 'skynav_sim', 'skynav_sim.closed_loop:SimMowerNode'))
     with in_process(specs, ros_args) as graph:
         graph.keep_outputs = True
         robot = graph.nodes[-1]
         assert isinstance(robot, SimMowerNode)  # the last node of the graph built here
-        uv, green, pose = simulation.capture(float(place[0]), float(place[1]), heading)
+        exposure, pose = simulation.capture(float(place[0]), float(place[1]), heading)
         stamp = simulation.stamp()
-        robot.publish_frame(stamp, uv, green, simulation.encoding, camera)
+        robot.publish_frame(stamp, exposure, simulation.output, camera)
         sh = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
     if not sh:
         raise RuntimeError('the skyline and SH nodes gave no coefficients for the snapshot view')
@@ -498,7 +503,9 @@ def follow_route(
         with MapStore.open(map_path) as store:
             route = base_positions(store.poses(), base.mount)
     arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
-    simulation = Simulation(world, camera, hours, seed, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount)
+    simulation = Simulation(
+        world, camera, hours, seed, output=base.camera, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount
+    )
     mower = Mower(
         world,
         Pose2D(float(start[0]), float(start[1]), float(heading)),
@@ -592,7 +599,7 @@ def teach_route(
         base.slip,
         base.odometry_noise,
     )
-    simulation = Simulation(world, camera, hours, seed, mount=base.mount)
+    simulation = Simulation(world, camera, hours, seed, output=base.camera, mount=base.mount)
     teaching = Teaching()
     arguments = [*base.mount_arguments(), *(ros_args or [])]
     with in_process(graph_specs(('skyline', 'sh', 'localize')), arguments) as graph:
@@ -626,8 +633,8 @@ def teach_route(
                 robot.publish_clock(stamp)
                 if base.odometry:
                     robot.publish_odometry(stamp, mower.odometry)
-                uv, green, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
-                robot.publish_frame(stamp, uv, green, simulation.encoding, simulation.camera)
+                exposure, _ = simulation.capture(mower.pose.x, mower.pose.y, mower.pose.heading)
+                robot.publish_frame(stamp, exposure, simulation.output, simulation.camera)
                 teaching.stamps.append(stamp)
                 teaching.poses.append(np.array([mower.pose.x, mower.pose.y, mower.pose.heading]))
                 executor.spin_once(timeout_sec=0)

@@ -330,3 +330,17 @@ def test_camera_outputs_name_their_topics():
     assert set(CameraOutput().topics) == set(recording.TOPICS)
     assert set(CameraOutput('colour', 'bgr8').image_topics) == {'/camera/image_raw', '/camera/camera_info'}
     assert CameraOutput('colour-compressed', 'rgb16', 'png').info_topic == '/camera/camera_info'
+
+
+def test_the_simulated_mower_feeds_its_colour_camera_to_the_graph(tmp_path):
+    # one JPEG frame of the closed loop's camera through the skyline and SH nodes: a one-snapshot map
+    from skynav_core.maps import MapStore
+    from skynav_sim.closed_loop import snapshot_map
+
+    world = generate('park', 3)
+    camera = EquidistantCamera.for_field_of_view(96, 72, np.radians(200))
+    place = np.array([0.5, 0.5])
+    output = CameraOutput('colour-compressed', 'rgb8')
+    snapshot_map(world, camera, place, 0.0, TIMES_OF_DAY['forenoon'], 3, tmp_path / 'colour.db', output=output)
+    with MapStore.open(tmp_path / 'colour.db') as store:
+        assert len(store) == 1 and np.isfinite(store.coefficients()).all()

@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             world = generate(style, seed)
             goal = snapshot_place(world, ScenarioParameters())
             map_path = args.out / f'{style}_seed{seed}_home.db'
-            snapshot_map(world, camera, goal, 0.0, teach_hours, seed, map_path, mount=base.mount)
+            snapshot_map(world, camera, goal, 0.0, teach_hours, seed, map_path, mount=base.mount, output=base.camera)
             starts = random_starts(
                 world, goal, args.starts, args.min_distance, args.max_distance, np.random.default_rng(seed)
             )

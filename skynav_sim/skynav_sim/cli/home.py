@@ -21,7 +21,7 @@ HELP = 'closed-loop homing of a simulated robot with the skynav nodes'
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim home`."""
     from ..world import STYLES
-    from .options import add_mount_arguments
+    from .options import add_camera_argument, add_mount_arguments
 
     parser.add_argument('--world', choices=STYLES, default='park', help='world style (default park)')
     parser.add_argument('--seed', type=int, default=3, help='world seed (default 3)')
@@ -42,6 +42,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
     parser.add_argument('--fov', type=float, default=200.0, metavar='DEG', help='field of view (200)')
     add_mount_arguments(parser)
+    add_camera_argument(parser)
     parser.add_argument(
         '--out',
         type=Path,
@@ -88,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
         map_path,
         bump_tilt=args.bump_tilt,
         mount=base.mount,
+        output=base.camera,
     )
     starts = random_starts(
         world, goal, args.starts, args.min_distance, args.max_distance, np.random.default_rng(args.seed)

@@ -128,7 +128,8 @@ def add_camera_argument(parser) -> None:
         choices=('uv-green', 'colour', 'colour-compressed'),
         default='uv-green',
         help='the UV/green pair on /camera/{uv,green}/image_raw (default); one colour camera on /camera/image_raw; '
-        'or one on /camera/image_raw/compressed (JPEG or PNG), all synthetic',
+        'or one on /camera/image_raw/compressed (JPEG at quality 95 unless --codec or --jpeg-quality, where a '
+        'command has them, say otherwise), all synthetic',
     )
 
 
@@ -242,6 +243,7 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int,
         '--clouds', type=float, default=0.5, metavar='COVER', help=f'cloud cover of the {what}, 0-1 (default 0.5)'
     )
     parser.add_argument('--size', default='320x240', metavar='WxH', help='camera image size (default 320x240)')
+    add_camera_argument(parser)
     add_odometry_argument(parser)
     add_mount_arguments(parser)
 
@@ -252,6 +254,7 @@ def add_base_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--odometry-noise', type=float, default=0.02, help="the mower's odometry noise, a share (default 0.02)"
     )
+    add_camera_argument(parser)
     add_odometry_argument(parser)
     add_mount_arguments(parser)
 
@@ -315,6 +318,7 @@ def base(args: argparse.Namespace) -> Base:
         odometry=not getattr(args, 'no_odom', False),
         mount_rpy_deg=(mount[0], mount[1], mount[2]),
         declare_mount=getattr(args, 'declare_mount', Base.declare_mount),
+        camera=camera_output(args),
     )
 
 
