@@ -91,7 +91,9 @@ def teach_world(teach: Path):
         else:
             with open_bag(teach) as bag:
                 description = yaml.safe_load(bag.custom_data.get('skynav_sim', '')) or {}
-                info = next((bag.deserialize(raw) for raw in bag.messages(['/camera/uv/camera_info'])), None)
+                # the UV/green pair's camera info, or a colour camera's
+                infos = bag.messages([t for t in ('/camera/uv/camera_info', '/camera/camera_info') if t in bag.topics])
+                info = next((bag.deserialize(raw) for raw in infos), None)
     except BagError as exc:
         raise CliError(str(exc)) from None
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError, AssertionError, ValueError) as exc:
