@@ -26,7 +26,6 @@ from skynav_core.ros import run_node
 from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_IMAGE
 from skynav_skyline.errors import SkylineError
 
-from .colour import ColourSegmenter
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, colour_params, skyline_params
 from .segment import SkylineSegmenter
@@ -47,7 +46,7 @@ class SkylineNode(SkynavNode):
         self.camera_input = CameraInput(self.reject, self.drop)
         self.expire_with_time(self.camera_input.expire)
         self.segmenter: SkylineSegmenter | None = None
-        self.colour_segmenter: ColourSegmenter | None = None
+        self.colour_segmenter: SkylineSegmenter | None = None
         self.input(UV_IMAGE, Image, partial(self.on_image, 'uv'), SENSOR_QOS)
         self.input(GREEN_IMAGE, Image, partial(self.on_image, 'green'), SENSOR_QOS)
         self.input(COLOUR_IMAGE, Image, partial(self.on_colour, 'colour', decode_image), SENSOR_QOS)
@@ -157,8 +156,8 @@ class SkylineNode(SkynavNode):
         if not self.camera_input.matches(rgb.shape):
             return
         if self.colour_segmenter is None:
-            self.colour_segmenter = ColourSegmenter(self.geometry(), self.colour)
-        self.publish_mask(stamp, partial(self.colour_segmenter.segment, rgb))
+            self.colour_segmenter = SkylineSegmenter(self.geometry(), self.colour)
+        self.publish_mask(stamp, partial(self.colour_segmenter.segment_colour, rgb))
 
     def publish_mask(self, stamp: int, segment: Callable[[], np.ndarray]) -> None:
         """Publish the mask `segment` makes of the exposure stamped `stamp`; reject the exposure if it cannot."""

@@ -14,8 +14,7 @@ from skynav_core.camera_input import CAMERA_PARAMETERS
 from skynav_core.parameters import Parameter, read_parameter_file
 from skynav_core.parameters import defaults as table_defaults
 
-from .colour import COLOUR_DISCRIMINANT, COLOUR_METHODS, SEED_MARGIN, ColourParams
-from .segment import METHODS, SkylineParams
+from .segment import DISCRIMINANT, METHODS, SkylineParams
 
 # The segmentation's parameters. The angle and thresholds were learned by `skynav skyline train` on synthetic
 # recordings (tools/skyline_training_set.sh: 180 exposures, seeds 10-12 of every world style); learn your own from
@@ -53,11 +52,8 @@ PARAMETERS = {
     'black_level_uv': Parameter(0.0, 'UV black level (counts, or radiance for 32FC1)'),
     'black_level_green': Parameter(0.0, 'green black level (counts, or radiance for 32FC1)'),
     'colour_method': Parameter(
-        COLOUR_DISCRIMINANT,
-        f'method for colour frames: one of {", ".join(COLOUR_METHODS)} (the others on blue for UV and green)',
-    ),
-    'seed_margin': Parameter(
-        SEED_MARGIN, 'colour model: least distance of a seed pixel from its threshold to train it (log units)'
+        DISCRIMINANT,
+        f'method for colour frames: one of {", ".join(METHODS)} (discriminant: all channels; the others blue for UV)',
     ),
 }
 
@@ -97,14 +93,22 @@ def skyline_params(values: dict[str, Any]) -> SkylineParams:
     )
 
 
-def colour_params(values: dict[str, Any]) -> ColourParams:
-    """Return the colour segmentation settings of parameter values (defaults for missing ones); ValueError if not.
+def colour_params(values: dict[str, Any]) -> SkylineParams:
+    """Return the segmentation settings of colour frames from parameter values (defaults for missing ones).
 
-    Decoded colour frames are linear with a black level of 0, so the UV and green black levels do not apply.
+    The method is `colour_method`, on the UV/green channels (blue for UV); decoded colour frames are linear with a
+    black level of 0, so the UV and green black levels do not apply. ValueError if unusable.
     """
     merged = {**defaults(), **values}
-    seed = skyline_params({**merged, 'channels': 'uv-green', 'black_level_uv': 0.0, 'black_level_green': 0.0})
-    return ColourParams(str(merged['colour_method']), seed, float(merged['seed_margin']))
+    return skyline_params(
+        {
+            **merged,
+            'method': merged['colour_method'],
+            'channels': 'uv-green',
+            'black_level_uv': 0.0,
+            'black_level_green': 0.0,
+        }
+    )
 
 
 def load_parameter_file(path: str) -> dict[str, Any]:

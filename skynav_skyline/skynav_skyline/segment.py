@@ -4,7 +4,13 @@
 Methods: 'global' (learned angle and threshold), 'otsu' and 'min-error' (one
 threshold per image from the histogram of the contrast inside the image
 circle), 'sector-otsu' and 'sector-min-error' (one threshold per azimuth
-sector, interpolated between sector centres).
+sector, interpolated between sector centres), and 'discriminant': each image's
+own linear discriminant of its channels' logs, learned from sky and ground
+exemplars where an upward view puts them (discriminant.py), thresholded per
+sector within SECTOR_DEVIATION spreads of the image's own threshold; without
+enough exemplars it falls back to 'sector-min-error' on the learned contrast.
+The same methods segment a colour camera's frames (segment_colour): the
+discriminant on all three channels, the others on blue for UV and green.
 
 Bimodality test. A histogram split is *bimodal* when it has at least
 MIN_SECTOR_PIXELS trusted pixels, Otsu's separability (between-class over
@@ -38,6 +44,7 @@ in the skyline node's (parameters.py).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, overload
 
@@ -45,8 +52,9 @@ import numpy as np
 
 from skynav_skyline.errors import SkylineError
 
+from . import discriminant
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
-from .features import REFERENCE_PERCENTILE, Features, extract_features
+from .features import REFERENCE_PERCENTILE, Features, decode, extract_features, log_feature
 from .geometry import SectorLayout, SkylineGeometry
 from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
 from .threshold import DEFAULT_BINS, HISTOGRAM_METHODS, HistogramSplit, bin_edges, bin_index, histogram_range
@@ -55,7 +63,12 @@ if TYPE_CHECKING:
     from skynav_core.camera import EquidistantCamera
 
 #: Segmentation methods.
-METHODS: tuple[str, ...] = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error')
+METHODS: tuple[str, ...] = ('global', 'otsu', 'min-error', 'sector-otsu', 'sector-min-error', 'discriminant')
+#: The per-image discriminant method, and the method it falls back to without enough exemplars.
+DISCRIMINANT, DISCRIMINANT_FALLBACK = 'discriminant', 'sector-min-error'
+#: Encoding of a decoded colour frame's planes (skynav_core.colour: uint16 linear, full scale saturated).
+LINEAR_ENCODING = 'mono16'
+
 #: Default number of azimuth sectors of the sector methods.
 DEFAULT_SECTORS = 16
 #: Default least Otsu separability (dimensionless, 0..1) of a bimodal histogram.
@@ -280,8 +293,22 @@ class SkylineSegmenter:
         # Work on the pixels inside the image circle only: one row of them, scattered back at the end.
         self._row, self._pixels = self.geometry.packed()
         self._stride = max(1, -(-self._pixels.size // STATISTICS_SAMPLE))  # of the statistics' sample
-        if self.params.method.startswith('sector-'):
-            self._row.sectors(self.params.sectors)  # precompute now, not on the first frame
+        p = self.params
+        if p.method == DISCRIMINANT:
+            # The discriminant's projection is in spreads with the image's own threshold at 0 (discriminant.py);
+            # an image without a model falls back to the learned contrast's sector thresholds.
+            self._projected = replace(
+                p,
+                method=DISCRIMINANT_FALLBACK,
+                threshold=0.0,
+                max_deviation=discriminant.SECTOR_DEVIATION,
+                hole_margin=discriminant.HOLE_MARGIN if p.fills_holes else 0.0,
+            )
+            self._fallback = replace(p, method=DISCRIMINANT_FALLBACK)
+            radius = self._row.radius()[0]
+            self._inner_half = radius <= discriminant.INNER_RADIUS_SHARE * radius.max()
+        if p.method.startswith('sector-') or p.method == DISCRIMINANT:
+            self._row.sectors(p.sectors)  # precompute now, not on the first frame
         if self.params.fills_holes:
             # The enclosed-ground step works on the image circle's bounding box: its circle, the row position of
             # each of its pixels (-1 outside the circle) for the pixels it fills, and the circle's inside off the rim.
@@ -329,9 +356,8 @@ class SkylineSegmenter:
             p.reference_percentile,
         )
 
-    def _bounded(self, thresholds: np.ndarray) -> np.ndarray:
-        """Return local thresholds kept within max_deviation of the global threshold (when there is one)."""
-        p = self.params
+    def _bounded(self, thresholds: np.ndarray, p: SkylineParams) -> np.ndarray:
+        """Return local thresholds kept within max_deviation of the global threshold of `p` (when there is one)."""
         if p.threshold is None or not math.isfinite(p.max_deviation):
             return thresholds
         return np.clip(thresholds, p.threshold - p.max_deviation, p.threshold + p.max_deviation)
@@ -382,46 +408,136 @@ class SkylineSegmenter:
         """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
         return self._scatter(self._run_row(uv, green, encoding_uv, encoding_green).mask, GROUND)
 
+    def segment_colour(self, rgb: np.ndarray) -> np.ndarray:
+        """Return the skyline mask (uint8) of a colour frame: uint16 linear RGB (H, W, 3) as skynav_core.colour gives.
+
+        The discriminant uses all three channels; the other methods the blue plane for UV and the green for green.
+        """
+        rgb = np.asarray(rgb)
+        if rgb.ndim != 3 or rgb.shape[2] != 3:
+            raise SkylineError(f'a colour frame is (height, width, 3) linear RGB, got shape {rgb.shape}')
+        if self.params.method != DISCRIMINANT:
+            return self.segment(rgb[..., 2], rgb[..., 1], LINEAR_ENCODING, LINEAR_ENCODING)
+        if rgb.shape[:2] != self.geometry.shape:
+            raise SkylineError(f'colour frame {rgb.shape[:2]} and image circle {self.geometry.shape} differ in shape')
+        circle, p = self._row.circle, self.params
+        pixels = rgb[self.geometry.circle]  # (n, 3): the circle's pixels
+        channels = [decode(pixels[None, :, k], LINEAR_ENCODING) for k in range(3)]
+        logs = np.stack([log_feature(c, circle, p.reference_percentile, self._stride) for c in channels])
+        trusted = circle & channels[0].trusted & channels[1].trusted & channels[2].trusted
+        dark = channels[0].dark & channels[1].dark & channels[2].dark
+        nothing = np.zeros_like(circle)  # no colour is sky by rule: saturated pixels are classified by their clamp
+
+        def fallback() -> Segmentation:
+            return self._threshold_row(rgb[..., 2], rgb[..., 1], LINEAR_ENCODING, LINEAR_ENCODING, self._fallback)
+
+        # the seed model on blue and green (sky colour: blue over green), refitted on all three channels
+        segmentation = self._discriminate(logs[1:], logs, trusted, circle & ~dark, nothing, dark, fallback)
+        return self._scatter(segmentation.mask, GROUND)
+
     def _run_row(
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
     ) -> Segmentation:
         """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
-        p = self.params
+        if self.params.method != DISCRIMINANT:
+            return self._threshold_row(uv, green, encoding_uv, encoding_green, self.params)
+        features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
+        circle, uses_green = self._row.circle, self.params.uses_green
+        logs = features.x[None] if features.y is None else np.stack([features.y, features.x])  # sky colour: UV/G
+
+        def fallback() -> Segmentation:
+            return self._threshold_row(uv, green, encoding_uv, encoding_green, self._fallback)
+
+        return self._discriminate(
+            logs,
+            logs,
+            features.trusted(circle, uses_green),
+            features.by_threshold(circle, uses_green),
+            features.sky_by_rule(circle),
+            features.uv.dark,
+            fallback,
+        )
+
+    def _discriminate(
+        self,
+        seed_logs: np.ndarray,
+        logs: np.ndarray,
+        trusted: np.ndarray,
+        decided: np.ndarray,
+        by_rule: np.ndarray,
+        dark: np.ndarray,
+        fallback: Callable[[], Segmentation],
+    ) -> Segmentation:
+        """Return the segmentation of the row by the image's own discriminant (discriminant.py).
+
+        The exemplars and the first model take log features `seed_logs` (channels, 1, n); the model refitted on
+        the first segmentation's pixels takes `logs`, which may hold more channels. Both fits use the statistics'
+        sample; without a first model, `fallback()`.
+        """
+        every = slice(None, None, self._stride)
+        sample, usable = seed_logs[:, 0, every], trusted[0, every]
+        sky, ground = discriminant.exemplars(sample, self._inner_half[every], usable)
+        model = discriminant.fit(sample, sky, ground)
+        if model is None:
+            return fallback()
+        first = self.classify_row(model.project(seed_logs), trusted, decided, by_rule, dark, self._projected)
+        labels = first.mask.view(bool)[0, every]
+        refitted = discriminant.fit(logs[:, 0, every], labels & usable, ~labels & usable)
+        if refitted is None:
+            return first
+        return self.classify_row(refitted.project(logs), trusted, decided, by_rule, dark, self._projected)
+
+    def _features_row(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams
+    ) -> Features:
+        """Return the normalised log features of the image-circle pixels of an image pair, as one row."""
         if p.uses_green and green is None:
             raise SkylineError("channel mode 'uv-green' needs the green image")
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
             raise SkylineError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
-        circle = self._row.circle
-        stride = self._stride
-        features = extract_features(
+        return extract_features(
             self._pack(uv, encoding_uv),
             self._pack(green, encoding_green) if p.uses_green else None,
             encoding_uv,
             encoding_green,
-            circle,
+            self._row.circle,
             p.black_level,
             p.reference_percentile,
-            stride=stride,
+            stride=self._stride,
         )
-        contrast = project(features.x, features.y, p.projection_angle)
+
+    def _threshold_row(
+        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams
+    ) -> Segmentation:
+        """Return the segmentation of an image pair's circle (one row) by the learned contrast and `p`'s method."""
+        features = self._features_row(uv, green, encoding_uv, encoding_green, p)
+        circle = self._row.circle
         return self.classify_row(
-            contrast,
+            project(features.x, features.y, p.projection_angle),
             features.trusted(circle, p.uses_green),
             features.by_threshold(circle, p.uses_green),
             features.sky_by_rule(circle),
             features.uv.dark,
+            p,
         )
 
     def classify_row(
-        self, contrast: np.ndarray, trusted: np.ndarray, decided: np.ndarray, by_rule: np.ndarray, dark: np.ndarray
+        self,
+        contrast: np.ndarray,
+        trusted: np.ndarray,
+        decided: np.ndarray,
+        by_rule: np.ndarray,
+        dark: np.ndarray,
+        params: SkylineParams | None = None,
     ) -> Segmentation:
         """Return the segmentation of the image circle's pixels (one row) from their contrast (log units).
 
-        The method's thresholds come from the `trusted` pixels' histograms; `decided` pixels are sky above them,
-        `by_rule` pixels are sky whatever the threshold, `dark` ones clearly ground; then the structure steps.
-        The row's `threshold` is a scalar, or for the sector methods the (bounded) threshold of each sector.
+        The thresholds of `params`' method (default the segmenter's; a threshold method) come from the `trusted`
+        pixels' histograms; `decided` pixels are sky above them, `by_rule` pixels are sky whatever the threshold,
+        `dark` ones clearly ground; then the structure steps. The row's `threshold` is a scalar, or for the sector
+        methods the (bounded) threshold of each sector.
         """
-        p = self.params
+        p = self.params if params is None else params
         stride = self._stride
         if np.count_nonzero(trusted) < MIN_TRUSTED_PIXELS:
             raise SkylineError(
@@ -454,9 +570,9 @@ class SkylineSegmenter:
             trusted_reference = image_bimodal or p.threshold is not None
             if p.method.startswith('sector-'):
                 sectors = fall_back(own, reference, p.min_separability, MIN_SECTOR_PIXELS // stride, trusted_reference)
-                threshold = self._bounded(sectors.thresholds)
+                threshold = self._bounded(sectors.thresholds, p)
             else:
-                threshold = float(self._bounded(np.array([reference]))[0])
+                threshold = float(self._bounded(np.array([reference]), p)[0])
         if sectors is None:
             above = contrast > threshold
         else:
@@ -464,7 +580,7 @@ class SkylineSegmenter:
             above = above_sector_thresholds(contrast, self._row.sectors(p.sectors), threshold)
         sky = by_rule | (decided & above)
         if p.fills_holes or p.cuts_rings:
-            strong = self._clearly_ground(dark, contrast, threshold, sectors, decided) if p.fills_holes else None
+            strong = self._clearly_ground(dark, contrast, threshold, sectors, decided, p) if p.fills_holes else None
             sky = self._apply_structure(sky, strong)
         mask = sky.view(np.uint8) * np.uint8(SKY)  # True -> 255, False -> 0 (GROUND)
         return Segmentation(mask, contrast, threshold, image_split, sectors)
@@ -476,17 +592,16 @@ class SkylineSegmenter:
         threshold: np.ndarray | float,
         sectors: SectorThresholds | None,
         decided: np.ndarray,
+        p: SkylineParams,
     ) -> np.ndarray:
-        """Return the row's pixels clearly ground: contrast at least hole_margin below the threshold, or `dark`."""
-        margin = self.params.hole_margin
+        """Return the row's pixels clearly ground: contrast at least p.hole_margin below the threshold, or `dark`."""
+        margin = p.hole_margin
         if not math.isfinite(margin):
             return dark
         if sectors is None:
             below = contrast <= threshold - margin
         else:
-            below = ~above_sector_thresholds(
-                contrast, self._row.sectors(self.params.sectors), np.asarray(threshold) - margin
-            )
+            below = ~above_sector_thresholds(contrast, self._row.sectors(p.sectors), np.asarray(threshold) - margin)
         return (decided & below) | dark
 
     def _apply_structure(self, sky: np.ndarray, strong: np.ndarray | None) -> np.ndarray:

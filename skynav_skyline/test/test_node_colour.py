@@ -74,7 +74,7 @@ def expected_mask():
 
 
 @pytest.mark.parametrize('encoding', ['rgb8', 'bgr8', 'rgb16', 'bayer_rggb8', 'bayer_gbrg16', 'jpeg', 'png'])
-@pytest.mark.parametrize('method', ['colour-discriminant', 'sector-min-error'])
+@pytest.mark.parametrize('method', ['discriminant', 'sector-min-error'])
 def test_every_colour_encoding_gives_a_mask_of_the_input_size(scene, encoding, method):
     topic, message = frames(scene)[encoding]
     with in_process([SPEC], ['-p', f'colour_method:={method}']) as graph:

@@ -1,14 +1,15 @@
 # SPDX-License-Identifier: Apache-2.0
 """The viz node: what a person watches live (Foxglove, `skynav view`; RViz) and in `skynav run`'s recording.
 
-Subscribes /camera/uv/image_raw, /camera/uv/camera_info, /skyline/mask, /localization/match,
-/homing/home_vector and /tf_static (the camera's mount, which turns the home vector onto odometry poses);
+Subscribes the camera's image (/camera/uv/image_raw of the UV/green pair, or a colour camera's /camera/image_raw or
+/camera/image_raw/compressed) and camera info, /skyline/mask, /localization/match, /homing/home_vector and
+/tf_static (the camera's mount, which turns the home vector onto odometry poses);
 publishes, per camera frame and stamped with its stamp (docs/interfaces.md, "Visualization"):
 
 - /skynav/viz/markers (visualization_msgs/MarkerArray, frame `odom` or `map`: skynav_viz.scene): the taught route's
   snapshots, the matched snapshot, the home vector's snapshot, the home vector and the route direction;
-- /skynav/viz/overlay/compressed (sensor_msgs/CompressedImage, JPEG): the UV input with the mask's edge, the image
-  circle and the home vector (skynav_viz.overlay);
+- /skynav/viz/overlay/compressed (sensor_msgs/CompressedImage, JPEG): the UV input (or the colour camera's frame)
+  with the mask's edge, the image circle and the home vector (skynav_viz.overlay);
 - /skynav/viz/confidence (std_msgs/Float64): 1 - the home vector's residual, 0..1 (0 without one);
 - /skynav/viz/state (std_msgs/Int32): 0 no snapshot matched, 1 a match not accepted, 2 a match accepted.
 
@@ -30,18 +31,21 @@ from std_msgs.msg import ColorRGBA, Float64, Int32
 from visualization_msgs.msg import Marker, MarkerArray
 
 from skynav_core.camera import EquidistantCamera
-from skynav_core.camera_input import CAMERA_INFO_TOPIC
+from skynav_core.camera_input import CAMERA_INFO_TOPICS
+from skynav_core.colour import COLOUR_ENCODINGS, decode_compressed, decode_image
 from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.maps import MapStore, map_for_parameter
 from skynav_core.node import SENSOR_QOS, TF_STATIC_TOPIC, SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.rotations import as_matrix
+from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
 from skynav_msgs.msg import HomeVector, PlaceMatch
 
 from . import overlay, scene
 from .parameters import PARAMETERS
 
-UV_TOPIC, MASK_TOPIC = '/camera/uv/image_raw', '/skyline/mask'
+MASK_TOPIC = '/skyline/mask'
+IMAGE_TOPICS = (UV_IMAGE, COLOUR_IMAGE, COLOUR_COMPRESSED)  # the image drawn under the overlay, of either camera
 MATCH_TOPIC, HOME_TOPIC = '/localization/match', '/homing/home_vector'
 MARKERS_TOPIC = '/skynav/viz/markers'
 OVERLAY_TOPIC = '/skynav/viz/overlay/compressed'
@@ -85,18 +89,20 @@ class VizNode(SkynavNode):
     """Publishes the markers, the overlay image, confidence and state of every camera frame."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (UV_TOPIC, CAMERA_INFO_TOPIC, MASK_TOPIC, MATCH_TOPIC, HOME_TOPIC, TF_STATIC_TOPIC)
+    INPUT_TOPICS = (*IMAGE_TOPICS, *CAMERA_INFO_TOPICS, MASK_TOPIC, MATCH_TOPIC, HOME_TOPIC, TF_STATIC_TOPIC)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('viz', **kwargs)
         self.declare_table(PARAMETERS)
         self.store: MapStore | None = None
         self.route: scene.Route | None = None
-        self.overlay: overlay.Overlay | None = None
+        self.overlays: dict[tuple[int, int], overlay.Overlay] = {}  # per image size (height, width): each camera's
         self.frames: dict[int, Frame] = {}
         self.done = -1  # stamp (ns) of the newest frame published
-        self.input(UV_TOPIC, Image, lambda m: self.take(m, 'uv'), SENSOR_QOS)
-        self.input(CAMERA_INFO_TOPIC, CameraInfo, self.on_camera_info, SENSOR_QOS)
+        for topic, message_type in zip(IMAGE_TOPICS, (Image, Image, CompressedImage)):
+            self.input(topic, message_type, lambda m: self.take(m, 'uv'), SENSOR_QOS)
+        for topic in CAMERA_INFO_TOPICS:
+            self.input(topic, CameraInfo, self.on_camera_info, SENSOR_QOS)
         self.input(MASK_TOPIC, Image, lambda m: self.take(m, 'mask'))
         self.input(MATCH_TOPIC, PlaceMatch, lambda m: self.take(m, 'match'))
         self.input(HOME_TOPIC, HomeVector, lambda m: self.take(m, 'home'))
@@ -131,8 +137,9 @@ class VizNode(SkynavNode):
         except ValueError as exc:
             self.reject('camera_info', f'camera info rejected: {exc}')
             return
-        if self.overlay is None or self.overlay.camera != camera:
-            self.overlay = overlay.Overlay(camera)
+        size = (camera.height, camera.width)
+        if size not in self.overlays or self.overlays[size].camera != camera:
+            self.overlays[size] = overlay.Overlay(camera)
 
     def reset_time(self) -> None:
         """Forget the frames waiting and the last one published."""
@@ -207,7 +214,7 @@ class VizNode(SkynavNode):
     def overlay_image(self, stamp: int, frame: Frame, home: Any, confidence: float) -> CompressedImage | None:
         """Return the frame's overlay image, or None (counted) if its image or mask cannot be read."""
         try:
-            uv = image_to_array(frame.uv)
+            uv = self.pixels_of(frame.uv)
             mask = image_to_array(frame.mask, ('mono8',))
         except ImageError as exc:
             self.reject(exc.reason, f'image not drawn: {exc}')
@@ -216,11 +223,18 @@ class VizNode(SkynavNode):
         if frame.match is not None:
             accepted = 'accepted' if frame.match.accepted else 'not accepted'
             label = f'match {frame.match.index} ({accepted})  confidence {confidence:.2f}'
-        drawn = overlay.draw(uv, mask, self.overlay, home[1] if home is not None else None, label)
+        drawn = overlay.draw(uv, mask, self.overlays.get(uv.shape[:2]), home[1] if home is not None else None, label)
         message = header_of(CompressedImage(), stamp, CAMERA_FRAME)
         message.format = 'jpeg'
         message.data = overlay.jpeg(drawn, self.values['jpeg_quality'])
         return message
+
+    @staticmethod
+    def pixels_of(image: Image | CompressedImage) -> np.ndarray:
+        """Return a camera image's pixels: the UV image as it is, a colour frame as uint16 linear RGB."""
+        if isinstance(image, CompressedImage):
+            return decode_compressed(image)
+        return decode_image(image) if image.encoding in COLOUR_ENCODINGS else image_to_array(image)
 
     # --- markers --------------------------------------------------------------------------------
 

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from skynav_core.camera import EquidistantCamera, directions_from_angles
+from skynav_core.colour import LINEAR_FULL_SCALE, linear_to_srgb8
 
 EDGE_COLOUR = (0, 255, 255)  # BGR: yellow, the mask's edge
 CIRCLE_COLOUR = (255, 160, 0)  # BGR: blue, the image circle
@@ -61,7 +62,10 @@ class Overlay:
 
 
 def to_bgr8(pixels: np.ndarray) -> np.ndarray:
-    """Return a single-channel image (uint8, uint16 or float radiance) as 8-bit BGR scaled by its brightest pixel."""
+    """Return an image as 8-bit BGR: a single channel (uint8, uint16 or float radiance) scaled by its brightest
+    pixel, a colour frame (uint16 linear RGB, skynav_core.colour) sRGB-encoded as the camera delivered it."""
+    if pixels.ndim == 3:
+        return cv2.cvtColor(linear_to_srgb8(pixels / np.float32(LINEAR_FULL_SCALE)), cv2.COLOR_RGB2BGR)
     if pixels.dtype == np.uint8:
         grey = pixels
     else:
@@ -88,18 +92,18 @@ def draw(
     home: np.ndarray | None = None,
     label: str = '',
 ) -> np.ndarray:
-    """Return the overlay image (BGR, uint8) of a frame: UV, the mask's edge, the image circle, the home vector.
+    """Return the overlay image (BGR, uint8) of a frame: its image, the mask's edge, the image circle, the home vector.
 
     Without a camera (`overlay` None) only the mask's edge is drawn; a mask of another size than the image is left
     out; `home` is the home vector in camera_link; `label` is written in the top left corner.
     """
     image = to_bgr8(uv)
-    if mask is not None and mask.shape == uv.shape:
+    if mask is not None and mask.shape == uv.shape[:2]:
         edge = mask_edge(mask)
         if overlay is not None and overlay.edge_area.shape == edge.shape:
             edge &= overlay.edge_area
         image[edge] = EDGE_COLOUR
-    if overlay is not None and (overlay.camera.height, overlay.camera.width) == uv.shape:
+    if overlay is not None and (overlay.camera.height, overlay.camera.width) == uv.shape[:2]:
         cv2.ellipse(image, overlay.centre, overlay.circle_axes, 0.0, 0.0, 360.0, CIRCLE_COLOUR, LINE_PX, cv2.LINE_AA)
         tip = overlay.home_tip(home) if home is not None else None
         if tip is not None:

@@ -11,6 +11,7 @@ from skynav_core.graph import in_process
 from skynav_core.images import fill_image
 from skynav_core.maps import MapStore
 from skynav_core.nodes import NodeSpec
+from skynav_core.topics import UV_CAMERA_INFO, UV_IMAGE
 from skynav_msgs.msg import HomeVector, PlaceMatch
 from skynav_viz import node as viz
 
@@ -47,7 +48,7 @@ def graph(tmp_path):
     with in_process([SPEC], ['-p', f'map:={tmp_path / "route.db"}']) as graph:
         graph.keep_outputs = True
         info = CameraInfo(**CAMERA.camera_info_fields())
-        graph.publish(viz.CAMERA_INFO_TOPIC, stamped(info, 0))
+        graph.publish(UV_CAMERA_INFO, stamped(info, 0))
         yield graph
 
 
@@ -68,7 +69,7 @@ def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
     sky[:24] = 255
     uv = np.full((48, 64), 100, np.uint8)
     # skynav run's order: the match and home vector come before the frame's mask (depth first, sh reads it first)
-    feed(graph, (viz.UV_TOPIC, image(SECOND, uv)), (viz.MATCH_TOPIC, match(SECOND, 1)))
+    feed(graph, (UV_IMAGE, image(SECOND, uv)), (viz.MATCH_TOPIC, match(SECOND, 1)))
     feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.25)))
     assert not any(published(graph).values())  # the mask is still to come
     feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
@@ -85,7 +86,7 @@ def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
 
     # a live order: the last part completes the frame
     feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)), (viz.HOME_TOPIC, home(2 * SECOND, 3, 0.5)))
-    feed(graph, (viz.UV_TOPIC, image(2 * SECOND, uv)))
+    feed(graph, (UV_IMAGE, image(2 * SECOND, uv)))
     assert not any(published(graph).values())
     feed(graph, (viz.MATCH_TOPIC, match(2 * SECOND, 2, accepted=False)))
     second = published(graph)
@@ -96,7 +97,7 @@ def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
 def test_a_frame_without_a_home_vector_goes_out_when_a_newer_mask_comes_and_late_parts_are_dropped(graph):
     sky = np.zeros((48, 64), np.uint8)
     sky[:24] = 255
-    feed(graph, (viz.UV_TOPIC, image(SECOND, sky)), (viz.MATCH_TOPIC, match(SECOND, -1, accepted=False)))
+    feed(graph, (UV_IMAGE, image(SECOND, sky)), (viz.MATCH_TOPIC, match(SECOND, -1, accepted=False)))
     feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
     assert not any(published(graph).values())
     feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)))
@@ -107,3 +108,29 @@ def test_a_frame_without_a_home_vector_goes_out_when_a_newer_mask_comes_and_late
     feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.1)))
     assert not any(published(graph).values())
     assert graph.nodes[0].dropped['late'] == 1
+
+
+def test_a_colour_cameras_frame_is_drawn_in_colour_with_its_own_camera(graph):
+    from sensor_msgs.msg import CompressedImage
+
+    from skynav_core.colour import compress
+    from skynav_core.topics import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED
+
+    colour_camera = EquidistantCamera.for_field_of_view(80, 60, np.deg2rad(200.0))  # another size than the UV pair
+    graph.publish(COLOUR_CAMERA_INFO, stamped(CameraInfo(**colour_camera.camera_info_fields()), 0))
+    rgb = np.zeros((60, 80, 3), np.uint8)
+    rgb[...] = (60, 120, 230)  # a blue sky
+    frame = CompressedImage()
+    frame.format, frame.data = compress(rgb, 'jpeg')
+    sky = np.full((60, 80), 255, np.uint8)
+    feed(graph, (COLOUR_COMPRESSED, stamped(frame, SECOND)), (viz.MATCH_TOPIC, match(SECOND, 1)))
+    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.25)), (viz.MASK_TOPIC, image(SECOND, sky)))
+    (drawn,) = published(graph)[viz.OVERLAY_TOPIC]
+    import cv2
+
+    bgr = cv2.imdecode(np.frombuffer(bytes(drawn.data), np.uint8), cv2.IMREAD_COLOR)
+    assert bgr.shape == (60, 80, 3)
+    blue, green, red = (int(c) for c in bgr[30, 20])  # off the circle's edge and the home arrow
+    assert blue > green > red  # the camera's colours, not a grey image
+    rim = bgr[0:2, 36:44].reshape(-1, 3).astype(int)  # the top of the colour camera's image circle
+    assert np.abs(rim - viz.overlay.CIRCLE_COLOUR).sum(axis=1).min() < np.abs(rim - bgr[30, 20]).sum(axis=1).min()

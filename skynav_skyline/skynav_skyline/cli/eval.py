@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from skynav_core.evaluation import Column, add_methods_argument, text_table
 
@@ -61,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     if not plot.parent.is_dir():
         raise CliError(f'{plot.parent}: no such directory')
     values = load_parameter_file(args.params) if args.params else defaults()
-    configurations: dict[tuple[str, str, str], Any] = {}  # SkylineParams, or ColourParams for colour frames
+    configurations = {}
     default_method, default_channels = (str({**defaults(), **values}[name]) for name in ('method', 'channels'))
     for method in args.methods:
         for channels in args.channels:
@@ -76,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     if not configurations:
         raise CliError('nothing to evaluate (no usable method and channel combination)')
     colour = colour_params(values)
-    configurations[(colour.method, 'colour', structure_label(colour.seed))] = colour
+    configurations[(colour.method, 'colour', structure_label(colour))] = colour
     rates, samples, synthetic = evaluate(args.bags, configurations)
     print(report(rates, values))
     if comparison := structure_report(rates):
@@ -94,8 +93,8 @@ def structure_label(params) -> str:
 def evaluate(paths, configurations):
     """Return per-frame rates {(method, channels, structure): [(world, time, rate)]}, pixel samples, synthetic?
 
-    Configurations of ColourParams (channels 'colour') run on colour frames only; the UV/green ones run on every
-    frame (a colour frame's blue plane standing in for UV).
+    Configurations keyed with channels 'colour' run on colour frames only, as the node runs colour_method; the
+    others run on every frame (a colour frame's blue plane standing in for UV).
     """
     import numpy as np
     from tqdm import tqdm
@@ -103,7 +102,6 @@ def evaluate(paths, configurations):
     from skynav_core.bag import open_bag
 
     from ..classify import classification_rate
-    from ..colour import ColourParams, ColourSegmenter
     from ..dataset import count_frames, labelled_frames
     from ..features import extract_features
     from ..geometry import SkylineGeometry
@@ -122,16 +120,15 @@ def evaluate(paths, configurations):
             for frame in labelled_frames(path):
                 circle = frame.camera.image_circle()
                 for key, params in configurations.items():
-                    colour = isinstance(params, ColourParams)
+                    colour = key[1] == 'colour'
                     if colour and frame.rgb is None:
                         continue
                     geometry_key = (frame.camera, key)
                     if geometry_key not in segmenters:
-                        geometry = SkylineGeometry.from_camera(frame.camera)
-                        segmenters[geometry_key] = (ColourSegmenter if colour else SkylineSegmenter)(geometry, params)
+                        segmenters[geometry_key] = SkylineSegmenter(SkylineGeometry.from_camera(frame.camera), params)
                     segmenter = segmenters[geometry_key]
                     if colour:
-                        mask = segmenter.segment(frame.rgb)
+                        mask = segmenter.segment_colour(frame.rgb)
                     else:
                         mask = segmenter.segment(frame.uv, frame.green, *frame.encoding)
                     rates[key].append((frame.world, frame.time, classification_rate(mask, frame.truth, circle)))
