@@ -269,6 +269,10 @@ def test_a_raw_colour_recording_carries_its_encoding(tmp_path):
     assert (described['kind'], described['encoding']) == ('colour', 'bayer_gbrg16')
     assert (frame.encoding, frame.width, frame.height, frame.step) == ('bayer_gbrg16', 96, 72, 192)
     assert decode_image(frame).shape == (72, 96, 3)
+    sheet = tmp_path / 'sheet.png'  # the preview shows a colour recording's frames
+    result = run_skynav('sim', 'preview', '--bag', str(path), '--frames', '2', '--out', str(sheet))
+    assert result.returncode == 0, result.stderr
+    assert sheet.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and sheet.stat().st_size > 20_000
 
 
 def test_same_seed_same_colour_bytes(tmp_path):
