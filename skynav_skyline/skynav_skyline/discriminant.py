@@ -31,6 +31,8 @@ import numpy as np
 EXEMPLAR_SHARE = 0.2
 #: Least exemplars of either class for a model.
 MIN_EXEMPLARS = 50
+#: Most exemplars of a class a fit uses (evenly spaced): the class's mean and spread need no more.
+FIT_SAMPLE = 20000
 #: The inner half of the image circle: pixels at most this share of the circle's radius from its centre.
 INNER_RADIUS_SHARE = 0.5
 #: Ridge (log units squared) added to the pooled covariance's diagonal, so that the direction is always defined.
@@ -93,11 +95,12 @@ def fit(logs: np.ndarray, sky: np.ndarray, ground: np.ndarray) -> Discriminant |
     count_sky, count_ground = int(np.count_nonzero(sky)), int(np.count_nonzero(ground))
     if min(count_sky, count_ground) < MIN_EXEMPLARS:
         return None
-    features = np.asarray(logs, np.float64).reshape(len(logs), -1)
-    sky_features, ground_features = features[:, sky], features[:, ground]
+    features = np.asarray(logs).reshape(len(logs), -1)
+    sky_features = features[:, sky][:, :: max(1, count_sky // FIT_SAMPLE)].astype(np.float64)
+    ground_features = features[:, ground][:, :: max(1, count_ground // FIT_SAMPLE)].astype(np.float64)
     sky_mean, ground_mean = sky_features.mean(axis=1), ground_features.mean(axis=1)
     scatter = _scatter(sky_features, sky_mean) + _scatter(ground_features, ground_mean)
-    pooled = scatter / (count_sky + count_ground) + COVARIANCE_RIDGE * np.eye(len(features))
+    pooled = scatter / (sky_features.shape[1] + ground_features.shape[1]) + COVARIANCE_RIDGE * np.eye(len(features))
     direction = np.linalg.solve(pooled, sky_mean - ground_mean)
     sky_values, ground_values = direction @ sky_features, direction @ ground_features
     high, low = float(sky_values.mean()), float(ground_values.mean())

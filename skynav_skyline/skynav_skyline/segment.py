@@ -305,6 +305,7 @@ class SkylineSegmenter:
                 hole_margin=discriminant.HOLE_MARGIN if p.fills_holes else 0.0,
             )
             self._fallback = replace(p, method=DISCRIMINANT_FALLBACK)
+            self._first_pass = replace(self._projected, hole_margin=0.0, ring_share=math.inf)  # labels for the refit
             radius = self._row.radius()[0]
             self._inner_half = radius <= discriminant.INNER_RADIUS_SHARE * radius.max()
         if p.method.startswith('sector-') or p.method == DISCRIMINANT:
@@ -421,7 +422,7 @@ class SkylineSegmenter:
         if rgb.shape[:2] != self.geometry.shape:
             raise SkylineError(f'colour frame {rgb.shape[:2]} and image circle {self.geometry.shape} differ in shape')
         circle, p = self._row.circle, self.params
-        pixels = rgb[self.geometry.circle]  # (n, 3): the circle's pixels
+        pixels = np.ascontiguousarray(rgb).reshape(-1, 3).take(self._pixels, axis=0)  # (n, 3): the circle's pixels
         channels = [decode(pixels[None, :, k], LINEAR_ENCODING) for k in range(3)]
         logs = np.stack([log_feature(c, circle, p.reference_percentile, self._stride) for c in channels])
         trusted = circle & channels[0].trusted & channels[1].trusted & channels[2].trusted
@@ -471,8 +472,9 @@ class SkylineSegmenter:
         """Return the segmentation of the row by the image's own discriminant (discriminant.py).
 
         The exemplars and the first model take log features `seed_logs` (channels, 1, n); the model refitted on
-        the first segmentation's pixels takes `logs`, which may hold more channels. Both fits use the statistics'
-        sample; without a first model, `fallback()`.
+        the first segmentation's pixels (thresholded without the structure steps) takes `logs`, which may hold more
+        channels; the structure steps clean the refitted model's segmentation (the first model's, if the refit
+        fails). Both fits use the statistics' sample; without a first model, `fallback()`.
         """
         every = slice(None, None, self._stride)
         sample, usable = seed_logs[:, 0, every], trusted[0, every]
@@ -480,12 +482,17 @@ class SkylineSegmenter:
         model = discriminant.fit(sample, sky, ground)
         if model is None:
             return fallback()
-        first = self.classify_row(model.project(seed_logs), trusted, decided, by_rule, dark, self._projected)
+        first = self.classify_row(model.project(seed_logs), trusted, decided, by_rule, dark, self._first_pass)
         labels = first.mask.view(bool)[0, every]
         refitted = discriminant.fit(logs[:, 0, every], labels & usable, ~labels & usable)
-        if refitted is None:
-            return first
-        return self.classify_row(refitted.project(logs), trusted, decided, by_rule, dark, self._projected)
+        return self.classify_row(
+            (refitted or model).project(logs if refitted else seed_logs),
+            trusted,
+            decided,
+            by_rule,
+            dark,
+            self._projected,
+        )
 
     def _features_row(
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams
