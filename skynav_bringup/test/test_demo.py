@@ -46,6 +46,12 @@ def test_demo_runs_the_chain_and_reports_what_it_did(tmp_path):
     views, accepted, right = figure(r'(\d+) views, (\d+) accepted, (\d+) of them within 1 m', out)
     assert views == 89 and accepted >= 85 and right == accepted
     assert figure(r'3D rotation error median ([\d.]+) deg', out)[0] < 2.0
+    # the colour camera's row: a mask of every JPEG frame, by the colour method better than by the learned UV/green
+    # thresholds with blue standing in for UV (measured 92.9 % against 71.1 %)
+    assert figure(r'\(a colour camera\): (\d+) masks for (\d+) frames', out) == (89, 89)
+    colour = figure(r'\(a colour camera\).*?\n(?:.*\n)*?  mean ([\d.]+) %', out)[0]
+    learned = figure(r'blue for UV: mean ([\d.]+) %', out)[0]
+    assert colour > 90.0 and colour > learned + 10.0, (colour, learned)
     # the simulator: a snapshot about every 0.1 m of odometry over the 8 m taught, then the route followed to its end
     snapshots, taught = figure(r'taught (\d+) snapshots over ([\d.]+) m by odometry', out)
     assert 7.0 < taught < 9.5 and 0.08 < taught / snapshots < 0.15
@@ -55,6 +61,12 @@ def test_demo_runs_the_chain_and_reports_what_it_did(tmp_path):
     with open_bag(tmp_path / 'repeat_run.mcap') as bag:
         counts = Counter(raw.topic for raw in bag.messages(OUTPUT_TOPICS))
     assert counts == dict.fromkeys(OUTPUT_TOPICS, 89)
-    names = ('localization_matches.png', 'route_following.png', 'skyline_sheet.png', 'synthetic_garden_teach.db')
+    names = (
+        'localization_matches.png',
+        'route_following.png',
+        'skyline_sheet.png',
+        'colour_skyline_sheet.png',
+        'synthetic_garden_teach.db',
+    )
     for name in (*names, 'sim_teach/teach.db', 'sim_teach/teach.yaml'):
         assert (tmp_path / name).stat().st_size > 0, name

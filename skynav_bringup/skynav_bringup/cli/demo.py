@@ -8,6 +8,9 @@ Each step prints the command it runs, so every result can be reproduced by hand:
   3. what the nodes did, against the ground truth: the classification rate of every skyline mask
      and a contact sheet of inputs and masks; every place match, with a plot of the matches along
      the route; the compass's rotation errors and the home vectors' direction errors;
+  3b. a colour camera: the skyline and SH nodes over the same drive seen by one synthetic colour fish-eye
+     camera delivering JPEG (`skynav run`), its masks against the ground truth beside what the UV/green
+     method makes of the same frames with blue standing in for UV;
   4. the whole story in the simulator: a scripted operator drives the simulated mower along a route
      while a Teach goal records its map (`skynav sim teach`);
   5. then the nodes drive the mower along that taught route on their own, from 0.3 m beside its start
@@ -27,6 +30,7 @@ from pathlib import Path
 HELP = 'run the chain over bundled synthetic recordings and summarise'
 DEFAULT_TEACH = Path('bags/synthetic_garden_teach.mcap')
 DEFAULT_REPEAT = Path('bags/synthetic_garden_repeat.mcap')
+DEFAULT_COLOUR = Path('bags/synthetic_garden_colour_repeat.mcap')
 TOLERANCE = 1.0  # m: a place match is correct when the snapshot lies this close to the true position
 HOMING_NEAR = 0.5  # m: home vectors to a snapshot nearer than this are reported apart (cf. skynav eval homing)
 HOMING_MISS = 30.0  # deg: a home vector off by more than this is a miss
@@ -51,6 +55,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         metavar='BAG',
         help=f'repeat drive of the same route to run the graph over (default {DEFAULT_REPEAT})',
     )
+    parser.add_argument(
+        '--colour',
+        type=Path,
+        default=DEFAULT_COLOUR,
+        metavar='BAG',
+        help=f"a colour camera's recording to run the skyline over (default {DEFAULT_COLOUR})",
+    )
 
 
 def step(title: str, command: list[str]) -> None:
@@ -67,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the demo; return the exit code."""
     from . import CliError
 
-    for recording in (args.teach, args.repeat):
+    for recording in (args.teach, args.repeat, args.colour):
         if not recording.is_file():
             raise CliError(f'{recording}: no such recording (run the demo from the repository root)')
     args.out.mkdir(parents=True, exist_ok=True)
@@ -86,6 +97,13 @@ def run(args: argparse.Namespace) -> int:
     poses = ground_truth_poses(args.repeat)
     localization_summary(args.repeat, poses, run_bag, map_file, args.out / 'localization_matches.png')
     navigation_summary(poses, run_bag, map_file)
+    colour_run = args.out / 'colour_run.mcap'
+    colour_run.unlink(missing_ok=True)
+    step(
+        f'3b. a colour camera: the node graph over the synthetic colour recording {args.colour.name} (JPEG frames)',
+        ['skynav', 'run', str(args.colour), '--out', str(colour_run)],
+    )
+    rates += skyline_summary(args.colour, colour_run, args.out / 'colour_skyline_sheet.png', compare_learned=True)
     taught = args.out / 'sim_teach'
     step(
         f'4. the simulator: a scripted operator drives a {SIM_LENGTH:g} m route while a Teach goal records its map',
@@ -101,41 +119,35 @@ def run(args: argparse.Namespace) -> int:
     return 0 if rates else 1
 
 
-def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
-    """Print the classification rate of every mask against ground truth, draw a contact sheet; return the rates."""
+def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned: bool = False) -> list[float]:
+    """Print the classification rate of every mask against ground truth, draw a contact sheet; return the rates.
+
+    With `compare_learned`, a colour recording's frames are also segmented by the UV/green default method (its
+    thresholds learned on synthetic UV/green recordings) with blue standing in for UV, and that rate printed beside.
+    """
     import numpy as np
 
     from skynav_core.bag import open_bag
-    from skynav_core.camera import EquidistantCamera
     from skynav_core.images import image_to_array, stamp_ns
     from skynav_skyline.classify import classification_rate
+    from skynav_skyline.dataset import labelled_frames
+    from skynav_skyline.geometry import SkylineGeometry
+    from skynav_skyline.parameters import defaults, skyline_params
+    from skynav_skyline.segment import SkylineSegmenter
 
-    inputs: dict[int, dict] = {}
-    camera = None
-    with open_bag(recording) as bag:
-        for raw in bag.messages(
-            ['/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask', '/camera/uv/camera_info']
-        ):
-            message = bag.deserialize(raw)
-            if raw.topic == '/camera/uv/camera_info':
-                camera = camera or EquidistantCamera.from_camera_info(message)
-                continue
-            inputs.setdefault(stamp_ns(message.header), {})[raw.topic] = image_to_array(message)
+    frames = list(labelled_frames(recording))
     masks = {}
     with open_bag(run_bag) as bag:
         for raw in bag.messages(['/skyline/mask']):
             message = bag.deserialize(raw)
             masks[stamp_ns(message.header)] = image_to_array(message)
-    assert camera is not None  # the synthetic recording carries camera info
+    camera = frames[0].camera  # the synthetic recordings carry camera info
     circle = camera.image_circle()
-    stamps = sorted(inputs)
-    rates = [
-        classification_rate(masks[s], inputs[s]['/ground_truth/mask'], circle) if s in masks else float('nan')
-        for s in stamps
-    ]
+    rates = [classification_rate(masks[f.stamp], f.truth, circle) if f.stamp in masks else float('nan') for f in frames]
+    colour = frames[0].rgb is not None
     print(
-        f'\nskyline masks against ground truth: {len(masks)} masks for {len(stamps)} frames '
-        '(classification rate %, frame by frame)'
+        f'\nskyline masks against ground truth{" (a colour camera)" if colour else ""}: {len(masks)} masks for '
+        f'{len(frames)} frames (classification rate %, frame by frame)'
     )
     for row in range(0, len(rates), 10):
         print(
@@ -145,13 +157,21 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
     valid = [r for r in rates if r == r]
     print(
         f'  mean {100 * np.mean(valid):.2f} %, worst {100 * min(valid):.2f} % '
-        f'(frame {int(np.nanargmin(rates))}); frames without a mask: {len(stamps) - len(masks)}'
+        f'(frame {int(np.nanargmin(rates))}); frames without a mask: {len(frames) - len(masks)}'
     )
+    if compare_learned and colour:
+        learned = SkylineSegmenter(SkylineGeometry.from_camera(camera), skyline_params(defaults()))
+        blue = [classification_rate(learned.segment(f.uv, f.green, *f.encoding), f.truth, circle) for f in frames]
+        print(
+            f'  the same frames by the UV/green default method ({defaults()["method"]}, thresholds learned on '
+            f'synthetic UV/green recordings), blue for UV: mean {100 * np.mean(blue):.2f} %, '
+            f'worst {100 * min(blue):.2f} %'
+        )
     draw_sheet(
         sheet,
         [
-            (i, inputs[stamps[i]], masks.get(stamps[i]), rates[i])
-            for i in np.linspace(0, len(stamps) - 1, 4).round().astype(int)
+            (i, frames[i], masks.get(frames[i].stamp), rates[i])
+            for i in np.linspace(0, len(frames) - 1, 4).round().astype(int)
         ],
         circle,
     )
@@ -160,25 +180,31 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path) -> list[float]:
 
 
 def draw_sheet(path: Path, frames: list, circle) -> None:
-    """Draw UV, green, the node's mask and its disagreement with ground truth for a few frames."""
+    """Draw the inputs (UV and green, or the colour frame), the node's mask and its disagreement with ground truth."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from skynav_core.colour import LINEAR_FULL_SCALE, linear_to_srgb8
+
     figure, axes = plt.subplots(len(frames), 4, figsize=(13, 3.2 * len(frames)), layout='constrained', squeeze=False)
-    for row, (index, parts, mask, rate) in enumerate(frames):
-        truth = parts['/ground_truth/mask']
+    for row, (index, frame, mask, rate) in enumerate(frames):
+        truth = frame.truth
         error = np.zeros(truth.shape + (3,))
         if mask is not None:
             error[(mask > 0) & (truth == 0)] = (0.9, 0.1, 0.1)
             error[(mask == 0) & (truth > 0)] = (0.1, 0.3, 0.9)
             error[(mask > 0) == (truth > 0)] = np.where(truth[(mask > 0) == (truth > 0)][:, None] > 0, 0.85, 0.25)
         error[~circle] = 0
+        inputs = (
+            [(frame.uv, 'UV input'), (frame.green, 'green input')]
+            if frame.rgb is None
+            else [(linear_to_srgb8(frame.rgb / LINEAR_FULL_SCALE), 'colour input (sRGB)'), (frame.uv, 'its blue')]
+        )
         panels = [
-            (parts['/camera/uv/image_raw'], 'UV input'),
-            (parts['/camera/green/image_raw'], 'green input'),
+            *inputs,
             (mask if mask is not None else np.zeros_like(truth), '/skyline/mask'),
             (error, f'vs ground truth: {100 * rate:.1f} % right\nred: false sky, blue: false ground'),
         ]
