@@ -209,3 +209,15 @@ def test_a_stopped_or_killed_build_keeps_every_snapshot_written_so_far(signum, f
     assert list(matches.index) == list(range(len(store)))  # usable: each snapshot finds itself
     info = run_skynav('map', 'info', str(partial))
     assert info.returncode == 0 and f'Snapshots:          {len(store)}' in info.stdout
+
+
+def test_a_colour_cameras_recording_builds_a_map_with_its_geometry(tmp_path):
+    """The bundled synthetic colour drive (JPEG frames, /camera/camera_info): every exposure goes through the skyline
+    node's colour method and the SH node; the snapshots carry the drive's ground-truth poses, and --baselines reads
+    its blue plane as the UV image."""
+    out = tmp_path / 'colour.db'
+    result = build(BAGS / 'synthetic_garden_colour_repeat.mcap', out, '--baselines')
+    assert result.returncode == 0, result.stderr
+    with MapStore.open(out) as store:
+        assert 30 < len(store) <= 89 and store.has_poses
+        assert 'raw_uv' in store.descriptor_names()

@@ -65,3 +65,21 @@ def test_bad_masks_are_rejected_and_counted():
         graph.feed(raw('/skyline/mask', mask_message(np.zeros((36, 48), np.uint8)), T0 + 1))
         assert not [o for o in graph.outputs if o.topic == '/skyline/sh']
         assert node.rejected == {'encoding': 1, 'camera_info_mismatch': 1} and node.errors == 0
+
+
+def test_the_colour_cameras_masks_take_its_own_geometry():
+    from sensor_msgs.msg import CameraInfo
+
+    colour = EquidistantCamera.for_field_of_view(80, 60, math.radians(190), (0.02, 0.0, 0.0, 0.0))
+    v, u = np.mgrid[0:60, 0:80]
+    mask = np.where(u > 30, 255, 0).astype(np.uint8) * colour.image_circle()
+    with in_process([SPEC], ['-p', 'max_degree:=6']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))  # the UV/green pair's, another size
+        graph.feed(raw('/camera/camera_info', CameraInfo(**colour.camera_info_fields()), T0))
+        graph.feed(raw('/skyline/mask', mask_message(mask), T0))
+        (message,) = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
+    expected = FisheyeTransform(colour, 6, 'zero').coefficients(mask)
+    assert np.allclose(message.coefficients, expected, rtol=0, atol=1e-12)
+    assert message.field_of_view == np.float32(colour.field_of_view) and sum(node.rejected.values()) == 0

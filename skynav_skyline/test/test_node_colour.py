@@ -155,3 +155,21 @@ def test_colour_frames_wait_for_their_own_camera_info(scene):
         assert masks_of(graph) == []  # held: the colour camera's geometry has not come
         graph.feed(raw('/camera/camera_info', camera_info(), T0))
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0]
+
+
+def test_camera_info_url_gives_the_geometry_when_the_driver_sends_none(scene, tmp_path):
+    from skynav_core.camera_yaml import write_camera_yaml
+
+    write_camera_yaml(tmp_path / 'fisheye.yaml', CAMERA, 'fisheye')
+    with in_process([SPEC], ['-p', f'camera_info_url:=file://{tmp_path / "fisheye.yaml"}']) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw(*frames(scene)['jpeg'], T0))
+        (mask,) = masks_of(graph)  # no camera info came: the file's geometry
+        assert image_to_array(mask.message).shape == (60, 80)
+        result = node.set_parameters(
+            [__import__('rclpy').parameter.Parameter('camera_info_url', value=f'file://{tmp_path / "none.yaml"}')]
+        )[0]
+        assert not result.successful and 'none.yaml' in result.reason  # refused in one line; the node goes on
+        graph.feed(raw(*frames(scene)['jpeg'], T0 + 10**8))
+        assert len(masks_of(graph)) == 2 and node.errors == 0
