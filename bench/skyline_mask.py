@@ -5,10 +5,11 @@
 
 Renders three synthetic exposures (garden, park, mineral; forenoon), then times every method of the
 skyline node with its shipped parameters, the default method once more without the structure steps
-(enclosed ground, ground ring: what they cost), and the peer a user might pick instead: cv2.threshold
-with THRESH_OTSU on the UV image (8-bit). Every mask is timed on its own; prints the median and the
-90th percentile of milliseconds per mask over all repeats, and the ratio of the medians to the peer's.
-Pin it to one core (`taskset -c 0`) for the one-core figure.
+(enclosed ground, ground ring: what they cost), the colour camera's method (colour_method) on the same
+exposures seen by a synthetic colour camera (uint16 linear RGB, as skynav_core.colour decodes a frame), and
+the peer a user might pick instead: cv2.threshold with THRESH_OTSU on the UV image (8-bit). Every mask is
+timed on its own; prints the median and the 90th percentile of milliseconds per mask over all repeats, and
+the ratio of the medians to the peer's. Pin it to one core (`taskset -c 0`) for the one-core figure.
 """
 
 from __future__ import annotations
@@ -26,11 +27,11 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from skynav_core.camera import EquidistantCamera  # noqa: E402
-from skynav_sim.recording import captures  # noqa: E402
+from skynav_sim.recording import CameraOutput, captures  # noqa: E402
 from skynav_sim.scenarios import ScenarioParameters, build  # noqa: E402
 from skynav_sim.world import generate  # noqa: E402
 from skynav_skyline.geometry import SkylineGeometry  # noqa: E402
-from skynav_skyline.parameters import defaults, skyline_params  # noqa: E402
+from skynav_skyline.parameters import colour_params, defaults, skyline_params  # noqa: E402
 from skynav_skyline.segment import METHODS, SkylineSegmenter  # noqa: E402
 
 REPEATS = 60
@@ -53,12 +54,15 @@ def main() -> int:
     args = parser.parse_args()
     cv2.setNumThreads(1)
     camera = EquidistantCamera.for_field_of_view(640, 480, np.radians(200), (0.015, -0.002, 0.0, 0.0))
-    exposures = []
+    exposures, colour_frames = [], []
     for style in ('garden', 'park', 'mineral'):
         world = generate(style, 4)
         frame = build('skyline', world, ScenarioParameters(count=1), seed=4)[6]  # forenoon, clear
         capture = next(captures(world, camera, [frame], args.encoding, 4))
         exposures.append((capture.uv, capture.green))
+        signal = next(captures(world, camera, [frame], CameraOutput('colour', 'rgb16'), 4)).exposure.signal
+        assert signal is not None  # a colour camera's exposure carries its linear signal
+        colour_frames.append((np.rint(signal * 65535).astype(np.uint16),))
     geometry = SkylineGeometry.from_camera(camera)
     peer_input = [cv2.normalize(uv, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8) for uv, _ in exposures]
 
@@ -85,6 +89,12 @@ def main() -> int:
         median = float(np.median(ms))
         label = method + (' -structure' if changes else '')
         print(f'{label:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} {median / peer_median:10.1f}')
+    colour = colour_params(shipped)
+    segmenter = SkylineSegmenter(geometry, colour)
+    mask_times_ms(segmenter.segment_colour, colour_frames, 1)  # warm up
+    ms = mask_times_ms(segmenter.segment_colour, colour_frames)
+    median = float(np.median(ms))
+    print(f'{colour.method:18s} {"colour":9s} {median:9.2f} {np.percentile(ms, 90):7.2f} {median / peer_median:10.1f}')
     print(f'{"cv2 Otsu (peer)":18s} {"uv":9s} {peer_median:9.2f} {np.percentile(peer_ms, 90):7.2f} {1.0:10.1f}')
     return 0
 
