@@ -72,12 +72,13 @@ def exemplars(
     Only `trusted` pixels are exemplars (see the module's description).
     """
     brightness = logs.mean(axis=0)
-    colour = logs[-1] - logs[0] if len(logs) > 1 else np.zeros_like(brightness)
     near, far = inner & trusted, ~inner & trusted
-    sky = near & (
-        (brightness >= _quantile(brightness, near, 1 - share)) | (colour >= _quantile(colour, near, 1 - share))
-    )
-    ground = far & (brightness <= _quantile(brightness, far, share)) & (colour < _quantile(colour, far, 0.5))
+    sky = near & (brightness >= _quantile(brightness, near, 1 - share))
+    ground = far & (brightness <= _quantile(brightness, far, share))
+    if len(logs) > 1:  # a single channel has no colour
+        colour = logs[-1] - logs[0]
+        sky |= near & (colour >= _quantile(colour, near, 1 - share))
+        ground &= colour < _quantile(colour, far, 0.5)
     return sky, ground
 
 

@@ -442,12 +442,18 @@ class SkylineSegmenter:
         """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
         if self.params.method != DISCRIMINANT:
             return self._threshold_row(uv, green, encoding_uv, encoding_green, self.params)
-        features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
-        circle, uses_green = self._row.circle, self.params.uses_green
-        logs = features.x[None] if features.y is None else np.stack([features.y, features.x])  # sky colour: UV/G
 
         def fallback() -> Segmentation:
             return self._threshold_row(uv, green, encoding_uv, encoding_green, self._fallback)
+
+        if not self.params.uses_green:
+            # UV alone has no colour to tell bright ground from sky by (the discriminant on it was worse than the
+            # learned threshold: 94.9 % against 98.5 % on the synthetic and landscape sets); it is the fallback
+            return fallback()
+        features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
+        circle, uses_green = self._row.circle, self.params.uses_green
+        assert features.y is not None  # the green channel is decoded in 'uv-green' mode
+        logs = np.stack([features.y, features.x])  # sky colour: UV over green
 
         return self._discriminate(
             logs,
