@@ -40,6 +40,23 @@ def test_the_camera_pose_is_the_base_pose_times_the_mount_and_the_base_is_found_
     assert np.max(np.linalg.norm(np.array(rows)[:, :2] - places, axis=1)) > 0.01
 
 
+def test_a_camera_on_the_base_axes_is_rendered_exactly_as_one_without_a_mount():
+    # composing with an identity rotation moves a pose by an ulp, which the closed loop can amplify into another path
+    from skynav_core.camera import EquidistantCamera
+    from skynav_sim.closed_loop import Base, Simulation
+    from skynav_sim.robot import camera_pose
+    from skynav_sim.world import generate
+
+    world = generate('garden', 1)
+    camera = EquidistantCamera.for_field_of_view(32, 24, np.radians(200), (0.015, -0.002, 0.0, 0.0))
+    *_, pose = Simulation(world, camera, 9.0, 1, mount=Base().mount).capture(1.0, 2.0, 1.1)
+    plain = camera_pose(world.terrain, 1.0, 2.0, 1.1)  # a pose an identity product moves
+    assert np.array_equal(pose.rotation.as_matrix(), plain.rotation.as_matrix())
+    assert np.array_equal(pose.position, plain.position)
+    moved = camera_pose(world.terrain, 1.0, 2.0, 1.1, None, Rotation.identity()).rotation.as_matrix()
+    assert not np.array_equal(moved, plain.rotation.as_matrix())  # what rendering with the identity would do
+
+
 def test_the_simulated_robot_publishes_the_mount_on_tf_static_and_the_route_node_takes_it():
     from skynav_core.graph import in_process
     from skynav_core.mount import mount_rpy_deg
