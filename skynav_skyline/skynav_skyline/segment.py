@@ -491,14 +491,8 @@ class SkylineSegmenter:
         first = self.classify_row(model.project(seed_logs), trusted, decided, by_rule, dark, self._first_pass)
         labels = first.mask.view(bool)[0, every]
         refitted = discriminant.fit(logs[:, 0, every], labels & usable, ~labels & usable)
-        return self.classify_row(
-            (refitted or model).project(logs if refitted else seed_logs),
-            trusted,
-            decided,
-            by_rule,
-            dark,
-            self._projected,
-        )
+        contrast = model.project(seed_logs) if refitted is None else refitted.project(logs)
+        return self.classify_row(contrast, trusted, decided, by_rule, dark, self._projected)
 
     def _features_row(
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams
