@@ -5,7 +5,8 @@
 
 Renders three synthetic exposures (garden, park, mineral; forenoon), then times every method of the
 skyline node with its shipped parameters, the default method once more without the structure steps
-(enclosed ground, ground ring: what they cost), the colour camera's method (colour_method) on the same
+(enclosed ground, ground ring: what they cost) and without its fit check (max_disagreement), the colour
+camera's method (colour_method) on the same
 exposures seen by a synthetic colour camera (uint16 linear RGB, as skynav_core.colour decodes a frame), and
 the peer a user might pick instead: cv2.threshold with THRESH_OTSU on the UV image (8-bit). Every mask is
 timed on its own; prints the median and the 90th percentile of milliseconds per mask over all repeats, and
@@ -76,6 +77,7 @@ def main() -> int:
     shipped = defaults()
     rows = [(method, channels, {}) for channels in ('uv', 'uv-green') for method in METHODS]
     rows.append((shipped['method'], shipped['channels'], {'hole_margin': 0.0, 'ring_share': math.inf}))
+    rows.append((shipped['method'], shipped['channels'], {'max_disagreement': math.inf}))
     for method, channels, changes in rows:
         segmenter = SkylineSegmenter(
             geometry, skyline_params({**shipped, 'method': method, 'channels': channels, **changes})
@@ -87,7 +89,7 @@ def main() -> int:
         mask_times_ms(run, exposures, 1)  # warm up
         ms = mask_times_ms(run, exposures)
         median = float(np.median(ms))
-        label = method + (' -structure' if changes else '')
+        label = method + (' -fit check' if 'max_disagreement' in changes else ' -structure' if changes else '')
         print(f'{label:18s} {channels:9s} {median:9.2f} {np.percentile(ms, 90):7.2f} {median / peer_median:10.1f}')
     colour = colour_params(shipped)
     segmenter = SkylineSegmenter(geometry, colour)

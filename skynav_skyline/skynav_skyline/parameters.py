@@ -49,6 +49,13 @@ PARAMETERS = {
         'of the azimuths (0..1); above 1: off',
     ),
     'ring_width_deg': Parameter(2.0, 'least width of such a band of ground along a ray (degrees of off-axis angle)'),
+    # 0.2: on the synthetic UV/green sets and drives the two masks disagree on at most 0.146 of a view (median 0.007),
+    # on a synthetic colour camera's blue and green on 0.21 (median; docs/cameras.md)
+    'max_disagreement': Parameter(
+        0.2,
+        "where the image's own discriminant and a threshold method disagree on more of the image circle than this "
+        "share, the discriminant's mask is taken (uv-green; inf: never)",
+    ),
     'black_level_uv': Parameter(0.0, 'UV black level (counts, or radiance for 32FC1)'),
     'black_level_green': Parameter(0.0, 'green black level (counts, or radiance for 32FC1)'),
     'colour_method': Parameter(
@@ -89,6 +96,7 @@ def skyline_params(values: dict[str, Any]) -> SkylineParams:
         hole_margin=float(merged['hole_margin']),
         ring_share=float(merged['ring_share']),
         ring_width_deg=float(merged['ring_width_deg']),
+        max_disagreement=float(merged['max_disagreement']),
         black_level=(float(merged['black_level_uv']), float(merged['black_level_green'])),
     )
 

@@ -12,6 +12,13 @@ enough exemplars it falls back to 'sector-min-error' on the learned contrast.
 The same methods segment a colour camera's frames (segment_colour): the
 discriminant on all three channels, the others on blue for UV and green.
 
+Fit check. A threshold method of the UV/green contrast (its angle and global
+threshold learned on some camera's recordings) may not fit the camera at
+hand. With a finite `max_disagreement` each image is segmented by its own
+discriminant too, and where the two masks disagree on more than that share of
+the image circle the discriminant's is taken: the learned thresholds do not
+fit this image.
+
 Bimodality test. A histogram split is *bimodal* when it has at least
 MIN_SECTOR_PIXELS trusted pixels, Otsu's separability (between-class over
 total variance at the chosen cut; about 0.64 for one Gaussian, 0.75 for a
@@ -103,6 +110,7 @@ class SkylineParams:
     hole_margin: float = 0.0  # enclosed ground nowhere this far below its threshold becomes sky (log units); 0: off
     ring_share: float = math.inf  # share of azimuths (0..1) ringed by ground that cuts the sky beyond; above 1: off
     ring_width_deg: float = RING_WIDTH_DEG  # least width of such a band of ground along a ray (degrees)
+    max_disagreement: float = math.inf  # a threshold method gives way to the discriminant beyond this share (0..1)
 
     def __post_init__(self) -> None:
         """Check the settings (ValueError) and store the black level as a (UV, green) pair."""
@@ -128,6 +136,8 @@ class SkylineParams:
             raise SkylineError(f'hole_margin must be at least 0 (0: off), got {self.hole_margin}')
         if not self.ring_share > 0:
             raise SkylineError(f'ring_share must be above 0 (above 1: off), got {self.ring_share}')
+        if not self.max_disagreement >= 0:
+            raise SkylineError(f'max_disagreement must be at least 0 (inf: off), got {self.max_disagreement}')
         if not (self.ring_width_deg > 0 and math.isfinite(self.ring_width_deg)):
             raise SkylineError(f'ring_width_deg must be positive and finite, got {self.ring_width_deg}')
         black = np.broadcast_to(np.asarray(self.black_level, float), (2,))
@@ -147,6 +157,11 @@ class SkylineParams:
     def cuts_rings(self) -> bool:
         """Return whether sky beyond a ring of ground becomes ground."""
         return self.ring_share <= 1
+
+    @property
+    def checks_fit(self) -> bool:
+        """Return whether a threshold method of the UV/green contrast is checked against the image's discriminant."""
+        return self.method != DISCRIMINANT and self.uses_green and math.isfinite(self.max_disagreement)
 
     @property
     def projection_angle(self) -> float:
@@ -306,10 +321,17 @@ class SkylineSegmenter:
             )
             self._fallback = replace(p, method=DISCRIMINANT_FALLBACK)
             self._first_pass = replace(self._projected, hole_margin=0.0, ring_share=math.inf)  # labels for the refit
+        if p.method == DISCRIMINANT:
             radius = self._row.radius()[0]
             self._inner_half = radius <= discriminant.INNER_RADIUS_SHARE * radius.max()
         if p.method.startswith('sector-') or p.method == DISCRIMINANT:
             self._row.sectors(p.sectors)  # precompute now, not on the first frame
+        # the learned thresholds give way to the image's own discriminant where they do not fit the camera
+        self._fit_check: SkylineSegmenter | None = None
+        if p.checks_fit:
+            self._fit_check = SkylineSegmenter(
+                self.geometry, replace(p, method=DISCRIMINANT, max_disagreement=math.inf)
+            )
         if self.params.fills_holes:
             # The enclosed-ground step works on the image circle's bounding box: its circle, the row position of
             # each of its pixels (-1 outside the circle) for the pixels it fills, and the circle's inside off the rim.
@@ -441,7 +463,12 @@ class SkylineSegmenter:
     ) -> Segmentation:
         """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
         if self.params.method != DISCRIMINANT:
-            return self._threshold_row(uv, green, encoding_uv, encoding_green, self.params)
+            segmentation = self._threshold_row(uv, green, encoding_uv, encoding_green, self.params)
+            if self._fit_check is None:
+                return segmentation
+            own = self._fit_check._run_row(uv, green, encoding_uv, encoding_green)
+            disagreement = np.count_nonzero(own.mask != segmentation.mask) / max(own.mask.size, 1)
+            return own if disagreement > self.params.max_disagreement else segmentation
 
         def fallback() -> Segmentation:
             return self._threshold_row(uv, green, encoding_uv, encoding_green, self._fallback)

@@ -122,7 +122,8 @@ def test_the_discriminant_separates_a_colour_view_that_no_learned_threshold_on_b
     linear = np.rint(rgb * 65535).astype(np.uint16)
     geometry = SkylineGeometry.from_camera(CAMERA)
     own = SkylineSegmenter(geometry, colour_params({})).segment_colour(linear)
-    learned = SkylineSegmenter(geometry, colour_params({'colour_method': 'sector-min-error'})).segment_colour(linear)
+    learned_params = colour_params({'colour_method': 'sector-min-error', 'max_disagreement': math.inf})
+    learned = SkylineSegmenter(geometry, learned_params).segment_colour(linear)
     assert accuracy(own, truth) > 0.97
     assert accuracy(own, truth) > accuracy(learned, truth) + 0.03
 
@@ -154,3 +155,25 @@ def test_the_uv_green_discriminant_takes_the_pairs_channels(upward_view):
     params = replace(skyline_params({}), method='discriminant')
     mask = SkylineSegmenter(SkylineGeometry.from_camera(CAMERA), params).segment(uv, green, 'mono16', 'mono16')
     assert accuracy(mask, truth) > 0.95
+
+
+def test_learned_thresholds_give_way_to_the_discriminant_where_they_do_not_fit(upward_view):
+    """The fit check (max_disagreement) of the UV/green path: on the view above, blue for UV, the learned thresholds
+    miss the dim sky and disagree with the image's own discriminant on much of it, so the discriminant's mask is
+    taken; where the learned thresholds fit (a plain view), the mask is theirs, unchanged."""
+    rgb, truth = upward_view
+    uv, green = (np.rint(rgb[..., k] * 65535).astype(np.uint16) for k in (2, 1))
+    geometry = SkylineGeometry.from_camera(CAMERA)
+    checked = SkylineSegmenter(geometry, skyline_params({}))
+    unchecked = SkylineSegmenter(geometry, skyline_params({'max_disagreement': math.inf}))
+    own = SkylineSegmenter(geometry, replace(skyline_params({}), method='discriminant'))
+    assert checked.params.method == 'sector-min-error' and checked.params.checks_fit
+    learned = unchecked.segment(uv, green, 'mono16', 'mono16')
+    assert accuracy(learned, truth) < 0.9
+    assert np.array_equal(checked.segment(uv, green, 'mono16', 'mono16'), own.segment(uv, green, 'mono16', 'mono16'))
+    plain = np.where(truth, 0.6, 0.03) * np.random.default_rng(8).uniform(0.95, 1.05, truth.shape)
+    plain_uv, plain_green = np.rint(plain * 65535).astype(np.uint16), np.rint(plain * 0.8 * 65535).astype(np.uint16)
+    assert np.array_equal(
+        checked.segment(plain_uv, plain_green, 'mono16', 'mono16'),
+        unchecked.segment(plain_uv, plain_green, 'mono16', 'mono16'),
+    )

@@ -122,9 +122,11 @@ def run(args: argparse.Namespace) -> int:
 def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned: bool = False) -> list[float]:
     """Print the classification rate of every mask against ground truth, draw a contact sheet; return the rates.
 
-    With `compare_learned`, a colour recording's frames are also segmented by the UV/green default method (its
-    thresholds learned on synthetic UV/green recordings) with blue standing in for UV, and that rate printed beside.
+    With `compare_learned`, a colour recording's frames are also segmented by the UV/green path with blue standing
+    in for UV: by its thresholds learned on synthetic UV/green recordings alone, and with its fit check.
     """
+    import math
+
     import numpy as np
 
     from skynav_core.bag import open_bag
@@ -160,13 +162,17 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned
         f'(frame {int(np.nanargmin(rates))}); frames without a mask: {len(frames) - len(masks)}'
     )
     if compare_learned and colour:
-        learned = SkylineSegmenter(SkylineGeometry.from_camera(camera), skyline_params(defaults()))
-        blue = [classification_rate(learned.segment(f.uv, f.green, *f.encoding), f.truth, circle) for f in frames]
-        print(
-            f'  the same frames by the UV/green default method ({defaults()["method"]}, thresholds learned on '
-            f'synthetic UV/green recordings), blue for UV: mean {100 * np.mean(blue):.2f} %, '
-            f'worst {100 * min(blue):.2f} %'
-        )
+        geometry = SkylineGeometry.from_camera(camera)
+        for label, changes in (
+            ('its learned thresholds alone', {'max_disagreement': math.inf}),
+            ('with its fit check (the default)', {}),
+        ):
+            segmenter = SkylineSegmenter(geometry, skyline_params({**defaults(), **changes}))
+            blue = [classification_rate(segmenter.segment(f.uv, f.green, *f.encoding), f.truth, circle) for f in frames]
+            print(
+                f'  the same frames by the UV/green path ({defaults()["method"]}), blue for UV, {label}: '
+                f'mean {100 * np.mean(blue):.2f} %, worst {100 * min(blue):.2f} %'
+            )
     draw_sheet(
         sheet,
         [
