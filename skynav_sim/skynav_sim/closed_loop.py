@@ -331,9 +331,6 @@ def drive_goal(
     return run
 
 
-MOUNT_DECLARATIONS = ('tf_static', 'parameter', 'none')  # how the graph learns of the camera's mount
-
-
 @dataclass(frozen=True)
 class Base:
     """The simulated mower's base: wheel slip and odometry noise (shares of each step's motion), its seed, whether

@@ -269,10 +269,12 @@ def add_odometry_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+#: How the graph learns of the camera's mount on the simulated mower (closed_loop.Base.declare_mount).
+MOUNT_DECLARATIONS = ('tf_static', 'parameter', 'none')
+
+
 def add_mount_arguments(parser: argparse.ArgumentParser) -> None:
     """Add --mount-rpy, the camera's mount on the simulated mower, and --declare-mount, how the graph learns it."""
-    from ..closed_loop import MOUNT_DECLARATIONS
-
     parser.add_argument(
         '--mount-rpy',
         type=float,
