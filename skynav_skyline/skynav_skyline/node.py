@@ -63,8 +63,8 @@ class SkylineNode(SkynavNode):
 
     def configure(self, values: dict) -> None:
         """Build the segmentation settings from parameter values (ValueError for unusable ones)."""
-        self.params = skyline_params({name: values[name] for name in PARAMETERS})
-        self.colour = colour_params({name: values[name] for name in PARAMETERS})
+        segmentation = {name: values[name] for name in PARAMETERS}
+        self.params, self.colour = skyline_params(segmentation), colour_params(segmentation)
         if values['pair_tolerance_ms'] < 0:
             raise SkylineError('pair_tolerance_ms must not be negative')
         self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6), on_drop=self.drop_unpaired)

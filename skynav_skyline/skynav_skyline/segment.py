@@ -321,7 +321,6 @@ class SkylineSegmenter:
             )
             self._fallback = replace(p, method=DISCRIMINANT_FALLBACK)
             self._first_pass = replace(self._projected, hole_margin=0.0, ring_share=math.inf)  # labels for the refit
-        if p.method == DISCRIMINANT:
             radius = self._row.radius()[0]
             self._inner_half = radius <= discriminant.INNER_RADIUS_SHARE * radius.max()
         if p.method.startswith('sector-') or p.method == DISCRIMINANT:
@@ -462,31 +461,37 @@ class SkylineSegmenter:
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
     ) -> Segmentation:
         """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
-        if self.params.method != DISCRIMINANT:
-            segmentation = self._threshold_row(uv, green, encoding_uv, encoding_green, self.params)
-            if self._fit_check is None:
-                return segmentation
-            own = self._fit_check._run_row(uv, green, encoding_uv, encoding_green)
-            disagreement = np.count_nonzero(own.mask != segmentation.mask) / max(own.mask.size, 1)
-            return own if disagreement > self.params.max_disagreement else segmentation
 
         def fallback() -> Segmentation:
             return self._threshold_row(uv, green, encoding_uv, encoding_green, self._fallback)
 
+        if self.params.method != DISCRIMINANT:
+            features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
+            segmentation = self._threshold_features(features, self.params)
+            if self._fit_check is None:
+                return segmentation
+            # the check's settings differ in the method only: the same features serve its discriminant
+            own = self._fit_check._discriminate_pair(features, lambda: segmentation)  # no model: nothing to check
+            disagreement = np.count_nonzero(own.mask != segmentation.mask) / max(own.mask.size, 1)
+            return own if disagreement > self.params.max_disagreement else segmentation
         if not self.params.uses_green:
             # UV alone has no colour to tell bright ground from sky by (the discriminant on it was worse than the
             # learned threshold: 94.9 % against 98.5 % on the synthetic and landscape sets); it is the fallback
             return fallback()
-        features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
-        circle, uses_green = self._row.circle, self.params.uses_green
+        return self._discriminate_pair(
+            self._features_row(uv, green, encoding_uv, encoding_green, self.params), fallback
+        )
+
+    def _discriminate_pair(self, features: Features, fallback: Callable[[], Segmentation]) -> Segmentation:
+        """Return the segmentation of a UV/green pair's features (one row) by the image's own discriminant."""
+        circle = self._row.circle
         assert features.y is not None  # the green channel is decoded in 'uv-green' mode
         logs = np.stack([features.y, features.x])  # sky colour: UV over green
-
         return self._discriminate(
             logs,
             logs,
-            features.trusted(circle, uses_green),
-            features.by_threshold(circle, uses_green),
+            features.trusted(circle, True),
+            features.by_threshold(circle, True),
             features.sky_by_rule(circle),
             features.uv.dark,
             fallback,
@@ -515,10 +520,12 @@ class SkylineSegmenter:
         model = discriminant.fit(sample, sky, ground)
         if model is None:
             return fallback()
-        first = self.classify_row(model.project(seed_logs), trusted, decided, by_rule, dark, self._first_pass)
+        contrast = model.project(seed_logs)
+        first = self.classify_row(contrast, trusted, decided, by_rule, dark, self._first_pass)
         labels = first.mask.view(bool)[0, every]
         refitted = discriminant.fit(logs[:, 0, every], labels & usable, ~labels & usable)
-        contrast = model.project(seed_logs) if refitted is None else refitted.project(logs)
+        if refitted is not None:
+            contrast = refitted.project(logs)
         return self.classify_row(contrast, trusted, decided, by_rule, dark, self._projected)
 
     def _features_row(
@@ -544,7 +551,10 @@ class SkylineSegmenter:
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams
     ) -> Segmentation:
         """Return the segmentation of an image pair's circle (one row) by the learned contrast and `p`'s method."""
-        features = self._features_row(uv, green, encoding_uv, encoding_green, p)
+        return self._threshold_features(self._features_row(uv, green, encoding_uv, encoding_green, p), p)
+
+    def _threshold_features(self, features: Features, p: SkylineParams) -> Segmentation:
+        """Return the segmentation of the circle's features (one row) by the learned contrast and `p`'s method."""
         circle = self._row.circle
         return self.classify_row(
             project(features.x, features.y, p.projection_angle),
