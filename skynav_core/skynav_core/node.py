@@ -15,6 +15,9 @@ A skynav node is an ordinary rclpy node with three habits:
 - an input stamped more than `max_stamp_jump_s` before or after the last one taken (a camera clock
   that jumps, a recording replayed again) restarts the node's time: one log line, a count, and
   `reset_time()` forgets what depended on the old time, so later inputs are taken again;
+- its timeouts measure `elapsed_ns()`, the time passed on the node's clock with its jumps left out
+  (skynav_core.elapsed: sim time before the first /clock, a recording's clock that restarts), read
+  every TIME_READ_PERIOD s of the node's clock, so no timeout fires from a clock that starts late or jumps;
 - its parameters are turned into working state by one method, `configure(values)`, which raises
   ValueError for values it cannot use: at start-up the node then keeps its defaults, at run time the
   change is refused with that reason;
@@ -47,6 +50,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from tf2_msgs.msg import TFMessage
 
+from .elapsed import ElapsedTime
 from .mount import StaticTransforms, describe, mount_from_rpy_deg
 from .parameters import COMMON_PARAMETERS, ParameterTable
 
@@ -64,6 +68,8 @@ TF_STATIC_QOS = QoSProfile(
 TF_STATIC_TOPIC = '/tf_static'
 MOUNT_PARAMETER = 'camera_mount_rpy_deg'
 DIAGNOSTICS_PERIOD = 1.0  # s
+# s of the node's clock between readings of elapsed_ns(): well under max_stamp_jump_s, so a running clock's steps count
+TIME_READ_PERIOD = 0.1
 PROCESSING_WINDOW = 100  # inputs whose processing times the diagnostics summarise
 # rmw's value of a message-info sequence number the middleware does not provide.
 SEQUENCE_UNSUPPORTED = 2**64 - 1
@@ -127,12 +133,14 @@ class SkynavNode(Node):
             self.get_logger().error(f'unusable parameters ({exc}); using the default {jump.default} s')
             self.set_parameters([Parameter('max_stamp_jump_s', value=jump.default)])
             self.max_stamp_jump_ns = self._stamp_jump_ns(jump.default)
+        self.elapsed = ElapsedTime(self.max_stamp_jump_ns)  # what the timeouts measure (elapsed_ns)
         self.parameter_mount = self._declare_mount()  # camera_link in base_link by camera_mount_rpy_deg
         self.static_mount: np.ndarray | None = None  # ...by /tf_static, once heard (listen_for_mount)
         self.static_transforms = StaticTransforms()
         self.output('/diagnostics', DiagnosticArray)
         if router is None:
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
+            self.create_timer(TIME_READ_PERIOD, self.elapsed_ns)
 
     # --- the camera's mount -----------------------------------------------------------------
 
@@ -216,6 +224,7 @@ class SkynavNode(Node):
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         self.max_stamp_jump_ns, self.parameter_mount = jump, mount
+        self.elapsed.max_step_ns = jump
         return SetParametersResult(successful=True)
 
     @staticmethod
@@ -347,12 +356,16 @@ class SkynavNode(Node):
         return False
 
     def expire_with_time(self, expire: Callable[[int], None]) -> None:
-        """Call `expire(now_ns)` before each diagnostics report, to drop inputs that waited too long."""
+        """Call `expire(elapsed_ns)` before each diagnostics report, to drop inputs that waited too long."""
         self._expiring.append(expire)
 
     def now_ns(self) -> int:
         """Return the current time: the node's clock live, the input's time in `skynav run`."""
         return self.router.now_ns() if self.router is not None else self.get_clock().now().nanoseconds
+
+    def elapsed_ns(self) -> int:
+        """Return the time passed on the node's clock since it started, its jumps left out (ns): for timeouts."""
+        return self.elapsed.read(self.now_ns())
 
     @contextmanager
     def processing(self, stamp: int) -> Iterator[None]:
@@ -385,6 +398,7 @@ class SkynavNode(Node):
             'rejected': str(sum(self.rejected.values())),
             'dropped': str(sum(self.dropped.values())),
             'time_resets': str(self.time_resets),
+            'clock_jumps': str(self.elapsed.jumps),
             'errors': str(self.errors),
         }
         if self._ages:
@@ -410,9 +424,9 @@ class SkynavNode(Node):
 
     def publish_diagnostics(self) -> None:
         """Drop the inputs that waited too long, then publish the status on /diagnostics."""
-        now = self.now_ns()
+        now, elapsed = self.now_ns(), self.elapsed_ns()
         for expire in self._expiring:
-            expire(now)
+            expire(elapsed)
         array = DiagnosticArray(status=[self.diagnostic_status()])
         array.header.stamp.sec, array.header.stamp.nanosec = divmod(now, 1_000_000_000)
         self.emit('/diagnostics', array)

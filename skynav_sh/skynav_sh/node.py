@@ -78,7 +78,7 @@ class ShNode(SkynavNode):
             self.reject(exc.reason, f'mask stamped {stamp}: {exc}')
             return
         if self.camera_input.camera is None:
-            self.camera_input.hold((stamp, mask), self.now_ns())
+            self.camera_input.hold((stamp, mask), self.elapsed_ns())
             return
         self.publish_coefficients(stamp, mask)
 

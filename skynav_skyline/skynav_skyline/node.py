@@ -122,7 +122,7 @@ class SkylineNode(SkynavNode):
     def taken(self, segment: Callable[[], None]) -> None:
         """Segment an exposure now, or hold it until the camera is known."""
         if self.camera_input.camera is None:
-            self.camera_input.hold(segment, self.now_ns())
+            self.camera_input.hold(segment, self.elapsed_ns())
         else:
             segment()
 
