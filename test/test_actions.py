@@ -43,8 +43,8 @@ CONTRACT = {
 # Error codes every action names (besides its own).
 CODES = {
     'Teach': {'NONE', 'MAP_EXISTS', 'MAP_WRITE_FAILED', 'NO_INPUT'},
-    'FollowRoute': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX'},
-    'Home': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX'},
+    'FollowRoute': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX', 'EMERGENCY_STOP'},
+    'Home': {'NONE', 'LOST', 'NO_MAP', 'STALE_INPUT', 'TIMEOUT', 'BAD_INDEX', 'EMERGENCY_STOP'},
 }
 # One non-default value per rosidl type, to see every field survive serialisation.
 SAMPLE = {'string': 'garden ü.db', 'double': -1.25, 'int32': -7, 'uint8': 3, 'boolean': True}
@@ -75,6 +75,11 @@ def test_error_codes_are_named_and_distinct(name):
         assert error_name(result(error_code=code)) == constant
     unnamed = max(codes) + 1
     assert error_name(result(error_code=unnamed)) == f'ERROR_{unnamed}'
+
+
+@pytest.mark.parametrize('name', ['FollowRoute', 'Home'])
+def test_the_emergency_stop_has_the_contracts_code(name):
+    assert action_type(name).Result.EMERGENCY_STOP == 9  # docs/interfaces.md, "On a robot"
 
 
 @pytest.mark.parametrize('name', sorted(CONTRACT))
