@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 """Planar motion of a ground robot: a pose on the ground plane moved along an arc, as a 3D pose, and the velocity
-command that asks for it."""
+command that asks for it (geometry_msgs TwistStamped in base_link, or a bare Twist for a base that takes that)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 from .rotations import wrap_angle
 
 if TYPE_CHECKING:
-    from geometry_msgs.msg import TwistStamped
+    from geometry_msgs.msg import Twist, TwistStamped
 
 BASE_FRAME = 'base_link'  # the robot's body frame: velocity commands are given in it
 
@@ -34,10 +34,18 @@ def ground_pose(x: float, y: float, heading: float) -> np.ndarray:
     return np.array([x, y, 0.0, 0.0, 0.0, math.sin(heading / 2), math.cos(heading / 2)])
 
 
+def fill_twist(message: Twist, linear: float, angular: float) -> Twist:
+    """Fill a Twist of a differential drive: forward speed (m/s) and turn rate (rad/s, left positive) in base_link,
+    every other field 0; return it."""
+    message.linear.x, message.linear.y, message.linear.z = float(linear), 0.0, 0.0
+    message.angular.x, message.angular.y, message.angular.z = 0.0, 0.0, float(angular)
+    return message
+
+
 def fill_velocity_command(message: TwistStamped, stamp: int, linear: float, angular: float) -> TwistStamped:
     """Fill a /cmd_vel command: forward speed (m/s) and turn rate (rad/s, left positive) in base_link, stamped
     `stamp` (ns); return it."""
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(int(stamp), 1_000_000_000)
     message.header.frame_id = BASE_FRAME
-    message.twist.linear.x, message.twist.angular.z = float(linear), float(angular)
+    fill_twist(message.twist, linear, angular)
     return message
