@@ -30,6 +30,7 @@ from rosbags.typesys import TypesysError
 
 from skynav_core.cdr import rosbags_cdr
 from skynav_core.errors import SkynavError
+from skynav_core.namespaces import without_namespace
 from skynav_core.qos import subscription_qos
 from skynav_core.ros import message_class
 from skynav_core.typestore import ros2msg_definition
@@ -71,8 +72,10 @@ class Viewer(ServerListener):
         warn: Callable[[str], None] = print,
         say: Callable[[str], None] = lambda text: None,
         context: foxglove.Context | None = None,
+        namespace: str = '',
     ) -> None:
         self.node = node
+        self.namespace = namespace  # only the topics under it are advertised, by their names within it
         self.wanted = None if topics is None else set(topics)
         self.warn = warn
         self.say = say
@@ -110,9 +113,10 @@ class Viewer(ServerListener):
     def discover(self) -> None:
         """Advertise every wanted topic that now has a publisher; tell once about one that cannot be forwarded."""
         for topic, types in self.node.get_topic_names_and_types():
-            if topic in self.forwards or topic in self.refused or hidden(topic):
+            local = without_namespace(topic, self.namespace)
+            if local is None or topic in self.forwards or topic in self.refused or hidden(local):
                 continue
-            if self.wanted is not None and topic not in self.wanted:
+            if self.wanted is not None and local not in self.wanted:
                 continue
             if not self.node.count_publishers(topic):
                 continue
@@ -121,7 +125,7 @@ class Viewer(ServerListener):
                 continue
             try:  # the Python class first: a channel is advertised only for a topic that can be subscribed
                 msg_class = message_class(types[0])
-                channel = foxglove_channel(topic, types[0], self.context)
+                channel = foxglove_channel(local, types[0], self.context)
             except (SkynavError, TypesysError) as exc:  # no definition, a crafted name, one rosbags cannot parse
                 self.refuse(topic, ' '.join(str(exc).split()))
                 continue
@@ -144,7 +148,7 @@ class Viewer(ServerListener):
             wanted = {topic for topic, count in self._clients.items() if count > 0}
             self._changed = False
         for topic, forward in self.forwards.items():
-            if topic in wanted and forward.subscription is None:
+            if forward.channel.topic in wanted and forward.subscription is None:
                 forward.subscription = self.node.create_subscription(
                     forward.msg_class,
                     topic,
@@ -153,7 +157,7 @@ class Viewer(ServerListener):
                     raw=True,
                 )
                 self.say(f'skynav view: forwarding {topic} (a client subscribed)')
-            elif topic not in wanted and forward.subscription is not None:
+            elif forward.channel.topic not in wanted and forward.subscription is not None:
                 self.node.destroy_subscription(forward.subscription)
                 forward.subscription = None
                 self.say(f'skynav view: no longer forwarding {topic} (no client subscribes)')

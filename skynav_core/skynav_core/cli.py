@@ -45,6 +45,27 @@ def graph_arguments(params: Path | None, map_path: Path | None) -> list[str]:
     return arguments
 
 
+def add_namespace(parser: argparse.ArgumentParser, what: str = 'the graph this command talks to') -> None:
+    """Add --namespace NS (docs/interfaces.md, "On a robot") to a command."""
+    parser.add_argument(
+        '--namespace',
+        metavar='NS',
+        type=_namespace,
+        default='',
+        help=f'the namespace of {what} (e.g. robot1: /robot1/skyline/sh); default none',
+    )
+
+
+def _namespace(text: str) -> str:
+    """Return a --namespace value as ROS writes it; argparse's error for one ROS cannot take."""
+    from .namespaces import NamespaceError, check_namespace  # noqa: PLC0415 (yaml loads only when used)
+
+    try:
+        return check_namespace(text)
+    except NamespaceError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def open_map(path: Path) -> MapStore:
     """Open a map file for a command; CliError with the map's problem in one line if it cannot be used."""
     from .maps import MapError, MapStore  # noqa: PLC0415 (numpy is not loaded while the `skynav` command builds its parser)

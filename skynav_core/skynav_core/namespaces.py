@@ -71,14 +71,16 @@ def check_remap(rule: str) -> str:
 
 def remap_arguments(namespace: str | None, remaps: Sequence[str] = ()) -> list[str]:
     """Return the --ros-args rules that put a graph in `namespace` (its clock and static transforms too) and apply
-    the user's FROM:=TO rules to every node."""
+    the user's FROM:=TO rules to every node: FROM is a contract name (/cmd_vel, taken within the namespace), TO the
+    robot's topic (absolute, or relative to the namespace)."""
     ns, arguments = check_namespace(namespace), []
     if ns:
         arguments += ['-r', f'__ns:={ns}']
         for name in GRAPH_GLOBALS:
             arguments += ['-r', f'{name}:={ns}{name}']
     for rule in remaps:
-        arguments += ['-r', check_remap(rule)]
+        source, _, target = check_remap(rule).partition(':=')
+        arguments += ['-r', f'{relative(source)}:={target}']  # FROM within the namespace, as the nodes name it
     return arguments
 
 

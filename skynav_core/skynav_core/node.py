@@ -3,9 +3,10 @@
 
 A skynav node is an ordinary rclpy node with three habits:
 
-- it declares its topics with `input()` and `output()` and publishes with `emit()`, so the same code
-  runs on live topics (`skynav launch`) and, given a router, inside `skynav run`, where every message
-  is delivered synchronously and none can be dropped;
+- it declares its topics with `input()` and `output()` by the contract's names and publishes with
+  `emit()`, so the same code runs on live topics (`skynav launch`; there the names are relative to the
+  node's namespace, skynav_core.namespaces) and, given a router, inside `skynav run`, where every
+  message is delivered synchronously and none can be dropped;
 - bad input never kills it: `reject(reason, detail)` logs one clear line for the first input of each
   kind of problem, counts every one, and the node goes on (`in_order` rejects an input no newer than
   the last one taken as 'out_of_order'); an exception in a callback is logged and counted the same way;
@@ -52,6 +53,7 @@ from tf2_msgs.msg import TFMessage
 
 from .elapsed import ElapsedTime
 from .mount import StaticTransforms, describe, mount_from_rpy_deg
+from .namespaces import relative
 from .parameters import COMMON_PARAMETERS, ParameterTable
 
 # Camera topics: best effort matches any publisher (drivers often publish best effort).
@@ -261,7 +263,7 @@ class SkynavNode(Node):
         if self.router is not None:
             self.router.subscribe(topic, receive)
         else:
-            self.create_subscription(message_type, topic, receive_live, qos)  # type: ignore[arg-type]  # rclpy passes MessageInfo to a 2-argument callback
+            self.create_subscription(message_type, relative(topic), receive_live, qos)  # type: ignore[arg-type]  # rclpy passes MessageInfo to a 2-argument callback
 
     def _count_lost(self, topic: str, sequence: int) -> None:
         """Count the messages of `topic` lost before reaching the node: a gap in the publisher's sequence numbers."""
@@ -274,7 +276,7 @@ class SkynavNode(Node):
         # A number at or below the last one is a new publisher: the node missed its first ones (sequence - 1).
         # Gaps are told apart only while the topic has a single publisher.
         missed = sequence - last - 1 if sequence > last else sequence - 1
-        if missed > 0 and self.count_publishers(topic) == 1:
+        if missed > 0 and self.count_publishers(self.resolve_topic_name(relative(topic))) == 1:
             self.drop(
                 'lost',
                 missed,
@@ -286,7 +288,7 @@ class SkynavNode(Node):
     def output(self, topic: str, message_type: type, qos: QoSProfile = STREAM_QOS) -> None:
         """Declare a topic this node publishes."""
         self._output_publishers[topic] = (
-            None if self.router is not None else self.create_publisher(message_type, topic, qos)
+            None if self.router is not None else self.create_publisher(message_type, relative(topic), qos)
         )
 
     def flush(self, topic: str, seconds: float) -> bool:

@@ -15,6 +15,7 @@ from rclpy.publisher import Publisher
 from rclpy.qos import ReliabilityPolicy
 
 from .bag import BagReader, RawMessage
+from .namespaces import namespaced
 from .qos import replay_qos
 from .ros import StopRequest, message_class, spin_until
 
@@ -32,6 +33,8 @@ SUBSCRIBER_SETTLE = 1.0
 # nothing, and what they have not taken from shared memory when the publishing process ends is lost (about one
 # replay in three lost its last exposure so). Reliable subscribers have acknowledged everything by then.
 SUBSCRIBER_LINGER = 1.0
+# While waiting for subscribers, what is still missing is told this often (s).
+WAIT_REPORT_PERIOD = 5.0
 
 
 @dataclass
@@ -53,15 +56,17 @@ class ReplayStats:
 class Player:
     """Publishers for the chosen topics of a bag, and the loop that feeds them."""
 
-    def __init__(self, node: Node, bag: BagReader, topics: Sequence[str] | None = None) -> None:
+    def __init__(self, node: Node, bag: BagReader, topics: Sequence[str] | None = None, namespace: str = '') -> None:
         self.node = node
         self.bag = bag
         self.topics = list(bag.topics) if topics is None else list(topics)
+        #: recorded name -> the name it is published on (under `namespace`, if given)
+        self.names = {name: namespaced(name, namespace) if namespace else name for name in self.topics}
         self.publishers: dict[str, Publisher] = {}
         for name in self.topics:
             topic = bag.topics[name]
             self.publishers[name] = node.create_publisher(
-                message_class(topic.msgtype), name, replay_qos(topic.offered_qos, REPLAY_DEPTH)
+                message_class(topic.msgtype), self.names[name], replay_qos(topic.offered_qos, REPLAY_DEPTH)
             )
 
     @property
@@ -75,11 +80,13 @@ class Player:
         expected: Mapping[str, int | Sequence[str]],
         timeout: float,
         stop: StopRequest | None = None,
+        report: Callable[[list[str], float], None] | None = None,
     ) -> list[str]:
         """Wait until each topic has matched its expected subscribers; return what is still missing, one per topic.
 
         `expected` gives per topic a number of subscribers, or the names of the nodes that must subscribe to it
-        (each matched: its subscription in the graph, and as many matched subscriptions as names).
+        (each matched: its subscription in the graph, and as many matched subscriptions as names). `report` is
+        told what is missing and the seconds waited, every WAIT_REPORT_PERIOD s of waiting.
         """
 
         def missing() -> list[str]:
@@ -89,19 +96,27 @@ class Player:
                 matched = publisher.get_subscription_count()
                 if isinstance(want, int):
                     if matched < want:
-                        short.append(f'{topic} ({matched} of {want} subscribers)')
+                        short.append(f'{self.names[topic]} ({matched} of {want} subscribers)')
                     continue
-                present = {info.node_name for info in self.node.get_subscriptions_info_by_topic(topic)}
+                present = {info.node_name for info in self.node.get_subscriptions_info_by_topic(self.names[topic])}
                 absent = [name for name in want if name not in present]
                 if absent or matched < len(want):
-                    short.append(f'{topic} ({matched} subscribers; not yet: {", ".join(absent) or "matching"})')
+                    short.append(
+                        f'{self.names[topic]} ({matched} subscribers; not yet: {", ".join(absent) or "matching"})'
+                    )
             return short
 
         def stopped() -> bool:
             return stop is not None and stop.requested
 
-        if spin_until(executor, lambda: stopped() or not missing(), timeout) and not stopped():
-            spin_until(executor, stopped, SUBSCRIBER_SETTLE)
+        started = time.monotonic()
+        while (waited := time.monotonic() - started) < timeout:
+            if spin_until(executor, lambda: stopped() or not missing(), min(WAIT_REPORT_PERIOD, timeout - waited)):
+                if not stopped():
+                    spin_until(executor, stopped, SUBSCRIBER_SETTLE)
+                break
+            if report is not None and time.monotonic() - started < timeout:
+                report(missing(), time.monotonic() - started)
         return missing()
 
     def play(
@@ -147,5 +162,5 @@ class Player:
         return sum(
             info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
             for topic in self.publishers
-            for info in self.node.get_subscriptions_info_by_topic(topic)
+            for info in self.node.get_subscriptions_info_by_topic(self.names[topic])
         )

@@ -12,6 +12,7 @@ from rclpy.node import Node
 
 from .bag import BagError, BagWriter
 from .cdr import rosbags_cdr
+from .namespaces import without_namespace
 from .qos import bag_qos, subscription_qos
 from .ros import message_class
 from .typestore import UnknownMessageType
@@ -35,8 +36,10 @@ class Recorder:
         writer: BagWriter,
         topics: Iterable[str] | None = None,
         warn: Callable[[str], None] | None = None,
+        namespace: str = '',
     ) -> None:
         self.node = node
+        self.namespace = namespace  # only topics under it are recorded, named as outside it
         self.writer = writer
         self.wanted = None if topics is None else set(topics)
         self.received = 0
@@ -49,12 +52,13 @@ class Recorder:
 
     def discover(self) -> None:
         """Subscribe to every wanted topic that now has a publisher."""
-        for name, types in self.node.get_topic_names_and_types():
-            if name in self._subscriptions or name in self._ignored:
+        for topic, types in self.node.get_topic_names_and_types():
+            name = without_namespace(topic, self.namespace)  # as the recording names it
+            if name is None or name in self._subscriptions or name in self._ignored:
                 continue
             if self.wanted is not None and name not in self.wanted:
                 continue
-            publishers = self.node.get_publishers_info_by_topic(name)
+            publishers = self.node.get_publishers_info_by_topic(topic)
             if not publishers:
                 continue
             if len(types) != 1:
@@ -69,7 +73,7 @@ class Recorder:
             self._types[name] = self.writer.topics[name]
             self._subscriptions[name] = self.node.create_subscription(
                 msg_class,
-                name,
+                topic,
                 partial(self._on_message, name),
                 subscription_qos(publishers, RECORD_DEPTH),
                 raw=True,

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 
 from skynav_core.images import stamp_ns
@@ -63,7 +63,10 @@ class LocalizeNode(SkynavNode):
         self.teach = TeachServer(self)
         self.odometry = OdometryTrack()  # the drive's path length, for tracking's window
         self.input(ODOM_TOPIC, Odometry, self.on_odometry, ODOM_QOS)
-        self.input(COMMAND_TOPIC, TwistStamped, self.teach.on_command, COMMAND_QOS)
+        if self.get_parameter('cmd_vel_stamped').value:  # the type of /cmd_vel is fixed for the node's life
+            self.input(COMMAND_TOPIC, TwistStamped, self.teach.on_command, COMMAND_QOS)
+        else:
+            self.input(COMMAND_TOPIC, Twist, self.teach.on_twist, COMMAND_QOS)
         self.start()
 
     def configure(self, values: dict) -> None:

@@ -54,6 +54,11 @@ PARAMETERS = {
         's between a view and the /odom sample paired with it (teaching, tracking)',
     ),
     'teach_input_timeout': Parameter(10.0, 'Teach goals: s without a usable view before the goal ends with NO_INPUT'),
+    'cmd_vel_stamped': Parameter(
+        True,
+        'Teach goals: /cmd_vel, the commands the robot is driven with, is geometry_msgs/TwistStamped (false: Twist, '
+        "as the route node's cmd_vel_stamped); read at start",
+    ),
     'teach_map_nodes': Parameter(
         ['compass', 'warping'], 'nodes whose `map` parameter is set to a map taught here when its goal ends'
     ),

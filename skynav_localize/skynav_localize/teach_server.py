@@ -4,7 +4,8 @@ localize node: the rclpy glue around a RouteTeacher (teaching, the logic).
 
 A goal runs until it is canceled (the usual end, with success), until the odometry says `max_length` m were driven
 (success), or until no usable view arrived for `teach_input_timeout` s of the node's time (sim time in the
-simulator's in-process graph; NO_INPUT, the map keeps what was stored). Its first feedback (0 snapshots) says
+simulator's in-process graph; the clock's jumps left out, SkynavNode.elapsed_ns: a goal sent before the first /clock
+waits for it) with NO_INPUT, the map keeping what was stored. Its first feedback (0 snapshots) says
 teaching has begun. The localize node hands it every view it takes and every /odom message (on_odometry). When the
 goal ends the map is closed into one file and the nodes switch to it: the localize node itself and those of
 `teach_map_nodes` (their `map` parameter is set through their parameter services), before the result is sent. One
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import Parameter as ParameterMessage
 from rcl_interfaces.msg import ParameterType, ParameterValue
@@ -35,6 +36,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from skynav_core.images import stamp_ns
+from skynav_core.namespaces import relative
 from skynav_core.node import SkynavNode
 from skynav_msgs.action import Teach
 
@@ -58,7 +60,7 @@ class ActiveGoal:
     handle: Any  # rclpy ServerGoalHandle
     teacher: RouteTeacher
     done: Future  # its result: 'canceled', 'max_length' or a TeachError
-    last_view_ns: int  # node clock at the last usable view (or the start)
+    last_view_ns: int  # the node's elapsed time (SkynavNode.elapsed_ns) at the last usable view (or the start)
 
 
 def odometry_pose(message: Odometry) -> np.ndarray:
@@ -85,7 +87,7 @@ class TeachServer:
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._clients: dict[str, Any] = {}
         self.server = ActionServer(
-            node, Teach, TEACH_ACTION, execute_callback=self.execute, cancel_callback=self.on_cancel
+            node, Teach, relative(TEACH_ACTION), execute_callback=self.execute, cancel_callback=self.on_cancel
         )
         node.create_timer(INPUT_CHECK_PERIOD, self.check_input)
 
@@ -98,7 +100,7 @@ class TeachServer:
         self.settings = values
         for name in values['teach_map_nodes']:
             if name and name not in self._clients:
-                self._clients[name] = self.node.create_client(SetParameters, f'/{name}/set_parameters')
+                self._clients[name] = self.node.create_client(SetParameters, f'{name}/set_parameters')
 
     # --- inputs -----------------------------------------------------------------------------------------------
 
@@ -107,7 +109,7 @@ class TeachServer:
         goal = self.active
         if goal is None or goal.done.done():
             return
-        goal.last_view_ns = self.node.now_ns()
+        goal.last_view_ns = self.node.elapsed_ns()
         try:
             stored = goal.teacher.offer(stamp, coefficients)
         except ValueError as exc:
@@ -133,16 +135,26 @@ class TeachServer:
         time); a non-finite command is counted and ignored."""
         if self.active is None:
             return
-        stamp = stamp_ns(message.header) or self.node.now_ns()
-        if not self.active.teacher.add_command(stamp, message.twist.linear.x, message.twist.angular.z):
+        self.take_command(stamp_ns(message.header) or self.node.now_ns(), message.twist)
+
+    def on_twist(self, message: Twist) -> None:
+        """Take one unstamped velocity command (cmd_vel_stamped false) for the goal being taught, at the node's time."""
+        if self.active is not None:
+            self.take_command(self.node.now_ns(), message)
+
+    def take_command(self, stamp: int, twist: Twist) -> None:
+        """Hand the teacher a command stamped `stamp` (ns); a non-finite or old one is counted and ignored."""
+        assert self.active is not None  # the callers look first
+        if not self.active.teacher.add_command(stamp, twist.linear.x, twist.angular.z):
             self.node.reject('command', 'a /cmd_vel command is not finite or not newer than the last one')
 
     def check_input(self) -> None:
-        """End the goal with NO_INPUT when no usable view arrived for teach_input_timeout s."""
+        """End the goal with NO_INPUT when no usable view arrived for teach_input_timeout s of the node's clock
+        (its jumps left out: a goal sent before the first /clock waits for the clock)."""
         goal = self.active
         if goal is None or goal.done.done():
             return
-        silence = (self.node.now_ns() - goal.last_view_ns) * 1e-9
+        silence = (self.node.elapsed_ns() - goal.last_view_ns) * 1e-9
         if silence > self.settings['teach_input_timeout']:
             goal.done.set_result(NoInput(f'no usable view on /skyline/sh for {silence:.1f} s'))
 
@@ -182,7 +194,7 @@ class TeachServer:
             return self.result(exc.code, str(exc))
         log = self.node.get_logger()
         log.info(f'teaching {teacher.path}: a snapshot every {spacing:g} m')
-        self.active = ActiveGoal(goal_handle, teacher, Future(), self.node.now_ns())
+        self.active = ActiveGoal(goal_handle, teacher, Future(), self.node.elapsed_ns())
         goal_handle.publish_feedback(Teach.Feedback(snapshots=0, route_length=0.0))  # teaching has begun
         outcome = await self.active.done
         self.active = None

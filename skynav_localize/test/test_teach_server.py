@@ -306,3 +306,58 @@ def test_a_teach_killed_with_sigkill_leaves_a_readable_map(ros_context, garden, 
         kept = np.searchsorted(drive.stamps, store.stamps())
         np.testing.assert_array_equal(drive.stamps[kept], store.stamps())
         np.testing.assert_allclose(store.coefficients(), drive.coefficients[kept])
+
+
+def test_a_goal_sent_before_the_first_clock_teaches_and_jumps_fire_no_timeout(ros_context, garden, tmp_path):
+    """Sim time: the node's clock reads 0 until the first /clock, then jumps to the recording's time, later jumps
+    on by 1000 s; no jump counts as silence (NO_INPUT), while a running clock without views still ends the goal."""
+    from action_msgs.msg import GoalStatus
+    from rosgraph_msgs.msg import Clock
+
+    from skynav_localize.node import LocalizeNode
+
+    node = LocalizeNode(context=ros_context)
+    node.set_parameters([Parameter('use_sim_time', value=True), Parameter('teach_input_timeout', value=1.0)])
+    executor, thread = spin_in_thread(node, ros_context)
+    operator = Operator(ros_context)
+    clock = operator.node.create_publisher(Clock, '/clock', 10)
+
+    def tick(stamp: int) -> None:
+        message = Clock()
+        message.clock.sec, message.clock.nanosec = divmod(stamp, 10**9)
+        clock.publish(message)
+
+    try:
+        drive, path = garden['teach'], tmp_path / 'sim_time.db'
+        handle = operator.send(map_path=str(path), spacing=0.3)
+        result = on_executor_thread(operator.executor, handle.get_result_async)
+        time.sleep(2.0)  # twice the input timeout of wall time, with no clock: no time passed
+        assert not result.done(), 'the goal ended before the clock started'
+        assert node.get_clock().now().nanoseconds == 0
+        for part, (frames, shift) in enumerate(((range(0, 20), 0), (range(20, 40), 1000 * 10**9))):
+            for k in frames:  # the clock starts (part 0) or jumps 1000 s on (part 1) with the frames
+                tick(int(drive.stamps[k]) + shift)
+                operator.drive(drive, [k], shift=shift)
+            newest = int(drive.stamps[frames[-1]]) + shift
+            wait_until(lambda newest=newest: node.last_stamp == newest, f'part {part} taken')
+            assert not result.done(), f'part {part}: the goal ended ({result.result() if result.done() else ""})'
+        assert node.elapsed.jumps >= 2
+        # the clock runs on without views: that is silence, NO_INPUT after 1 s of sim time
+        last = int(drive.stamps[39]) + 1000 * 10**9
+        for step in range(1, 40):
+            tick(last + step * 10**8)
+            time.sleep(0.05)
+            if result.done():
+                break
+        wait_until(result.done, 'NO_INPUT on a running clock')
+        status, taught = result.result().status, result.result().result
+        assert (status, error_name(taught)) == (GoalStatus.STATUS_ABORTED, 'NO_INPUT'), taught.error_msg
+        with MapStore.open(path) as store:  # everything taught before the silence is kept, both parts
+            stamps = store.stamps()
+            assert len(store) == taught.snapshots >= 4
+            assert stamps.min() < drive.stamps[20] and stamps.max() > drive.stamps[20] + 1000 * 10**9
+    finally:
+        operator.close()
+        executor.shutdown()
+        thread.join(timeout=TIMEOUT)
+        node.destroy_node()

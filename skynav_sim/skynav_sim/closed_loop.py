@@ -39,6 +39,7 @@ from skynav_core.images import fill_image, stamp_ns
 from skynav_core.maps import MapStore, Snapshot
 from skynav_core.motion import fill_velocity_command
 from skynav_core.mount import BASE_FRAME, mount_from_rpy_deg
+from skynav_core.namespaces import relative, remap_arguments
 from skynav_core.node import TF_STATIC_QOS, TF_STATIC_TOPIC, SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_core.rotations import as_quaternion
@@ -259,7 +260,7 @@ def drive_goal(
     client_node = Node('sim_goal_client', context=context)
     for node in [*graph.nodes, client_node]:
         executor.add_node(node)
-    client = ActionClient(client_node, action[0], action[1])
+    client = ActionClient(client_node, action[0], relative(action[1]))  # in the graph's namespace
     run = Run(mower.pose.position, np.asarray(goal_place, float), [mower.pose.position], [mower.pose.heading])
     feedback: list[Any] = []
     if mount is not None:
@@ -345,6 +346,7 @@ class Base:
     camera: CameraOutput = CameraOutput()  # what the mower's camera delivers (default: the UV/green pair, mono8)
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     declare_mount: str = 'tf_static'
+    namespace: str = ''  # the graph's namespace (skynav_core.namespaces): its nodes, actions and /clock under it
 
     @property
     def mount(self) -> np.ndarray:
@@ -361,6 +363,10 @@ class Base:
         if self.declare_mount != 'parameter':
             return []
         return ['-p', f'camera_mount_rpy_deg:=[{", ".join(repr(float(v)) for v in self.mount_rpy_deg)}]']
+
+    def ros_arguments(self) -> list[str]:
+        """Return the graph's ROS arguments of this robot: its mount (mount_arguments) and its namespace."""
+        return [*self.mount_arguments(), *remap_arguments(self.namespace)]
 
 
 def home_runs(
@@ -381,7 +387,7 @@ def home_runs(
     """Home from each start to snapshot 0 of the map at `goal` with a Home goal (views bumped up to bump_tilt deg,
     under a sky of `clouds` cover)."""
     runs = []
-    arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
+    arguments = ['-p', f'map:={map_path}', *base.ros_arguments(), *(ros_args or [])]
     for k, (start, heading) in enumerate(starts):
         simulation = Simulation(
             world, camera, hours, seed, output=base.camera, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount
@@ -502,7 +508,7 @@ def follow_route(
     if route is None:
         with MapStore.open(map_path) as store:
             route = base_positions(store.poses(), base.mount)
-    arguments = ['-p', f'map:={map_path}', *base.mount_arguments(), *(ros_args or [])]
+    arguments = ['-p', f'map:={map_path}', *base.ros_arguments(), *(ros_args or [])]
     simulation = Simulation(
         world, camera, hours, seed, output=base.camera, bump_tilt=bump_tilt, clouds=clouds, mount=base.mount
     )
@@ -601,7 +607,7 @@ def teach_route(
     )
     simulation = Simulation(world, camera, hours, seed, output=base.camera, mount=base.mount)
     teaching = Teaching()
-    arguments = [*base.mount_arguments(), *(ros_args or [])]
+    arguments = [*base.ros_arguments(), *(ros_args or [])]
     with in_process(graph_specs(('skyline', 'sh', 'localize')), arguments) as graph:
         robot = graph.nodes[-1]
         assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
@@ -609,7 +615,7 @@ def teach_route(
         client_node = Node('sim_teach_client', context=robot.context)
         for node in [*graph.nodes, client_node]:
             executor.add_node(node)
-        client = ActionClient(client_node, Teach, '/skynav/teach')
+        client = ActionClient(client_node, Teach, relative('/skynav/teach'))  # in the graph's namespace
         try:
             graph.advance(simulation.stamp())  # the goal starts at the first frame's time (sim time)
             if base.published_mount is not None:

@@ -41,10 +41,10 @@ import numpy as np
 from skynav_core.colour import srgb_to_linear
 from skynav_sim.errors import SimError
 
+from .names import LANDSCAPES
 from .robot import CAMERA_HEIGHT
 from .sky import UV_GREEN
 
-LANDSCAPES = ('garching', 'guereins', 'hurricane', 'geneva')
 PACKAGE = 'stellarium-data'
 PACKAGE_PREFIX = './usr/share/stellarium/landscapes/'
 CACHE_ENVIRONMENT = 'SKYNAV_DATA'  # folder for fetched data (default ~/.cache/skynav)

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from skynav_core.images import fill_image
+from skynav_core.namespaces import relative
 from skynav_core.ros import message_class, run_node
 
 from . import recording
@@ -76,7 +77,8 @@ class SimCameraNode(Node):
             'geometry_msgs/msg/PoseStamped': POSE,
         }
         self.outputs = {
-            topic: self.create_publisher(classes[msgtype], topic, qos) for topic, msgtype in self.output.topics.items()
+            topic: self.create_publisher(classes[msgtype], relative(topic), qos)
+            for topic, msgtype in self.output.topics.items()
         }
         self.info = self._camera_info()
         self.timer = self.create_timer(1.0 / float(values['rate']), self.publish_next)

@@ -23,12 +23,12 @@ from scipy.spatial.transform import Rotation
 
 from skynav_sim.errors import SimError
 
+from .names import SCENARIOS
 from .render import CameraPose
 from .robot import bump, camera_pose
 from .sky import TIMES_OF_DAY
 from .world import YARD_RADIUS, World
 
-SCENARIOS = ('teach', 'repeat', 'homing', 'compass', 'skyline')
 FRAME_RATE = 10.0  # Hz, the contract's recordings
 
 

@@ -22,14 +22,13 @@ import numpy.typing as npt
 
 from skynav_sim.errors import SimError
 
-from .landscape import LANDSCAPES, Backdrop, load
+from .landscape import Backdrop, load
 from .materials import Surface
+from .names import LANDSCAPES, STYLES, WORLDS
 from .noise import FractalNoise
 from .primitives import ConvexPolytope, Cylinder, Ellipsoid, Primitive
 from .terrain import Terrain
 
-STYLES = ('garden', 'park', 'mineral')
-WORLDS = STYLES + LANDSCAPES  # every name `generate` takes
 YARD_RADIUS = 10.0  # m: where the robot drives
 TERRAIN_EXTENT = 120.0  # m: half side of the terrain grid
 TERRAIN_CELL = 0.25  # m

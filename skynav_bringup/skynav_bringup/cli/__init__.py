@@ -11,8 +11,10 @@ its module defines
 - ``run(args) -> int``: does the work and returns the exit code.
 
 Modules import only argparse-level things at import time; heavy imports live
-inside ``run``. Exit codes: 0 success, 1 the work failed (a missing or corrupt
-file, an unknown topic or type), 2 a malformed command line.
+inside ``run``. Only the command being run is configured (some list choices
+that take a while to import), so a command starts as fast as its own needs.
+Exit codes: 0 success, 1 the work failed (a missing or corrupt file, an
+unknown topic or type), 2 a malformed command line.
 """
 
 from __future__ import annotations
@@ -38,8 +40,20 @@ def _subparsers(parser: argparse.ArgumentParser, path: str) -> argparse._SubPars
     return parser.add_subparsers(title='commands', metavar='COMMAND', dest=f'command_{path or "root"}')
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the parser of `skynav` with every installed subcommand."""
+def _chosen_command(argv: Sequence[str], names: set[str]) -> str:
+    """Return the command path (dots) that the leading words of `argv` name ('' for none)."""
+    path = ''
+    for word in argv:
+        candidate = f'{path}.{word}' if path else word
+        if word.startswith('-') or not any(n == candidate or n.startswith(candidate + '.') for n in names):
+            break
+        path = candidate
+    return path
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """Return the parser of `skynav` with every installed subcommand; given the command line `argv`, only the
+    command it names gets its arguments (the others are listed)."""
     parser = argparse.ArgumentParser(
         prog='skynav',
         description='Insect-inspired visual navigation from an upward-looking UV/green fish-eye camera.',
@@ -58,8 +72,10 @@ def build_parser() -> argparse.ArgumentParser:
             groups[path] = sub
         return groups[path]
 
+    commands = sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name)
+    chosen = None if argv is None else _chosen_command(argv, {ep.name for ep in commands})
     # Sorted, a group's own module ('eval') comes before its commands ('eval.compass').
-    for ep in sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name):
+    for ep in commands:
         try:
             module = ep.load()
         except Exception as exc:  # a broken plug-in must not take the other commands down
@@ -75,7 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
             description=module.__doc__,
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
-        module.configure(sub)
+        if chosen is None or ep.name == chosen:
+            module.configure(sub)
         sub.set_defaults(run=module.run, parser=sub, command=ep.name.replace('.', ' '))
     return parser
 
@@ -83,7 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `skynav` with `argv` (default: the process arguments) and return its exit code."""
     apply_ros_environment()
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.cli import add_namespace
+
 HELP = "print a topic's messages as YAML"
 
 
@@ -18,6 +20,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav echo`."""
     parser.add_argument('topic', metavar='TOPIC')
     parser.add_argument('--once', action='store_true', help='print one message and exit')
+    add_namespace(parser, 'the graph whose TOPIC to print (/NS/TOPIC)')
     parser.add_argument('--count', type=int, metavar='N', help='print N messages and exit')
     parser.add_argument('--type', metavar='PKG/msg/TYPE', help='message type; skips looking it up in the graph')
     parser.add_argument(
@@ -41,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.validate_topic_name import validate_topic_name
 
     from skynav_core.msgyaml import to_yaml
+    from skynav_core.namespaces import namespaced
     from skynav_core.qos import subscription_qos
     from skynav_core.ros import StopRequest, message_class, spin_until, tool_node
     from skynav_core.typestore import ensure_type, typestore
@@ -58,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     truncate = args.truncate_length or None
 
     with StopRequest() as stop, tool_node('skynav_echo') as (node, executor):
-        topic = node.resolve_topic_name(args.topic)
+        topic = namespaced(args.topic, args.namespace) if args.namespace else node.resolve_topic_name(args.topic)
 
         def topic_types() -> list[str]:
             return dict(node.get_topic_names_and_types()).get(topic, [])

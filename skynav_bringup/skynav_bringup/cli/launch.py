@@ -4,7 +4,8 @@
 The nodes are those installed in this environment (see `skynav_core.nodes`).
 Parameters come from the defaults shipped in skynav_bringup/config, overridden by the YAML file
 given with --params, in the ROS 2 format (`node_name: {ros__parameters: {...}}`); --map sets the
-map of the nodes that compare against one (localize, compass, warping). On a full ROS 2 install,
+map of the nodes that compare against one (localize, compass, warping). --namespace puts the whole graph under
+/NS (skynav_core.namespaces) and --remap renames a topic for every node. On a full ROS 2 install,
 `ros2 launch skynav_bringup skynav.launch.py` starts the same graph.
 
 Across machines (a robot and a base station, README 'Robot and base station'): --discovery-range
@@ -18,8 +19,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 from pathlib import Path
 
+from skynav_core.cli import add_namespace
 from skynav_core.network import DISCOVERY_RANGES, DISCOVERY_SERVER_PORT, TRANSPORTS
 
 HELP = 'start the whole node graph on live topics'
@@ -32,6 +35,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument('--map', type=Path, metavar='MAP.db', help='map for the nodes that need one')
     parser.add_argument('--nodes', nargs='+', metavar='NAME', help='start only these nodes')
+    add_namespace(parser, 'the graph: every node, topic, service and action under /NS, its /clock and /tf_static too')
+    parser.add_argument(
+        '--remap',
+        action='append',
+        default=[],
+        metavar='FROM:=TO',
+        help="rename a topic for every node (repeatable): FROM as the contract names it (/cmd_vel), TO the robot's "
+        'topic (absolute, or relative to the namespace)',
+    )
     parser.add_argument(
         '--discovery-range',
         choices=DISCOVERY_RANGES,
@@ -70,6 +82,7 @@ def default_params_file() -> Path | None:
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
     from skynav_core.launcher import Launcher
+    from skynav_core.namespaces import NamespaceError, remap_arguments
     from skynav_core.network import network_environment, socket_buffer_warning, start_discovery_server
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
@@ -79,7 +92,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.map is not None and not args.map.is_file():
         raise CliError(f'{args.map}: no such map file')
-    ros_args = ros_arguments(args.params, args.map)
+    try:
+        remaps = remap_arguments(args.namespace, args.remap)
+    except NamespaceError as exc:
+        raise CliError(str(exc), exit_code=2) from None
+    scratch = tempfile.TemporaryDirectory(prefix='skynav-launch-')  # the parameter files made for the namespace
+    ros_args = ros_arguments(args.params, args.map, args.namespace, Path(scratch.name)) + remaps
     specs = installed_nodes()
     if args.nodes:
         if unknown := sorted(set(args.nodes) - {s.name for s in specs}):
@@ -104,11 +122,14 @@ def run(args: argparse.Namespace) -> int:
         server = start_discovery_server(args.discovery_server, sys.stdout)
         print(f'[launch] discovery server serving on {args.discovery_server} (pid {server.pid})', flush=True)
     launcher = Launcher(specs, ros_args)
+    if args.namespace:
+        print(f'[launch] namespace {args.namespace}: topics and actions under {args.namespace}/', flush=True)
     try:
         with StopRequest() as stop:
             launcher.start()
             return launcher.wait(lambda: stop.requested)
     finally:
+        scratch.cleanup()
         if server is not None:
             server.terminate()
             server.wait(timeout=10)

@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.cli import add_namespace
+
 HELP = 'record live topics into an MCAP bag'
 
 
@@ -23,6 +25,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('topics', nargs='*', metavar='TOPIC', help='topics to record; they may appear later')
     parser.add_argument('--all', action='store_true', help='record every topic, also those that appear later')
     parser.add_argument('--no-compression', action='store_true', help='store chunks uncompressed (default zstd)')
+    add_namespace(
+        parser,
+        "the graph to record: TOPIC (and --all) within it, stored by the contract's names (/NS/skyline/sh "
+        'as /skyline/sh)',
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,9 +53,10 @@ def run(args: argparse.Namespace) -> int:
 
     with BagWriter(args.out, compress=not args.no_compression) as writer:
         with StopRequest() as stop, tool_node('skynav_record') as (node, executor):
-            recorder = Recorder(node, writer, None if args.all else args.topics, warn=warn)
+            recorder = Recorder(node, writer, None if args.all else args.topics, warn=warn, namespace=args.namespace)
+            where = f' of {args.namespace}' if args.namespace else ''
             print(
-                f'skynav record: recording {"every topic" if args.all else " ".join(args.topics)} '
+                f'skynav record: recording {"every topic" if args.all else " ".join(args.topics)}{where} '
                 f'into {args.out}; Ctrl-C to stop',
                 file=sys.stderr,
             )

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.cli import add_namespace
+
 HELP = 'serve the live topics to Foxglove (WebSocket)'
 DEFAULT_PORT = 8765  # Foxglove's usual WebSocket port
 
@@ -23,6 +25,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         '--port', type=int, default=DEFAULT_PORT, help=f'port to listen on (default {DEFAULT_PORT}; 0: any free one)'
     )
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='forward only these topics (default: all)')
+    add_namespace(parser, 'the graph to watch: only its topics are forwarded, named as outside a namespace')
 
 
 def layout_file():
@@ -50,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
         print(text, file=sys.stderr, flush=True)
 
     with StopRequest() as stop, tool_node('skynav_view', events=True) as (node, executor):
-        viewer = Viewer(node, args.topics, warn, say=warn)
+        viewer = Viewer(node, args.topics, warn, say=warn, namespace=args.namespace)
         try:
             server = foxglove.start_server(name='skynav', host=args.host, port=args.port, server_listener=viewer)
         except Exception as exc:  # the SDK raises its own error types (e.g. the port in use)

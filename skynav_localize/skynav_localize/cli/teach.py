@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from skynav_core.cli import add_namespace
+
 HELP = 'teach a route: store snapshots of the live views into a new map while the robot is driven'
 
 
@@ -33,6 +35,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         '--wait', type=float, default=10.0, metavar='SECONDS', help='how long to wait for the graph (default 10)'
     )
+    add_namespace(parser)
 
 
 def progress_line(snapshots: int, route_length: float) -> str:
@@ -47,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
     from skynav_core.cli import CliError, open_map
     from skynav_core.goals import RESULT_AFTER_CANCEL, ProgressLine, goal_result, send_goal
+    from skynav_core.namespaces import namespaced
     from skynav_msgs.action import Teach
 
     from ..teach_server import TEACH_ACTION
@@ -71,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
         line.show(progress_line(feedback.snapshots, feedback.route_length))
 
     try:
-        outcome = send_goal(Teach, TEACH_ACTION, goal, show, args.wait, 'skynav_teach', RESULT_AFTER_CANCEL)
+        outcome = send_goal(
+            Teach, namespaced(TEACH_ACTION, args.namespace), goal, show, args.wait, 'skynav_teach', RESULT_AFTER_CANCEL
+        )
     finally:
         line.end()
     result = goal_result(outcome, cancel_finishes=True, detail=lambda result: f'{result.snapshots} snapshots kept')

@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from skynav_core.cli import add_namespace
+
 HELP = 'drive along a taught route (FollowRoute goal to the running graph)'
 
 
@@ -33,12 +35,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--to', dest='end', type=int, default=-1, metavar='J', help='end snapshot (default: the last)')
     parser.add_argument('--max-speed', type=float, default=0.0, metavar='M/S', help="speed limit (default: the node's)")
     parser.add_argument('--wait', type=float, default=10.0, metavar='S', help='wait this long for the server (10 s)')
+    add_namespace(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Send the goal and follow it to its end; return the exit code."""
     from skynav_core.cli import CliError
     from skynav_core.goals import ProgressLine, goal_result, send_goal
+    from skynav_core.namespaces import namespaced
     from skynav_msgs.action import FollowRoute
 
     if args.start < -1 or args.end < -1:
@@ -59,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        outcome = send_goal(FollowRoute, '/skynav/follow_route', goal, show, args.wait)
+        outcome = send_goal(FollowRoute, namespaced('/skynav/follow_route', args.namespace), goal, show, args.wait)
     finally:
         line.end()
     result = goal_result(outcome)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from skynav_core.cli import add_namespace
+
 HELP = 'drive to the place of one snapshot (Home goal to the running graph)'
 
 
@@ -21,12 +23,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--index', type=int, required=True, metavar='I', help='the snapshot to home to')
     parser.add_argument('--max-speed', type=float, default=0.0, metavar='M/S', help="speed limit (default: the node's)")
     parser.add_argument('--wait', type=float, default=10.0, metavar='S', help='wait this long for the server (10 s)')
+    add_namespace(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Send the goal and follow it to its end; return the exit code."""
     from skynav_core.cli import CliError
     from skynav_core.goals import ProgressLine, goal_result, send_goal
+    from skynav_core.namespaces import namespaced
     from skynav_msgs.action import Home
 
     if args.index < 0:
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         line.show(f'homing to snapshot {args.index}: {feedback.steps} frames  confidence {feedback.confidence:.2f}')
 
     try:
-        outcome = send_goal(Home, '/skynav/home', goal, show, args.wait)
+        outcome = send_goal(Home, namespaced('/skynav/home', args.namespace), goal, show, args.wait)
     finally:
         line.end()
     result = goal_result(outcome)

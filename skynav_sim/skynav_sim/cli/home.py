@@ -20,7 +20,7 @@ HELP = 'closed-loop homing of a simulated robot with the skynav nodes'
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim home`."""
-    from ..world import STYLES
+    from ..names import STYLES
     from .options import add_camera_argument, add_mount_arguments
 
     parser.add_argument('--world', choices=STYLES, default='park', help='world style (default park)')

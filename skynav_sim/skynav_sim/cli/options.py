@@ -17,8 +17,7 @@ MAX_FOV = 220.0  # degrees (docs/interfaces.md)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the scenario, world, camera and daylight options."""
-    from ..scenarios import SCENARIOS
-    from ..world import WORLDS
+    from ..names import SCENARIOS, WORLDS
 
     parser.add_argument('scenario', metavar='SCENARIO', choices=SCENARIOS, help=f'one of {", ".join(SCENARIOS)}')
     parser.add_argument(
@@ -224,7 +223,7 @@ def scenario(args: argparse.Namespace):
 
 def add_closed_loop_arguments(parser: argparse.ArgumentParser, seeds: tuple[int, ...], what: str) -> None:
     """Add the options of a closed-loop evaluation: world styles, seeds, the two times of day and the cloud cover."""
-    from ..world import STYLES
+    from ..names import STYLES
 
     parser.add_argument(
         '--worlds', nargs='+', default=list(STYLES), metavar='STYLE', help=f'world styles (default {" ".join(STYLES)})'
@@ -274,7 +273,11 @@ MOUNT_DECLARATIONS = ('tf_static', 'parameter', 'none')
 
 
 def add_mount_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add --mount-rpy, the camera's mount on the simulated mower, and --declare-mount, how the graph learns it."""
+    """Add the simulated robot's own options: --mount-rpy, the camera's mount on the mower, --declare-mount, how the
+    graph learns it, and --namespace, the graph's."""
+    from skynav_core.cli import add_namespace
+
+    add_namespace(parser, 'the simulated graph (its nodes, actions and /clock); e.g. two simulations on one domain')
     parser.add_argument(
         '--mount-rpy',
         type=float,
@@ -321,6 +324,7 @@ def base(args: argparse.Namespace) -> Base:
         mount_rpy_deg=(mount[0], mount[1], mount[2]),
         declare_mount=getattr(args, 'declare_mount', Base.declare_mount),
         camera=camera_output(args),
+        namespace=getattr(args, 'namespace', ''),
     )
 
 
@@ -343,8 +347,8 @@ def check_closed_loop_arguments(args: argparse.Namespace) -> tuple[float, float]
     from skynav_core.cli import CliError
     from skynav_core.evaluation import check_positive
 
+    from ..names import STYLES
     from ..sky import parse_time
-    from ..world import STYLES
 
     if unknown := [w for w in args.worlds if w not in STYLES]:
         raise CliError(f'unknown world {", ".join(unknown)} (one of {", ".join(STYLES)})', exit_code=2)

@@ -21,7 +21,7 @@ DESCRIPTION_SOURCE = 'skynav sim teach (synthetic, scripted teleoperation)'
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav sim teach`."""
-    from ..world import STYLES
+    from ..names import STYLES
     from . import options
     from .options import DEFAULT_DISTORTION
 
