@@ -159,3 +159,16 @@ def test_replay_waits_for_a_best_effort_subscriber_to_take_the_last_message(tmp_
     assert 'gave 1 best-effort subscribers 1 s to take the last messages' in err, err
     for reliability, taken in stamps.items():
         assert len(taken) == frames and taken == sorted(taken), (reliability, taken)
+
+
+def test_replay_says_at_once_whom_it_waits_for_and_keeps_saying_it(tmp_path):
+    # No graph runs in this namespace: the replay waits, saying so from its first line on, then publishes anyway.
+    bag = tmp_path / 'sample.mcap'
+    write_sample_bag(bag, frames=3)
+    result = run_skynav('replay', str(bag), '--namespace', 'nobody_here', '--wait-timeout', '6', '--rate', '0')
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.splitlines()
+    assert 'first waiting up to 6 s for the skynav graph' in lines[0] and 'under /nobody_here' in lines[0], lines
+    assert lines[1].startswith('skynav replay: waiting for ') and 'skyline' in lines[1], lines
+    assert any('5 s: still waiting on' in line and '/nobody_here/camera/uv/image_raw' in line for line in lines), lines
+    assert any('publishing anyway' in line for line in lines) and 'published' in lines[-1], lines
