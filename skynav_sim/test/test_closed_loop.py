@@ -61,8 +61,10 @@ def test_homing_succeeds_from_nine_in_ten_starts(camera, tmp_path):
     assert np.median([r.path_ratio for r in successes]) < 1.5
 
 
-def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, tmp_path):
-    from skynav_sim.closed_loop import home_runs, snapshot_map
+# the simulated graph in a namespace too (its nodes, actions and /clock under /robot1), as one of two robots
+@pytest.mark.parametrize('namespace', ['', 'robot1'], ids=['global', 'namespaced'])
+def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, tmp_path, namespace):
+    from skynav_sim.closed_loop import Base, home_runs, snapshot_map
     from skynav_sim.scenarios import ScenarioParameters, snapshot_place
     from skynav_sim.sky import parse_time
     from skynav_sim.world import generate
@@ -74,7 +76,17 @@ def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, t
     trunk = next(f for f in world.footprints if f.disc)
     start = np.asarray(trunk.center[:2], float)
     assert world.collides(*start)
-    (run,) = home_runs(world, camera, goal, [(start, 0.0)], tmp_path / 'home.db', hours, seed, max_frames=20)
+    (run,) = home_runs(
+        world,
+        camera,
+        goal,
+        [(start, 0.0)],
+        tmp_path / 'home.db',
+        hours,
+        seed,
+        max_frames=20,
+        base=Base(namespace=namespace),
+    )
     assert run.stopped == 'BLOCKED' and 'bumper' in run.result.error_msg
     assert [p.tolist() for p in run.path] == [start.tolist()] * 2  # one frame, and it stood still
     assert run.commands == 2  # the frame's command and the stop
