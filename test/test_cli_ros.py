@@ -53,6 +53,31 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
     node.destroy_node()
 
 
+def test_echo_in_a_namespace_prints_that_graphs_topic_only(ros_context):
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from skynav_core.ros import message_class
+
+    PlaceMatch = message_class('skynav_msgs/msg/PlaceMatch')
+    node = Node('two_robots', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    publishers = {index: node.create_publisher(PlaceMatch, f'/robot{index}/localization/match', 10) for index in (1, 2)}
+    echo = start_skynav('echo', '/localization/match', '--namespace', 'robot2', '--count', '3')
+    deadline = time.monotonic() + 60
+    while echo.poll() is None and time.monotonic() < deadline:
+        for index, publisher in publishers.items():
+            publisher.publish(PlaceMatch(map_name=f'robot{index}', index=index))
+        executor.spin_once(timeout_sec=0.1)
+    out, err = echo.communicate(timeout=10)
+    executor.shutdown()
+    node.destroy_node()
+    assert echo.returncode == 0, err
+    printed = [d for d in yaml.safe_load_all(out) if d is not None]
+    assert [(d['map_name'], d['index']) for d in printed] == [('robot2', 2)] * 3
+
+
 def test_replay_of_damaged_bags_fails_in_one_line(tmp_path):
     good = tmp_path / 'good.mcap'
     write_sample_bag(good, frames=3)
