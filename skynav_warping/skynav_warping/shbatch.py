@@ -40,14 +40,13 @@ def z_factors(max_degree: int, angles: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def rotate_z_columns(c: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Return c (n, ..., M) with column i turned by angles[i] (rad) about +z: g(theta, phi) = f(theta, phi - a_i)."""
-    # factors repeated over the middle axes, so that every product runs over one flat (n, K M) array, in place
-    repeats = int(np.prod(c.shape[1:-1], dtype=int))
-    cos, sin, partner = z_factors(degree_from_size(c.shape[0]), np.tile(np.asarray(angles, dtype=float), repeats))
-    flat = c.reshape(c.shape[0], -1)
-    cos *= flat
-    sin *= flat[partner]
-    cos += sin
-    return cos.reshape(c.shape)
+    # factors (n, 1.., M) broadcast over the middle axes: the sines and cosines of each angle are taken once, not
+    # once per middle index (the products are the same, element by element)
+    cos, sin, partner = z_factors(degree_from_size(c.shape[0]), np.asarray(angles, dtype=float))
+    middle = (1,) * (c.ndim - 2)
+    out = cos.reshape(cos.shape[:1] + middle + cos.shape[1:]) * c
+    out += sin.reshape(out.shape[:1] + middle + sin.shape[1:]) * c[partner]
+    return out
 
 
 def apply_sparse(matrix, c: np.ndarray) -> np.ndarray:
