@@ -148,7 +148,7 @@ class Viewer(ServerListener):
             wanted = {topic for topic, count in self._clients.items() if count > 0}
             self._changed = False
         for topic, forward in self.forwards.items():
-            if forward.channel.topic in wanted and forward.subscription is None:
+            if forward.channel.topic() in wanted and forward.subscription is None:
                 forward.subscription = self.node.create_subscription(
                     forward.msg_class,
                     topic,
@@ -157,7 +157,7 @@ class Viewer(ServerListener):
                     raw=True,
                 )
                 self.say(f'skynav view: forwarding {topic} (a client subscribed)')
-            elif forward.channel.topic not in wanted and forward.subscription is not None:
+            elif forward.channel.topic() not in wanted and forward.subscription is not None:
                 self.node.destroy_subscription(forward.subscription)
                 forward.subscription = None
                 self.say(f'skynav view: no longer forwarding {topic} (no client subscribes)')
