@@ -18,7 +18,8 @@ A skynav node is an ordinary rclpy node with three habits:
   `reset_time()` forgets what depended on the old time, so later inputs are taken again;
 - its timeouts measure `elapsed_ns()`, the time passed on the node's clock with its jumps left out
   (skynav_core.elapsed: sim time before the first /clock, a recording's clock that restarts), read
-  every TIME_READ_PERIOD s of the node's clock, so no timeout fires from a clock that starts late or jumps;
+  at each input and every TIME_READ_PERIOD s of the node's clock, so no timeout fires from a clock that
+  starts late or jumps;
 - its parameters are turned into working state by one method, `configure(values)`, which raises
   ValueError for values it cannot use: at start-up the node then keeps its defaults, at run time the
   change is refused with that reason;
@@ -70,8 +71,9 @@ TF_STATIC_QOS = QoSProfile(
 TF_STATIC_TOPIC = '/tf_static'
 MOUNT_PARAMETER = 'camera_mount_rpy_deg'
 DIAGNOSTICS_PERIOD = 1.0  # s
-# s of the node's clock between readings of elapsed_ns(): well under max_stamp_jump_s, so a running clock's steps count
-TIME_READ_PERIOD = 0.1
+# s of the node's clock between readings of elapsed_ns() when no input comes (each input reads it too): under
+# max_stamp_jump_s, so that a running clock's steps count; longer costs less (each wake-up of a node costs ~1 ms)
+TIME_READ_PERIOD = 0.5
 PROCESSING_WINDOW = 100  # inputs whose processing times the diagnostics summarise
 # rmw's value of a message-info sequence number the middleware does not provide.
 SEQUENCE_UNSUPPORTED = 2**64 - 1
@@ -257,6 +259,7 @@ class SkynavNode(Node):
 
         def receive_live(message: Any, info: dict) -> None:
             self._received_ns = info.get('received_timestamp') or time.time_ns()
+            self.elapsed_ns()
             self._count_lost(topic, info.get('publication_sequence_number', SEQUENCE_UNSUPPORTED))
             receive(message)
 
