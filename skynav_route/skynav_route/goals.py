@@ -1,5 +1,12 @@
 # SPDX-License-Identifier: Apache-2.0
-"""FollowRoute and Home goals: which requests are refused, what the other nodes are set to, feedback and results.
+"""FollowRoute and Home goals: which requests are refused, what the other nodes are set to, their time limits,
+feedback and results.
+
+A goal's time limit grows with the distance it drives: `goal_timeout` s plus `goal_time_factor` times the time the
+distance takes at the goal's speed limit. A follow goal's distance is the route's between its start (the first
+snapshot, when localization places the robot) and its end, from the map (RouteLength: the teach's odometry, else
+its velocity commands, else the snapshots times the teach's spacing, else times UNKNOWN_SPACING); a Home goal's is
+the parameter `home_distance`, the farthest homing is expected to drive.
 
 No rclpy: the route node (skynav_route.node) serves the actions with these and drives with skynav_route.controller.
 """
@@ -18,9 +25,99 @@ from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step, TaughtRout
 
 # how a goal ends besides the controller's REACHED and LOST
 CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
+EMERGENCY = 'emergency stop'
 
 Refusal = tuple[int, str]  # a Result error code and its text
 MIN_SHAPE_LENGTH = 0.1  # m: a route shape by commands shorter than this had none (the robot was not driven by /cmd_vel)
+# m between snapshots assumed for a goal's time limit when the map records no odometry, commands or spacing: ten
+# times the default spacing of `skynav teach` and `skynav map build` (0.1 m), as the limit is a backstop that must not
+# end a goal still driving (the watchdog and LOST stop a goal that cannot go on)
+UNKNOWN_SPACING = 1.0
+SPACING_META = 'spacing_m'  # map metadata: the teach's spacing (m), as `skynav teach` writes it
+
+
+@dataclass(frozen=True)
+class RouteLength:
+    """Where a map's snapshots lie along its route (m from the first) and how that is known."""
+
+    along: np.ndarray  # (N,) m from the first snapshot
+    source: str  # how the distances were found, for the TIMEOUT text
+
+    def between(self, first: int, last: int) -> float:
+        """Return the route's length (m) from snapshot `first` to snapshot `last`."""
+        return float(abs(self.along[last] - self.along[first]))
+
+
+def _pose_steps(poses: np.ndarray | None) -> np.ndarray | None:
+    """Return the distances (m) between consecutive poses (N, 7); None without poses, with a non-finite one, or when
+    they never moved (MIN_SHAPE_LENGTH in all)."""
+    if poses is None or len(poses) < 2:
+        return None
+    steps = np.linalg.norm(np.diff(np.asarray(poses, float)[:, :3], axis=0), axis=1)
+    if not np.all(np.isfinite(steps)) or float(np.sum(steps)) < MIN_SHAPE_LENGTH:
+        return None
+    return steps
+
+
+def route_length(
+    count: int, odometry: np.ndarray | None, commanded: np.ndarray | None, meta: dict[str, str]
+) -> RouteLength:
+    """Return where the `count` snapshots of a map lie along its route: by the teach's odometry poses, else its poses
+    by the velocity commands ((N, 7) each, None if the map has none), else the teach's spacing in the map's `meta`
+    (SPACING_META), else UNKNOWN_SPACING apart."""
+    for poses, source in ((odometry, "the teach's odometry"), (commanded, "the teach's velocity commands")):
+        steps = _pose_steps(poses)
+        if steps is not None and len(steps) == count - 1:
+            return RouteLength(np.concatenate([[0.0], np.cumsum(steps)]), f'by {source}')
+    try:
+        spacing = float(meta.get(SPACING_META, 'nan'))
+    except ValueError:
+        spacing = math.nan
+    if math.isfinite(spacing) and spacing > 0:
+        source = f"snapshots {spacing:g} m apart (the teach's spacing)"
+    else:
+        spacing = UNKNOWN_SPACING
+        source = f'snapshots taken as {spacing:g} m apart (the map records no odometry, commands or spacing)'
+    return RouteLength(spacing * np.arange(max(count, 1), dtype=float), source)
+
+
+@dataclass(frozen=True)
+class TimeLimit:
+    """A goal's time limit: `fixed` s plus `factor` times the time `distance` m takes at `speed` m/s."""
+
+    fixed: float  # s (the parameter goal_timeout)
+    factor: float  # (the parameter goal_time_factor)
+    distance: float  # m the goal is to drive
+    speed: float  # m/s, the goal's speed limit
+    source: str  # how the distance was found
+
+    @property
+    def seconds(self) -> float:
+        """Return the limit (s)."""
+        return self.fixed + self.factor * self.distance / self.speed
+
+    def describe(self) -> str:
+        """Return the limit and how it was computed, for the TIMEOUT text."""
+        return (
+            f'{self.seconds:.1f} s: goal_timeout {self.fixed:g} s + goal_time_factor {self.factor:g} x '
+            f'{self.distance:.1f} m ({self.source}) at {self.speed:g} m/s'
+        )
+
+
+def follow_time_limit(
+    length: RouteLength, start_index: int, end: int, speed: float, fixed: float, factor: float
+) -> TimeLimit:
+    """Return the time limit of a follow goal from `start_index` (-1: wherever it is placed, at worst the first
+    snapshot) to `end` at `speed` m/s."""
+    distance = length.between(max(start_index, 0), end)
+    return TimeLimit(
+        fixed, factor, distance, speed, f'the route from snapshot {max(start_index, 0)} to {end}, {length.source}'
+    )
+
+
+def home_time_limit(home_distance: float, speed: float, fixed: float, factor: float) -> TimeLimit:
+    """Return the time limit of a Home goal: it may drive `home_distance` m at `speed` m/s."""
+    return TimeLimit(fixed, factor, home_distance, speed, 'home_distance')
 
 
 @dataclass
@@ -31,8 +128,9 @@ class ActiveGoal:
     handle: Any  # rclpy ServerGoalHandle
     controller: RouteFollower | Homer
     done: Any  # rclpy Future, given the outcome when the goal ends
-    started: int | None = None  # ns, node time of the watchdog's first look (a simulator's clock may start late)
-    last_frame: int | None = None  # ns, node time the last frame was processed (or the start)
+    time_limit: TimeLimit
+    started: int | None = None  # ns of elapsed time (the node's, its clock's jumps left out) at the goal's start
+    last_frame: int | None = None  # ns of elapsed time the last frame was processed (or the start)
     driven: float = 0.0  # m
     reached_index: int = -1
     steps: int = 0
@@ -138,13 +236,19 @@ def unplaced(matched: int, start_index: int) -> str | None:
     return text
 
 
-def failure(outcome: str, codes: Any, input_timeout: float, goal_timeout: float, lost: str | None = None) -> Refusal:
+def failure(outcome: str, codes: Any, input_timeout: float, time_limit: TimeLimit, lost: str | None = None) -> Refusal:
     """Return the Result error code and text of a goal that ended by `outcome` (not reached, not canceled)."""
     texts = {
         LOST: (codes.LOST, lost or 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
         STALE: (codes.STALE_INPUT, f'no usable frame for {input_timeout} s'),
-        TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than {goal_timeout} s'),
+        TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than its time limit of {time_limit.describe()}'),
         SHUTDOWN: (codes.LOST, 'the route node shut down'),
         BLOCKED: (codes.BLOCKED, 'blocked: the bumper reported contact (skynav does not drive around objects)'),
+        EMERGENCY: (codes.EMERGENCY_STOP, EMERGENCY_TEXT),
     }
     return texts[outcome]
+
+
+EMERGENCY_TEXT = 'emergency stop: the emergency stop input was true, the robot stopped'
+#: why a goal that arrives while the emergency stop is true is refused
+EMERGENCY_REFUSAL = 'emergency stop engaged: no goal drives until the emergency stop input is false again'

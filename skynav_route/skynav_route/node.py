@@ -3,12 +3,20 @@
 
 Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and,
 when a robot has them, /odom, /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED,
-as skynav does not drive around objects) and /tf_static (base_link -> camera_link, over the parameter
-camera_mount_rpy_deg: the compass rotation and home vector are turned into base_link, skynav_route.inputs);
-publishes /cmd_vel (geometry_msgs/TwistStamped in base_link) as
-docs/interfaces.md ("Driving") says: while a goal is active, exactly one command per camera frame it processes,
-stamped with that frame's stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, blocked,
-stale inputs, shutdown); nothing while idle. It never reads /ground_truth/*.
+as skynav does not drive around objects), /emergency_stop (std_msgs/Bool, see below) and /tf_static (base_link ->
+camera_link, over the parameter camera_mount_rpy_deg: the compass rotation and home vector are turned into
+base_link, skynav_route.inputs); publishes /cmd_vel (geometry_msgs/TwistStamped in base_link; a bare
+geometry_msgs/Twist with `cmd_vel_stamped` false, for bases that take that) as docs/interfaces.md ("Driving", "On a
+robot") says: while a goal is active, exactly one command per camera frame it processes, stamped with that frame's
+stamp; a zero command whenever it stops (goal reached, canceled, aborted, lost, blocked, emergency stop, stale
+inputs, shutdown); nothing while idle. It never reads /ground_truth/*. Every name is relative to the node's
+namespace (`-r __ns:=/robot1` serves /robot1/skynav/follow_route and publishes /robot1/cmd_vel); /cmd_vel is
+remapped as any topic (`-r cmd_vel:=/base/cmd_vel`).
+
+Emergency stop: when /emergency_stop says true, the node publishes a zero command at once and an active goal aborts
+with EMERGENCY_STOP; then nothing is published (no goal is active) until a new goal comes, and a goal that comes
+while the stop is still true is refused with EMERGENCY_STOP and never moves. The stops are counted in /diagnostics
+(emergency_stops; emergency_stop says whether it is engaged, and the status is WARN while it is).
 
 A frame is processed when its home vector comes (warping is the last stage), or, when none comes, once a view
 `frame_wait` s newer arrives on /skyline/sh (in the in-process graph, where every node has answered a view before
@@ -21,19 +29,30 @@ near the goal's start_index when it names one; off again when the goal ends) and
 the `map` of localize, compass and warping.
 
 The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
-frame was processed for `input_timeout` s, and with TIMEOUT after `goal_timeout` s. A goal canceled before its
-execution began never drives (a client cancels a goal whose answer it did not get: skynav_core.goals).
+frame was processed for `input_timeout` s, and with TIMEOUT when the goal ran longer than its time limit:
+`goal_timeout` s plus `goal_time_factor` times the time its distance takes at its speed limit (skynav_route.goals:
+the route's length from the map, `home_distance` for a Home goal). Both measure `elapsed_ns()`, the time passed on
+the node's clock with its jumps left out, so a clock that starts late (sim time before the first /clock) or jumps
+(a recording replayed with its own clock) fires neither; an input stamped over `max_stamp_jump_s` from the newest
+restarts the frames' time (the frames kept by stamp are forgotten). Waiting for the compass and warping nodes to
+take a goal's settings (`peer_timeout`) is a wait on the other nodes, measured in steady (wall) time: it ends even
+while sim time stands still. A goal canceled before its execution began never drives (a client cancels a goal
+whose answer it did not get: skynav_core.goals).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TwistStamped
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionServer, CancelResponse
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.parameter import Parameter as RosParameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.task import Future
@@ -42,7 +61,8 @@ from std_msgs.msg import Bool
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
-from skynav_core.motion import fill_velocity_command
+from skynav_core.motion import fill_twist, fill_velocity_command
+from skynav_core.namespaces import relative
 from skynav_core.node import TF_STATIC_TOPIC, SkynavNode
 from skynav_core.ros import run_node
 from skynav_msgs.action import FollowRoute, Home
@@ -50,20 +70,25 @@ from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficie
 
 from . import goals
 from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, View
-from .goals import BLOCKED, CANCELED, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal
+from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal, TimeLimit
 from .inputs import frame_view
 from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
+EMERGENCY_STOP_TOPIC = '/emergency_stop'
+# the contract's action names, served relative to the node's namespace
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
-WATCHDOG_PERIOD = 0.1  # s
+WATCHDOG_PERIOD = 0.1  # s of the node's clock
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
 LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledged before the publisher goes
+PEER_POLL = 0.05  # s of steady time between looks at whether another node answered
 
 
-def twist(stamp: int, command: Command) -> TwistStamped:
-    """Return a velocity command stamped `stamp` (ns) in base_link."""
-    return fill_velocity_command(TwistStamped(), stamp, command.linear, command.angular)
+def twist(stamp: int, command: Command, stamped: bool = True) -> TwistStamped | Twist:
+    """Return a velocity command in base_link: a TwistStamped stamped `stamp` (ns), or a bare Twist."""
+    if stamped:
+        return fill_velocity_command(TwistStamped(), stamp, command.linear, command.angular)
+    return fill_twist(Twist(), command.linear, command.angular)
 
 
 class RouteNode(SkynavNode):
@@ -77,10 +102,13 @@ class RouteNode(SkynavNode):
         '/homing/home_vector',
         '/odom',
         '/bumper',
+        EMERGENCY_STOP_TOPIC,
         TF_STATIC_TOPIC,
     )
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
     stops_on_signal = True
+    values: dict[str, Any]  # the parameter values taken (configure)
+    stamped: bool  # /cmd_vel is a TwistStamped (cmd_vel_stamped, read at start-up)
 
     def __init__(self, **kwargs) -> None:
         super().__init__('route', **kwargs)
@@ -93,16 +121,21 @@ class RouteNode(SkynavNode):
         self.odom: np.ndarray | None = None  # latest base_link position in odom (x, y), m
         self.odom_at_frame: np.ndarray | None = None
         self.bumped = False  # the bumper's latest word: in contact
+        self.emergency_stop = False  # the emergency stop's latest word: engaged
+        self.emergency_stops = 0  # times it was engaged
+        self.newest_stamp = -1  # ns, the newest stamp of a frame's input (-1: none since the frames' time restarted)
+        self.peer_clients: dict[str, AsyncParameterClient] = {}
+        self.steady_clock = RosClock(clock_type=ClockType.STEADY_TIME)  # for waits on other nodes
         self.input('/skyline/sh', ShCoefficients, self.on_view)
         self.input('/localization/match', PlaceMatch, lambda m: self._keep(self.matches, m))
         self.input('/compass/orientation', CompassEstimate, lambda m: self._keep(self.compass, m))
         self.input('/homing/home_vector', HomeVector, self.on_home_vector)
         self.input('/odom', Odometry, self.on_odom)
         self.input('/bumper', Bool, self.on_bumper)
+        self.input(EMERGENCY_STOP_TOPIC, Bool, self.on_emergency_stop)
         self.listen_for_mount()
-        self.output(CMD_TOPIC, TwistStamped)
         self.servers = [
-            ActionServer(self, kind, name, execute_callback=execute, cancel_callback=self.on_cancel)
+            ActionServer(self, kind, relative(name), execute_callback=execute, cancel_callback=self.on_cancel)
             for kind, name, execute in (
                 (FollowRoute, FOLLOW_ACTION, self.execute_follow),
                 (Home, HOME_ACTION, self.execute_home),
@@ -113,17 +146,37 @@ class RouteNode(SkynavNode):
         else:
             self.input('/clock', Clock, lambda _: self.watchdog())
         self.start()
+        self.stamped = bool(self.values['cmd_vel_stamped'])  # the message type is the publisher's, fixed at start
+        self.output(CMD_TOPIC, TwistStamped if self.stamped else Twist)
 
     def configure(self, values: dict) -> None:
         """Take the limits and thresholds (ValueError if unusable)."""
         check(values)
+        if 'stamped' in vars(self) and bool(values['cmd_vel_stamped']) != self.stamped:
+            raise ValueError('cmd_vel_stamped is read at start-up only: restart the node to change it')
         self.values, self.settings = values, settings(values)
 
     # --- inputs ---------------------------------------------------------------------------------
 
+    def frame_input(self, stamp: int) -> None:
+        """Take the stamp (ns) of a frame's input: one over max_stamp_jump_s from the newest restarts the frames'
+        time (stamp_jumped, reset_time: a camera clock that jumped, a recording played again)."""
+        self.stamp_jumped(stamp, self.newest_stamp)
+        self.newest_stamp = max(self.newest_stamp, stamp)
+
+    def reset_time(self) -> None:
+        """Forget the frames kept by stamp and the last frame answered: the frames' time restarted."""
+        super().reset_time()
+        self.matches.clear()
+        self.compass.clear()
+        self.homes.clear()
+        self.last_frame = self.newest_stamp = -1
+
     def _keep(self, kept: dict[int, Any], message: Any) -> None:
         """Keep a frame's message by stamp (the last KEPT_FRAMES frames)."""
-        kept[stamp_ns(message.header)] = message
+        stamp = stamp_ns(message.header)
+        self.frame_input(stamp)
+        kept[stamp] = message
         while len(kept) > KEPT_FRAMES:
             del kept[min(kept)]
 
@@ -141,6 +194,23 @@ class RouteNode(SkynavNode):
         if self.bumped and self.active is not None:
             self.stop_blocked()
 
+    def on_emergency_stop(self, message: Bool) -> None:
+        """Take the emergency stop's word: engaged, it stops the robot at once and aborts the active goal
+        (EMERGENCY_STOP); while it stays engaged, goals are refused."""
+        engaged = bool(message.data)
+        if engaged and not self.emergency_stop:
+            self.emergency_stops += 1
+            doing = 'the robot stops and the goal aborts' if self.active is not None else 'no goal drives'
+            self.get_logger().error(
+                f'emergency stop engaged: {doing} (EMERGENCY_STOP) until it is released and a new goal comes; '
+                'counted in /diagnostics as emergency_stops'
+            )
+        elif self.emergency_stop and not engaged:
+            self.get_logger().info('emergency stop released: a new goal may drive')
+        self.emergency_stop = engaged
+        if engaged and self.active is not None:
+            self.stop_emergency()
+
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
         self._keep(self.homes, message)
@@ -153,6 +223,7 @@ class RouteNode(SkynavNode):
     def on_view(self, message: ShCoefficients) -> None:
         """Process the frames before this view that got no home vector (in-process: this one too)."""
         stamp = stamp_ns(message.header)
+        self.frame_input(stamp)
         wait = 0 if self.router is not None else int(self.values['frame_wait'] * 1e9)
         waiting = [
             s for s in set(self.matches) | set(self.compass) if self.last_frame < s <= stamp - wait and s < stamp
@@ -176,11 +247,15 @@ class RouteNode(SkynavNode):
 
     def process(self, stamp: int) -> None:
         """Answer one camera frame with one command while a goal is active; nothing while idle."""
-        if not self.in_order(stamp, self.last_frame, 'frame'):
+        if stamp <= self.last_frame:  # a jump in the frames' time restarted it already (frame_input)
+            self.reject('out_of_order', f'frame stamped {stamp} is not newer than the last one')
             return
         previous, self.last_frame = self.last_frame, stamp
         goal = self.active
         if goal is None:
+            return
+        if self.emergency_stop:  # engaged (a goal never starts while it is: this is a second guard)
+            self.stop_emergency(stamp)
             return
         if self.bumped:  # pressed since before the goal began
             self.stop_blocked(stamp)
@@ -188,7 +263,7 @@ class RouteNode(SkynavNode):
         with self.processing(stamp):
             view = self.view(stamp)
             step = goal.controller.step(view)
-            goal.last_frame = self.now_ns()
+            goal.last_frame = self.elapsed_ns()
             goal.started = goal.last_frame if goal.started is None else goal.started
             goal.steps += 1
             goal.confidence = step.confidence
@@ -197,20 +272,25 @@ class RouteNode(SkynavNode):
             elif previous >= 0:
                 goal.driven += abs(step.command.linear) * min((stamp - previous) / 1e9, 1.0)
             goal.reached_index = max(goal.reached_index, step.matched_index)
-        self.emit(CMD_TOPIC, twist(stamp, step.command))
+        self.emit(CMD_TOPIC, twist(stamp, step.command, self.stamped))
         goal.handle.publish_feedback(goals.step_feedback(goal, step))
         if step.outcome:
             self.finish(step.outcome, stopped=True)
 
     def stop(self, stamp: int | None = None) -> None:
         """Publish a zero command (stamped with the node's time unless a frame's stamp is given)."""
-        self.emit(CMD_TOPIC, twist(self.now_ns() if stamp is None else stamp, Command()))
+        self.emit(CMD_TOPIC, twist(self.now_ns() if stamp is None else stamp, Command(), self.stamped))
 
     def stop_blocked(self, stamp: int | None = None) -> None:
         """Stop the robot on bumper contact and end the goal with BLOCKED (the zero command stamped as stop's)."""
         self.get_logger().warning('the bumper reports contact: the robot stops and the goal aborts (BLOCKED)')
         self.stop(stamp)
         self.finish(BLOCKED, stopped=True)
+
+    def stop_emergency(self, stamp: int | None = None) -> None:
+        """Stop the robot on the emergency stop and end the goal with EMERGENCY_STOP (the zero command as stop's)."""
+        self.stop(stamp)
+        self.finish(EMERGENCY, stopped=True)
 
     def finish(self, outcome: str, stopped: bool = False) -> None:
         """End the active goal: stop the robot (unless the last command was a stop) and wake its execution."""
@@ -223,14 +303,15 @@ class RouteNode(SkynavNode):
             goal.done.set_result(outcome)
 
     def watchdog(self) -> None:
-        """Stop the robot when no frame came for input_timeout s (STALE_INPUT) or the goal ran too long (TIMEOUT)."""
+        """Stop the robot when no frame came for input_timeout s (STALE_INPUT) or the goal ran longer than its time
+        limit (TIMEOUT), both in elapsed time (the clock's jumps left out)."""
         goal = self.active
         if goal is None:
             return
-        now = self.now_ns()
+        now = self.elapsed_ns()
         if goal.started is None or goal.last_frame is None:
             goal.started = goal.last_frame = now
-        if now - goal.started > self.values['goal_timeout'] * 1e9:
+        if now - goal.started > goal.time_limit.seconds * 1e9:
             self.finish(TIMED_OUT)
         elif now - goal.last_frame > self.values['input_timeout'] * 1e9:
             self.finish(STALE)
@@ -240,6 +321,16 @@ class RouteNode(SkynavNode):
         if self.active is not None and self.active.handle.goal_id == handle.goal_id:
             self.finish(CANCELED)
         return CancelResponse.ACCEPT
+
+    def diagnostic_status(self) -> DiagnosticStatus:
+        """Return the node's status with the emergency stop's: engaged (WARN while it is) and how often."""
+        status = super().diagnostic_status()
+        status.values.append(KeyValue(key='emergency_stop', value=str(self.emergency_stop).lower()))
+        status.values.append(KeyValue(key='emergency_stops', value=str(self.emergency_stops)))
+        if self.emergency_stop:
+            status.level = max(status.level, DiagnosticStatus.WARN)
+            status.message = f'emergency stop engaged; {status.message}'
+        return status
 
     def destroy_node(self) -> None:
         """Stop the robot before going away (shutdown)."""
@@ -255,53 +346,60 @@ class RouteNode(SkynavNode):
 
     # --- goals ----------------------------------------------------------------------------------
 
-    def open_map(self, map_path: str) -> tuple[int, TaughtRoute | None, str]:
-        """Return the snapshot count, the route's shape (goals.route_shape; None without) and the path of the
-        goal's map (its own, or the node's); raise MapError."""
+    def open_map(self, map_path: str) -> tuple[int, TaughtRoute | None, goals.RouteLength, str]:
+        """Return the snapshot count, the route's shape (goals.route_shape; None without), where its snapshots lie
+        along it (goals.route_length) and the path of the goal's map (its own, or the node's); raise MapError."""
         path = map_path or self.values['map']
         if not path:
             raise MapError('no map: the goal names none and the route node has no `map` parameter')
         with MapStore.open(path) as store:
-            count, (route, source) = len(store), goals.route_shape(store.odometry_poses(), store.commanded_poses())
+            count, odometry, commanded = len(store), store.odometry_poses(), store.commanded_poses()
+            route, source = goals.route_shape(odometry, commanded)
+            length = goals.route_length(count, odometry, commanded, store.meta)
         if source == 'nothing':
             self.get_logger().info(f'{path}: no odometry or commands of the teach: steering on the home vectors alone')
         elif source == 'commands':
             self.get_logger().info(f"{path}: the route's shape by dead reckoning from the teach's velocity commands")
-        return count, route, str(path)
+        return count, route, length, str(path)
 
     async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
         """Set parameters of other nodes ({node: {name: value}}); a node that does not answer is logged and skipped."""
         if not self.values['configure_peers']:
             return
         for name, values in settings.items():
-            client = AsyncParameterClient(self, name)
-            deadline = self.get_clock().now().nanoseconds + self.values['peer_timeout'] * 1e9
-            while not client.services_are_ready() and self.get_clock().now().nanoseconds < deadline:
-                await self.pause(0.05)
+            # a plain node name: its parameter services are sought in this node's namespace
+            client = self.peer_clients.get(name)
+            if client is None:  # one per node, kept for later goals
+                client = self.peer_clients[name] = AsyncParameterClient(self, name)
+            deadline = time.monotonic() + self.values['peer_timeout']  # steady: sim time may stand still
+            while not client.services_are_ready() and time.monotonic() < deadline:
+                await self.pause(PEER_POLL)
             if not client.services_are_ready():
                 self.get_logger().warning(f'node {name} does not answer: its settings for this goal were not set')
                 continue
             future = client.set_parameters([RosParameter(k, value=v) for k, v in values.items()])
-            while not future.done() and self.get_clock().now().nanoseconds < deadline:
-                await self.pause(0.05)
+            while not future.done() and time.monotonic() < deadline:
+                await self.pause(PEER_POLL)
             failed = [r.reason for r in future.result().results if not r.successful] if future.done() else ['no answer']
             if failed:
                 self.get_logger().warning(f'node {name} refused the settings of this goal: {"; ".join(failed)}')
 
     async def pause(self, seconds: float) -> None:
-        """Wait `seconds` (wall time) inside a goal's execution without blocking the executor."""
+        """Wait `seconds` of steady (wall) time inside a goal's execution without blocking the executor (a timer on
+        the node's clock would never fire while sim time stands still)."""
         future = Future()
-        timer = self.create_timer(seconds, lambda: future.done() or future.set_result(True))
+        timer = self.create_timer(seconds, lambda: future.done() or future.set_result(True), clock=self.steady_clock)
         await future
         self.destroy_timer(timer)
 
     async def run_goal(
-        self, kind: Any, handle: Any, controller: RouteFollower | Homer, peers: dict
+        self, kind: Any, handle: Any, controller: RouteFollower | Homer, peers: dict, time_limit: TimeLimit
     ) -> tuple[str, ActiveGoal | None]:
         """Configure the graph for a goal, drive it and return how it ended ('busy' if another one runs)."""
         if self.active is not None:
             return 'busy', None
-        goal = self.active = ActiveGoal(kind, handle, controller, Future())
+        goal = self.active = ActiveGoal(kind, handle, controller, Future(), time_limit)
+        self.get_logger().info(f'time limit of the goal: {time_limit.describe()}')
         if handle.is_cancel_requested:  # canceled before its execution began, when on_cancel found no active goal
             self.finish(CANCELED)
             return CANCELED, goal
@@ -312,19 +410,28 @@ class RouteNode(SkynavNode):
     async def execute_follow(self, handle: Any) -> FollowRoute.Result:
         """Drive along the route of a FollowRoute goal."""
         request, result, codes = handle.request, FollowRoute.Result(), FollowRoute.Result
+        if self.emergency_stop:
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.EMERGENCY_REFUSAL))
         try:
-            count, route, path = self.open_map(request.map_path)
+            count, route, length, path = self.open_map(request.map_path)
         except MapError as exc:
             return self.refuse(handle, result, (codes.NO_MAP, str(exc)))
         refusal = goals.follow_refusal(request, count)
         if refusal is not None:
             return self.refuse(handle, result, refusal)
         end = goals.follow_end(request, count)
-        controller = RouteFollower(
-            request.start_index, end, limits(self.values, request.max_speed), self.settings, route
-        )
+        goal_limits = limits(self.values, request.max_speed)
+        controller = RouteFollower(request.start_index, end, goal_limits, self.settings, route)
         peers = goals.follow_peers(self.values['map'], path, self.values['lookahead'], request.start_index)
-        outcome, active = await self.run_goal(FollowRoute, handle, controller, peers)
+        time_limit = goals.follow_time_limit(
+            length,
+            request.start_index,
+            end,
+            goal_limits.max_speed,
+            self.values['goal_timeout'],
+            self.values['goal_time_factor'],
+        )
+        outcome, active = await self.run_goal(FollowRoute, handle, controller, peers, time_limit)
         if active is None:
             return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
         if outcome != SHUTDOWN:
@@ -336,16 +443,25 @@ class RouteNode(SkynavNode):
     async def execute_home(self, handle: Any) -> Home.Result:
         """Drive to the place of the Home goal's snapshot."""
         request, result, codes = handle.request, Home.Result(), Home.Result
+        if self.emergency_stop:
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.EMERGENCY_REFUSAL))
         try:
-            count, _, path = self.open_map(request.map_path)
+            count, _, _, path = self.open_map(request.map_path)
         except MapError as exc:
             return self.refuse(handle, result, (codes.NO_MAP, str(exc)))
         refusal = goals.home_refusal(request, count)
         if refusal is not None:
             return self.refuse(handle, result, refusal)
-        controller = Homer(request.index, limits(self.values, request.max_speed), self.settings)
+        goal_limits = limits(self.values, request.max_speed)
+        controller = Homer(request.index, goal_limits, self.settings)
         peers = goals.home_peers(self.values['map'], path, request.index)
-        outcome, active = await self.run_goal(Home, handle, controller, peers)
+        time_limit = goals.home_time_limit(
+            self.values['home_distance'],
+            goal_limits.max_speed,
+            self.values['goal_timeout'],
+            self.values['goal_time_factor'],
+        )
+        outcome, active = await self.run_goal(Home, handle, controller, peers, time_limit)
         if active is None:
             return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
         return self.conclude(handle, result, outcome, active, codes)
@@ -368,8 +484,9 @@ class RouteNode(SkynavNode):
         elif outcome == CANCELED:
             handle.canceled()
         else:
-            timeouts = self.values['input_timeout'], self.values['goal_timeout']
-            result.error_code, result.error_msg = goals.failure(outcome, codes, *timeouts, lost)
+            result.error_code, result.error_msg = goals.failure(
+                outcome, codes, self.values['input_timeout'], goal.time_limit, lost
+            )
             handle.abort()
         return result
 

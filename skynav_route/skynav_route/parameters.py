@@ -70,11 +70,32 @@ PARAMETERS = {
     'frame_wait': Parameter(
         0.5, 'a frame that gets no home vector is answered without one when a view this much newer (s) arrives'
     ),
-    'goal_timeout': Parameter(600.0, 'a goal running longer than this (s) stops and aborts with TIMEOUT'),
+    'goal_timeout': Parameter(
+        120.0,
+        "the fixed part of a goal's time limit (s: localizing, setting the graph up, starting and stopping); a goal "
+        'running longer than its limit stops and aborts with TIMEOUT',
+    ),
+    'goal_time_factor': Parameter(
+        3.0,
+        "a goal's time limit adds this many times the time its distance takes at the goal's speed limit (follow: the "
+        "route's length from start to end by the map; home: home_distance), so long routes are not cut short",
+    ),
+    'home_distance': Parameter(
+        10.0,
+        'Home goals: the farthest the robot is expected to drive to the snapshot (m), for their time limit; homing '
+        'works within a few metres of it',
+    ),
     'configure_peers': Parameter(
         True, "set the compass and warping nodes' snapshot choice (and map) for each goal through their parameters"
     ),
-    'peer_timeout': Parameter(5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s)"),
+    'peer_timeout': Parameter(
+        5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s of steady, wall time)"
+    ),
+    'cmd_vel_stamped': Parameter(
+        True,
+        'publish /cmd_vel as geometry_msgs/TwistStamped (true) or as a bare geometry_msgs/Twist for bases that take '
+        'that (false); read at start-up',
+    ),
 }
 
 

@@ -79,22 +79,79 @@ def test_homing_points_the_compass_and_warping_at_the_goal_snapshot():
 
 
 def test_every_way_a_goal_fails_has_its_own_code_and_text():
+    limit = goals.home_time_limit(10.0, 0.5, 120.0, 3.0)
     for kind in (FollowRoute, Home):
         codes = kind.Result
         failures = {
-            outcome: goals.failure(outcome, codes, 1.0, 600.0)
-            for outcome in (LOST, goals.STALE, goals.TIMED_OUT, goals.BLOCKED)
+            outcome: goals.failure(outcome, codes, 1.0, limit)
+            for outcome in (LOST, goals.STALE, goals.TIMED_OUT, goals.BLOCKED, goals.EMERGENCY)
         }
         assert [code for code, _ in failures.values()] == [
             codes.LOST,
             codes.STALE_INPUT,
             codes.TIMEOUT,
             codes.BLOCKED,
+            codes.EMERGENCY_STOP,
         ]
+        assert codes.EMERGENCY_STOP == 9  # the contract's value
         assert len({text for _, text in failures.values()}) == len(failures)
-        assert '600.0 s' in failures[goals.TIMED_OUT][1]
-        assert goals.failure(goals.SHUTDOWN, codes, 1.0, 600.0)[0] == codes.LOST
-        assert goals.failure(LOST, codes, 1.0, 600.0, 'never placed')[1] == 'never placed'
+        assert 'emergency stop' in failures[goals.EMERGENCY][1]
+        # the limit and how it was computed: 120 s + 3 x 10 m / 0.5 m/s
+        assert failures[goals.TIMED_OUT][1] == (
+            'the goal ran longer than its time limit of 180.0 s: goal_timeout 120 s + goal_time_factor 3 x 10.0 m '
+            '(home_distance) at 0.5 m/s'
+        )
+        assert goals.failure(goals.SHUTDOWN, codes, 1.0, limit)[0] == codes.LOST
+        assert goals.failure(LOST, codes, 1.0, limit, 'never placed')[1] == 'never placed'
+
+
+def test_the_route_length_is_the_odometrys_else_the_commands_else_the_spacing_else_an_assumed_one():
+    line = poses_along(np.linspace(0, 5, 26), np.zeros(26))  # 0.2 m apart
+    wide = poses_along(np.linspace(0, 10, 26), np.zeros(26))  # 0.4 m apart
+    nowhere = poses_along(np.zeros(26), np.zeros(26))  # no command came while teaching
+    missing = np.full((26, 7), np.nan)
+    length = goals.route_length(26, line, wide, {})
+    assert length.between(0, 25) == pytest.approx(5.0) and length.between(5, 10) == pytest.approx(1.0)
+    assert 'odometry' in length.source
+    length = goals.route_length(26, missing, wide, {'spacing_m': '0.1'})
+    assert length.between(0, 25) == pytest.approx(10.0) and 'commands' in length.source
+    length = goals.route_length(26, None, nowhere, {'spacing_m': '0.3'})  # the teach's spacing
+    assert length.between(0, 25) == pytest.approx(7.5) and "teach's spacing" in length.source
+    for meta in ({}, {'spacing_m': 'wide'}, {'spacing_m': '-1'}, {'spacing_m': 'nan'}):
+        length = goals.route_length(26, None, None, meta)
+        assert length.between(0, 25) == pytest.approx(25 * goals.UNKNOWN_SPACING)
+        assert 'records no odometry, commands or spacing' in length.source
+
+
+def test_a_follow_goals_time_limit_scales_with_the_route_from_its_start_to_its_end():
+    line = poses_along(np.linspace(0, 5, 26), np.zeros(26))
+    length = goals.route_length(26, line, None, {})
+    whole = goals.follow_time_limit(length, -1, 25, 0.5, 120.0, 3.0)  # placed anywhere: from the first snapshot
+    assert whole.seconds == pytest.approx(120.0 + 3.0 * 5.0 / 0.5)
+    part = goals.follow_time_limit(length, 20, 25, 0.5, 120.0, 3.0)
+    assert part.seconds == pytest.approx(120.0 + 3.0 * 1.0 / 0.5)
+    assert 'from snapshot 20 to 25' in part.describe() and 'odometry' in part.describe()
+    slow = goals.follow_time_limit(length, -1, 25, 0.1, 120.0, 3.0)
+    assert slow.seconds == pytest.approx(120.0 + 3.0 * 5.0 / 0.1)
+    assert goals.follow_time_limit(length, 7, 7, 0.5, 120.0, 3.0).seconds == 120.0  # already there
+
+
+def test_a_kilometre_route_at_0_3_m_s_gets_more_than_the_time_it_takes_by_the_parameter_defaults():
+    values = defaults(PARAMETERS)
+    count = 10_001  # a snapshot every 0.1 m of odometry along 1 km
+    odometry = poses_along(np.linspace(0.0, 1000.0, count), np.zeros(count))
+    length = goals.route_length(count, odometry, None, {})
+    speed = limits(values, 0.3).max_speed
+    limit = goals.follow_time_limit(length, -1, count - 1, speed, values['goal_timeout'], values['goal_time_factor'])
+    driving = 1000.0 / 0.3  # s at the speed limit all the way
+    assert limit.seconds > driving > 600.0  # not capped at the old fixed 600 s
+    assert limit.seconds == pytest.approx(values['goal_timeout'] + values['goal_time_factor'] * driving)
+
+
+def test_a_home_goals_time_limit_counts_home_distance_at_its_speed():
+    limit = goals.home_time_limit(10.0, 0.25, 120.0, 3.0)
+    assert limit.seconds == pytest.approx(120.0 + 3.0 * 40.0)
+    assert 'home_distance' in limit.describe()
 
 
 def test_a_follow_goal_never_placed_on_the_route_says_so_and_how_to_help():
@@ -114,7 +171,15 @@ def test_the_parameter_defaults_are_the_controllers_and_bad_values_are_refused()
     assert settings(values) == Settings()
     assert limits(values, 0.0) == Limits()
     assert limits(values, 0.1).max_speed == 0.1
-    for name, value in (('max_speed', 0.0), ('approach', 0.0), ('heading_gain', math.nan), ('lost_frames', 0)):
+    for name, value in (
+        ('max_speed', 0.0),
+        ('approach', 0.0),
+        ('heading_gain', math.nan),
+        ('lost_frames', 0),
+        ('goal_time_factor', -1.0),
+        ('home_distance', math.inf),
+        ('goal_timeout', -1.0),
+    ):
         with pytest.raises(ValueError):
             check({**values, name: value})
 

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -121,8 +123,16 @@ def route_graph(route_map, *parameters):
 
 
 def is_zero(command):
-    t = command.twist
+    t = getattr(command, 'twist', command)  # a TwistStamped, or a bare Twist (cmd_vel_stamped false)
     return t.linear.x == 0.0 and t.angular.z == 0.0
+
+
+def publish_clock(graph, now):
+    """Set the graph's time to `now` (ns) and publish it on /clock (the watchdog's tick in the in-process graph)."""
+    clock = Clock()
+    graph.advance(now)
+    clock.clock.sec, clock.clock.nanosec = divmod(now, 1_000_000_000)
+    graph.publish('/clock', clock)
 
 
 def test_one_stamped_command_per_frame_while_active_and_a_zero_command_on_cancel(route_map):
@@ -419,3 +429,222 @@ def test_a_latched_tf_static_published_before_the_node_started_reaches_it(ros_co
         node.destroy_node()
         robot.destroy_node()
         executor.shutdown()
+
+
+def test_a_goal_sent_while_the_clock_reads_zero_drives_once_it_starts(route_map):
+    # sim time before the first /clock: the node's clock reads 0 when the goal comes, then jumps to the simulator's
+    with route_graph(route_map) as graph:
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            for _ in range(3):
+                publish_clock(graph, 0)  # the watchdog looks while the clock stands at zero
+            stamps = [driver.publish_frame(index=3 + k // 3) for k in range(10)]  # 2 s at START (1.75e9 s)
+            assert not result.done()  # neither TIMEOUT nor STALE_INPUT from the jump
+            assert [stamp_ns(c.header) for c in driver.commands] == stamps and not is_zero(driver.commands[-1])
+            assert driver.node.elapsed.jumps >= 1  # the jump was seen, and left out
+            # the watchdog still measures the time that passes: frames stop, STALE_INPUT after input_timeout
+            for k in range(1, 7):
+                publish_clock(graph, driver.stamp() + k * FRAME)
+            assert driver.spin_until(result.done)
+            assert error_name(result.result().result) == 'STALE_INPUT' and is_zero(driver.commands[-1])
+        finally:
+            driver.close()
+
+
+def test_a_clock_that_jumps_back_fires_no_timeout_and_the_frames_are_answered(route_map):
+    # a recording replayed with its own clock starts again an hour earlier while the goal runs
+    with route_graph(route_map, 'goal_timeout:=1.0', 'goal_time_factor:=0.0') as graph:
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            before = [driver.publish_frame(home_index=4) for _ in range(4)]  # 0.6 s of the 1 s limit
+            driver.frame -= 3600 * 5  # an hour back (5 frames a second)
+            after = [driver.publish_frame(home_index=4) for _ in range(2)]  # the jump counts as nothing: 0.8 s
+            assert not result.done()
+            assert [stamp_ns(c.header) for c in driver.commands] == before + after  # each answered, the jump too
+            assert not is_zero(driver.commands[-1])
+            assert driver.node.rejected == {}  # no frame taken as late or out of order
+            # the limit still counts the time that passes after the jump: 1 s of goal in all
+            driver.publish_frame(home_index=4)  # 1.0 s: not over it
+            assert not result.done()
+            driver.publish_frame(home_index=4)  # 1.2 s
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'TIMEOUT' and is_zero(driver.commands[-1])
+            assert outcome.error_msg == (
+                'the goal ran longer than its time limit of 1.0 s: goal_timeout 1 s + goal_time_factor 0 x 10.0 m '
+                '(home_distance) at 0.3 m/s'
+            )
+        finally:
+            driver.close()
+
+
+def test_a_follow_goal_that_runs_past_its_limit_aborts_timeout_saying_how_the_limit_was_computed(route_map):
+    # the test map has no odometry, commands or spacing: 19 gaps of the assumed spacing from snapshot 0 to 19
+    with route_graph(route_map, 'goal_timeout:=0.2', 'goal_time_factor:=0.1', 'max_speed:=9.5') as graph:
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            publish_clock(graph, 0)  # the clock starts after the goal
+            for _ in range(3):  # 0.4 s: 0.2 s + 0.1 x 19 m / 9.5 m/s
+                driver.publish_frame()
+            assert not result.done()
+            driver.publish_frame()  # 0.6 s
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'TIMEOUT' and len(driver.commands) == 4 and is_zero(driver.commands[-1])
+            assert outcome.error_msg.startswith('the goal ran longer than its time limit of 0.4 s: goal_timeout 0.2 s')
+            assert '19.0 m (the route from snapshot 0 to 19, snapshots taken as 1 m apart' in outcome.error_msg
+        finally:
+            driver.close()
+
+
+@pytest.mark.parametrize('kind', ['follow', 'home'])
+def test_an_emergency_stop_stops_the_robot_at_once_aborts_and_nothing_moves_until_a_new_goal(route_map, kind):
+    def send():
+        if kind == 'follow':
+            return driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+        return driver.send(Home, '/skynav/home', Home.Goal(index=9))
+
+    with route_graph(route_map) as graph:
+        driver = Driver(graph)
+        node = driver.node
+        try:
+            graph.publish('/emergency_stop', Bool(data=False))
+            handle, result = send()
+            for _ in range(3):
+                driver.publish_frame(home_index=9)
+            assert len(driver.commands) == 3 and not is_zero(driver.commands[-1])
+            graph.publish('/emergency_stop', Bool(data=True))
+            assert len(driver.commands) == 4 and is_zero(driver.commands[-1])  # at once, before the next frame
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'EMERGENCY_STOP' and 'emergency stop' in outcome.error_msg
+            status = {v.key: v.value for v in node.diagnostic_status().values}
+            assert (status['emergency_stop'], status['emergency_stops']) == ('true', '1')
+            assert node.diagnostic_status().level == DiagnosticStatus.WARN
+            for _ in range(2):
+                driver.publish_frame(home_index=9)
+            assert len(driver.commands) == 4  # no goal: nothing
+            # a goal while the stop is still engaged is refused and never moves
+            handle, result = send()
+            assert driver.spin_until(result.done)
+            assert error_name(result.result().result) == 'EMERGENCY_STOP'
+            driver.publish_frame(home_index=9)
+            graph.publish('/emergency_stop', Bool(data=True))  # still engaged: no second stop, no command
+            assert len(driver.commands) == 4 and node.emergency_stops == 1
+            # released: still nothing until a new goal
+            graph.publish('/emergency_stop', Bool(data=False))
+            for _ in range(2):
+                driver.publish_frame(home_index=9)
+            assert len(driver.commands) == 4
+            assert {v.key: v.value for v in node.diagnostic_status().values}['emergency_stop'] == 'false'
+            # a new goal drives again
+            handle, result = send()
+            for _ in range(3):
+                driver.publish_frame(home_index=9)
+            assert len(driver.commands) == 7 and not is_zero(driver.commands[-1])
+            handle.cancel_goal_async()
+            assert driver.spin_until(result.done)
+        finally:
+            driver.close()
+
+
+def test_cmd_vel_stamped_false_publishes_a_bare_twist_for_every_command(route_map):
+    with route_graph(route_map, 'cmd_vel_stamped:=false') as graph:
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            for _ in range(3):
+                driver.publish_frame(home_index=9)
+            handle.cancel_goal_async()
+            assert driver.spin_until(result.done)
+            assert len(driver.commands) == 4 and all(type(c) is Twist for c in driver.commands)
+            moving, stop = driver.commands[-2], driver.commands[-1]
+            assert moving.linear.x > 0.0 and is_zero(stop)
+            for command in driver.commands:
+                assert (command.linear.y, command.linear.z, command.angular.x, command.angular.y) == (0.0,) * 4
+            # the message type is the publisher's: it cannot change at run time
+            from rclpy.parameter import Parameter
+
+            refused = driver.node.set_parameters([Parameter('cmd_vel_stamped', value=True)])[0]
+            assert not refused.successful and 'start-up' in refused.reason
+        finally:
+            driver.close()
+
+
+@pytest.mark.parametrize('stamped', [True, False])
+def test_the_live_node_publishes_the_velocity_type_cmd_vel_stamped_asks_for(route_map, stamped):
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
+    from skynav_route.node import RouteNode
+
+    from skynav_core.testing import wait_until
+
+    context = Context()
+    arguments = ['--ros-args', '-p', f'cmd_vel_stamped:={str(stamped).lower()}', '-r', 'cmd_vel:=/base/cmd_vel']
+    rclpy.init(args=arguments, context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = RouteNode(context=context)
+    listener = Node('base', context=context, use_global_arguments=False)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(listener)
+    kind = TwistStamped if stamped else Twist
+    commands = []
+    listener.create_subscription(kind, '/base/cmd_vel', commands.append, 10)
+    try:
+        wait_until(lambda: executor.spin_once(timeout_sec=0.05) or node.count_subscribers('/base/cmd_vel'), 'a match')
+        node.stop(START)  # a zero command, as at the end of every goal
+        wait_until(lambda: executor.spin_once(timeout_sec=0.05) or commands, 'the command')
+        topics = dict(listener.get_topic_names_and_types())
+        assert topics['/base/cmd_vel'] == [f'geometry_msgs/msg/{kind.__name__}']  # remapped, of that type alone
+        assert '/cmd_vel' not in topics
+        assert type(commands[0]) is kind and is_zero(commands[0])
+        if stamped:
+            assert stamp_ns(commands[0].header) == START and commands[0].header.frame_id == 'base_link'
+    finally:
+        executor.shutdown()
+        listener.destroy_node()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_namespaced_node_serves_its_actions_and_sets_its_peers_in_its_namespace(route_map):
+    specs = [s for s in installed_nodes() if s.name == 'route']
+    arguments = ['-r', '__ns:=/robot1', '-p', f'map:={route_map}', '-p', 'peer_timeout:=30.0']
+    with in_process(specs, arguments) as graph:
+        driver = Driver(graph)
+        node = driver.node
+        compass = Node('compass', namespace='/robot1', context=node.context, use_global_arguments=False)
+        compass.declare_parameter('reference', 'index')
+        driver.executor.add_node(compass)
+        try:
+            client = ActionClient(driver.client_node, Home, '/robot1/skynav/home')
+            assert driver.spin_until(client.server_is_ready)
+            # the route node's own services (the graph may still show nodes of earlier tests outside the namespace)
+            services = {name for name, _ in driver.client_node.get_service_names_and_types_by_node('route', '/robot1')}
+            assert '/robot1/skynav/home/_action/send_goal' in services
+            assert '/robot1/skynav/follow_route/_action/send_goal' in services
+            assert all(name.startswith('/robot1/') for name in services)
+            task = driver.executor.create_task(node.configure_peers({'compass': {'reference': 'match'}}))
+            assert driver.spin_until(task.done)
+            assert compass.get_parameter('reference').value == 'match'  # found as /robot1/compass
+        finally:
+            driver.executor.remove_node(compass)
+            compass.destroy_node()
+            driver.close()
+
+
+def test_waiting_for_a_peer_ends_while_sim_time_stands_still(route_map):
+    # use_sim_time and no /clock yet: the node's clock reads 0 and does not move; the wait is on steady time
+    with route_graph(route_map, 'use_sim_time:=true', 'configure_peers:=true', 'peer_timeout:=0.2') as graph:
+        driver = Driver(graph)
+        try:
+            assert driver.node.get_clock().now().nanoseconds == 0
+            task = driver.executor.create_task(driver.node.configure_peers({'nobody': {'reference': 'match'}}))
+            assert driver.spin_until(task.done)  # it gave up on the node that does not answer
+            assert task.exception() is None
+        finally:
+            driver.close()
