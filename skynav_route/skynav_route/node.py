@@ -33,11 +33,11 @@ frame was processed for `input_timeout` s, and with TIMEOUT when the goal ran lo
 `goal_timeout` s plus `goal_time_factor` times the time its distance takes at its speed limit (skynav_route.goals:
 the route's length from the map, `home_distance` for a Home goal). Both measure `elapsed_ns()`, the time passed on
 the node's clock with its jumps left out, so a clock that starts late (sim time before the first /clock) or jumps
-(a recording replayed with its own clock) fires neither; an input stamped over `max_stamp_jump_s` from the newest
-restarts the frames' time (the frames kept by stamp are forgotten). Waiting for the compass and warping nodes to
-take a goal's settings (`peer_timeout`) is a wait on the other nodes, measured in steady (wall) time: it ends even
-while sim time stands still. A goal canceled before its execution began never drives (a client cancels a goal
-whose answer it did not get: skynav_core.goals).
+(a recording replayed with its own clock) fires neither; a frame input stamped over `max_stamp_jump_s` before the
+newest of its topic restarts the frames' time (the frames kept by stamp are forgotten; a stage that lags restarts
+nothing). Waiting for the compass and warping nodes to take a goal's settings (`peer_timeout`) is a wait on the
+other nodes, measured in steady (wall) time: it ends even while sim time stands still. A goal canceled before its
+execution began never drives (a client cancels a goal whose answer it did not get: skynav_core.goals).
 """
 
 from __future__ import annotations
@@ -123,12 +123,14 @@ class RouteNode(SkynavNode):
         self.bumped = False  # the bumper's latest word: in contact
         self.emergency_stop = False  # the emergency stop's latest word: engaged
         self.emergency_stops = 0  # times it was engaged
-        self.newest_stamp = -1  # ns, the newest stamp of a frame's input (-1: none since the frames' time restarted)
+        self.newest: dict[str, int] = {}  # per frame input topic, its newest stamp (ns) since the time restarted
         self.peer_clients: dict[str, AsyncParameterClient] = {}
         self.steady_clock = RosClock(clock_type=ClockType.STEADY_TIME)  # for waits on other nodes
         self.input('/skyline/sh', ShCoefficients, self.on_view)
-        self.input('/localization/match', PlaceMatch, lambda m: self._keep(self.matches, m))
-        self.input('/compass/orientation', CompassEstimate, lambda m: self._keep(self.compass, m))
+        self.input('/localization/match', PlaceMatch, lambda m: self._keep('/localization/match', self.matches, m))
+        self.input(
+            '/compass/orientation', CompassEstimate, lambda m: self._keep('/compass/orientation', self.compass, m)
+        )
         self.input('/homing/home_vector', HomeVector, self.on_home_vector)
         self.input('/odom', Odometry, self.on_odom)
         self.input('/bumper', Bool, self.on_bumper)
@@ -158,11 +160,15 @@ class RouteNode(SkynavNode):
 
     # --- inputs ---------------------------------------------------------------------------------
 
-    def frame_input(self, stamp: int) -> None:
-        """Take the stamp (ns) of a frame's input: one over max_stamp_jump_s from the newest restarts the frames'
-        time (stamp_jumped, reset_time: a camera clock that jumped, a recording played again)."""
-        self.stamp_jumped(stamp, self.newest_stamp)
-        self.newest_stamp = max(self.newest_stamp, stamp)
+    def frame_input(self, topic: str, stamp: int) -> None:
+        """Take the stamp (ns) of a frame's input on `topic`: one over max_stamp_jump_s before the newest of its topic
+        restarts the frames' time (stamp_jumped, reset_time: a camera clock that jumped back, a recording played
+        again), or its frames would be refused as late. Each topic is compared with itself, so a stage that lags
+        (home vectors a second behind the views) restarts nothing; a jump forward needs no restart."""
+        newest = self.newest.get(topic, -1)
+        if stamp < newest - self.max_stamp_jump_ns:
+            self.stamp_jumped(stamp, newest)
+        self.newest[topic] = max(self.newest.get(topic, -1), stamp)
 
     def reset_time(self) -> None:
         """Forget the frames kept by stamp and the last frame answered: the frames' time restarted."""
@@ -170,12 +176,13 @@ class RouteNode(SkynavNode):
         self.matches.clear()
         self.compass.clear()
         self.homes.clear()
-        self.last_frame = self.newest_stamp = -1
+        self.last_frame = -1
+        self.newest.clear()
 
-    def _keep(self, kept: dict[int, Any], message: Any) -> None:
-        """Keep a frame's message by stamp (the last KEPT_FRAMES frames)."""
+    def _keep(self, topic: str, kept: dict[int, Any], message: Any) -> None:
+        """Keep a frame's message of `topic` by stamp (the last KEPT_FRAMES frames)."""
         stamp = stamp_ns(message.header)
-        self.frame_input(stamp)
+        self.frame_input(topic, stamp)
         kept[stamp] = message
         while len(kept) > KEPT_FRAMES:
             del kept[min(kept)]
@@ -213,7 +220,7 @@ class RouteNode(SkynavNode):
 
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
-        self._keep(self.homes, message)
+        self._keep('/homing/home_vector', self.homes, message)
         stamp = stamp_ns(message.header)
         if stamp <= self.last_frame:
             self.reject('late', 'a home vector came after its frame was answered without it')
@@ -223,7 +230,7 @@ class RouteNode(SkynavNode):
     def on_view(self, message: ShCoefficients) -> None:
         """Process the frames before this view that got no home vector (in-process: this one too)."""
         stamp = stamp_ns(message.header)
-        self.frame_input(stamp)
+        self.frame_input('/skyline/sh', stamp)
         wait = 0 if self.router is not None else int(self.values['frame_wait'] * 1e9)
         waiting = [
             s for s in set(self.matches) | set(self.compass) if self.last_frame < s <= stamp - wait and s < stamp

@@ -480,6 +480,28 @@ def test_a_clock_that_jumps_back_fires_no_timeout_and_the_frames_are_answered(ro
             driver.close()
 
 
+def test_home_vectors_that_lag_the_views_restart_no_time(route_map):
+    # warping a second and more behind on a loaded computer: its home vectors are late, not a clock that jumped
+    with route_graph(route_map, 'lost_frames:=100') as graph:  # frames without a home vector: recovering, not LOST
+        driver = Driver(graph)
+        try:
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            stamps = []
+            for k in range(12):
+                stamps.append(driver.publish_frame(home=False))
+                if k >= 8:  # the home vector of the frame 1.6 s before
+                    vector = HomeVector(snapshot_index=4, residual=0.3)
+                    vector.direction.x, vector.rotation.w = 1.0, 1.0
+                    vector.header.stamp.sec, vector.header.stamp.nanosec = divmod(stamps[k - 8], 1_000_000_000)
+                    graph.publish('/homing/home_vector', vector)
+            assert [stamp_ns(c.header) for c in driver.commands] == stamps  # each frame answered once, in order
+            assert driver.node.time_resets == 0 and driver.node.rejected == {'late': 4}
+            handle.cancel_goal_async()
+            assert driver.spin_until(result.done)
+        finally:
+            driver.close()
+
+
 def test_a_follow_goal_that_runs_past_its_limit_aborts_timeout_saying_how_the_limit_was_computed(route_map):
     # the test map has no odometry, commands or spacing: 19 gaps of the assumed spacing from snapshot 0 to 19
     with route_graph(route_map, 'goal_timeout:=0.2', 'goal_time_factor:=0.1', 'max_speed:=9.5') as graph:
