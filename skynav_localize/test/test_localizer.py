@@ -297,3 +297,25 @@ def test_tracking_starts_only_from_an_accepted_match(route_back):
     localizer.tracking = True
     matches = [localizer.query(c, travelled=SPACING * i) for i, c in enumerate(coefficients[30:60], start=30)]
     assert not any(m.accepted for m in matches)
+
+
+def test_tracking_past_the_route_end_matches_the_views_to_the_last_snapshot(make_route, tmp_path):
+    # a robot drives the last 30 snapshots of a route with odometry, then on past its end (odometry 1 m beyond it)
+    # while its views still show the end. The tracking window then holds the last snapshot alone: every view there is
+    # matched to it (the best candidate, a ratio below 1), not to whatever the window's end leaves
+    coefficients = make_route(60, DEGREE, 0.4, seed=5)
+    with create_map(tmp_path / 'end.db', 'end', DEGREE) as writer:
+        for i, c in enumerate(coefficients):
+            writer.add_snapshot(c, i, None, {ODOM_POSE: np.array([SPACING * i, 0, 0, 0, 0, 0, 1.0])})
+    last = coefficients.shape[0] - 1
+    shown = np.concatenate([np.arange(30, last + 1), np.full(10, last)])
+    travelled = SPACING * np.concatenate([np.arange(30, last + 1), last + np.arange(1, 11)])
+    rng = np.random.default_rng(3)
+    views = coefficients[shown] + 0.01 * rng.standard_normal((shown.size, coefficients.shape[1]))
+    localizer = Localizer(MapStore.open(writer.path), 'amplitude-seq')
+    localizer.tracking = True
+    matches = [localizer.query(v, travelled=float(t)) for v, t in zip(views, travelled)]
+    at_end = [m for m, s in zip(matches, shown) if s == last]
+    assert all(m.accepted and m.index == last for m in at_end)
+    assert [int(m.candidate_indices[0]) for m in at_end] == [last] * len(at_end)
+    assert all(m.score < 1.0 for m in at_end)
