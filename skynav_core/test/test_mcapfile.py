@@ -8,21 +8,30 @@ import pytest
 from mcap.records import Channel, Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from skynav_core.bag import BagError, BagReader, open_bag
+from skynav_core.bag import BagError, BagReader, BagWriter, open_bag
 from skynav_core.mcapfile import CHUNK_PERIOD, Salvage, SalvagedChannel, SalvagedMessage
-from skynav_core.testing import write_sample_bag
+from skynav_core.testing import sample_messages, write_sample_bag
+from skynav_core.typestore import typestore
 
 FRAMES = 25  # 2.4 s at 10 Hz: three chunks of at most CHUNK_PERIOD
 
 
-@pytest.fixture(scope='module')
-def bag(tmp_path_factory):
-    """Return the path of a sample bag of several chunks and its chunk indexes."""
+@pytest.fixture(scope='module', params=['zstd', 'uncompressed'])
+def bag(request, tmp_path_factory):
+    """Return the path of a sample bag of several chunks and its chunk indexes: zstd chunks (whose frames carry
+    checksums of their own) or uncompressed ones (`skynav record --no-compression`: only the chunk's CRC)."""
     path = tmp_path_factory.mktemp('mcap') / 'sample.mcap'
-    write_sample_bag(path, frames=FRAMES)
+    if request.param == 'zstd':
+        write_sample_bag(path, frames=FRAMES)
+    else:
+        with BagWriter(path, compress=False) as writer:
+            for topic, msgtype, t, message in sample_messages(FRAMES):
+                writer.add_topic(topic, msgtype)
+                writer.write(topic, t, typestore().serialize_cdr(message, msgtype))
     with path.open('rb') as stream:
         chunks = mcap.reader.make_reader(stream).get_summary().chunk_indexes
     assert len(chunks) == 3 and all(c.message_end_time - c.message_start_time <= CHUNK_PERIOD for c in chunks)
+    assert {c.compression for c in chunks} == {'zstd' if request.param == 'zstd' else ''}
     return path, chunks
 
 
