@@ -207,3 +207,23 @@ def test_bounded_sector_thresholds_reach_the_global_method(scene):
     )
     thresholds = free.run(uv, green, 'mono16', 'mono16').threshold
     assert np.nanmax(np.abs(thresholds - defaults()['threshold'])) > 0.05  # the free sectors do move
+
+
+def test_frames_of_one_exposure_pair_within_the_tolerance_of_their_stamps(scene):
+    # cameras that stamp the two channels of one exposure apart: 0.5 ms and 1.9 ms pair under the default 2 ms,
+    # each mask stamped with the earlier frame's stamp; 2.5 ms apart they are two exposures, and neither has a pair
+    uv, green = scene
+    ms = 10**6
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0 + ms // 2))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8 + 19 * ms // 10))
+        assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0, T0 + 10**8]
+        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 2 * 10**8))
+        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 2 * 10**8 + 5 * ms // 2))
+        assert len(masks_of(graph)) == 2
+        assert sum(node.rejected.values()) == 0 and node.errors == 0
