@@ -103,3 +103,22 @@ def test_bad_calib_files_are_refused(tmp_path):
     path.write_text('#pol\n5 1 2\n')
     with pytest.raises(ValueError):
         OCamCamera.from_calib_file(path)
+
+
+def test_a_distorted_camera_reads_back_from_its_camera_info():
+    # every distortion coefficient differs (a swap of any two changes the lens): the camera the skyline node builds
+    # from the driver's CameraInfo sees the same image circle and puts every ray on the same pixel
+    from sensor_msgs.msg import CameraInfo
+
+    camera = EquidistantCamera.for_field_of_view(320, 240, np.radians(190), k=(0.05, -0.02, 0.004, -0.0005))
+    info = CameraInfo()
+    for key, value in camera.camera_info_fields().items():
+        setattr(info, key, value)
+    back = EquidistantCamera.from_camera_info(info)
+    assert back.theta_max == pytest.approx(camera.theta_max, abs=1e-12)
+    assert np.array_equal(back.image_circle(), camera.image_circle())
+    rng = np.random.default_rng(4)
+    theta = rng.uniform(0, camera.theta_max, 200)
+    phi = rng.uniform(-np.pi, np.pi, 200)
+    rays = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+    np.testing.assert_allclose(back.project(rays), camera.project(rays), atol=1e-9)
