@@ -95,3 +95,44 @@ def test_stopped_recorder_leaves_a_whole_bag(tmp_path, ros_context, stop):
     assert stamps[0] == 0 and stamps[-1] >= 200
     executor.shutdown()
     node.destroy_node()
+
+
+def test_a_recorder_stopped_right_after_a_burst_keeps_all_of_it(tmp_path, ros_context):
+    # 500 messages published reliably as fast as they go, then Ctrl-C at once: what is still queued or on its way
+    # when the stop comes is taken before the file is finished, so every message of the burst is in it
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from skynav_core.ros import message_class
+
+    burst = 500
+    ShCoefficients = message_class('skynav_msgs/msg/ShCoefficients')
+    node = Node('sh_burst', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    publisher = node.create_publisher(ShCoefficients, '/skyline/sh', burst)  # reliable; keeps the burst to resend
+    out = tmp_path / 'burst.mcap'
+    recorder = start_skynav('record', str(out), '/skyline/sh')
+    try:
+        wait_text(recorder, 'recording')
+        deadline = time.monotonic() + 30
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert publisher.get_subscription_count() == 1
+        for i in range(burst):
+            message = ShCoefficients(max_degree=1, coefficients=[float(i)] * 4, fill='zero')
+            message.header.stamp.sec = i
+            publisher.publish(message)
+        recorder.send_signal(signal.SIGINT)
+        assert recorder.wait(timeout=30) == 0, recorder.stderr.read()
+        stderr = recorder.stderr.read()
+    finally:
+        if recorder.poll() is None:
+            recorder.kill()
+            recorder.wait()
+        executor.shutdown()
+        node.destroy_node()
+    with open_bag(out) as bag:
+        stamps = [bag.deserialize(m).header.stamp.sec for m in bag.messages()]
+    assert len(stamps) == burst, f'{len(stamps)} of the {burst} messages recorded'
+    assert stamps == list(range(burst)) and f'wrote {burst} messages' in stderr
