@@ -150,6 +150,50 @@ MUTATIONS = (
         ('skynav_sh/test/test_spectra.py',),
         'the amplitude spectrum averaged over m instead of summed',
     ),
+    Mutation(
+        'tracking-window-end-exclusive',
+        'skynav_localize/skynav_localize/localizer.py',
+        'inside = (snapshots >= window[0]) & (snapshots <= window[1])',
+        'inside = (snapshots >= window[0]) & (snapshots < window[1])',
+        (
+            'skynav_localize/test/test_localizer.py::'
+            'test_tracking_past_the_route_end_matches_the_views_to_the_last_snapshot',
+        ),
+        "the tracking window's last snapshot is left out: past the route's end the window is empty",
+    ),
+    Mutation(
+        'chunk-crc-not-compared',
+        'skynav_core/skynav_core/mcapfile.py',
+        'if len(records) != size or (crc and zlib.crc32(records) != crc):',
+        'if len(records) != size:',
+        ('skynav_core/test/test_mcapfile.py',),
+        "a chunk's CRC is read but never compared: a damaged uncompressed chunk is not named",
+    ),
+    Mutation(
+        'pair-tolerance-in-microseconds',
+        'skynav_skyline/skynav_skyline/node.py',
+        "int(values['pair_tolerance_ms'] * 1e6)",
+        "int(values['pair_tolerance_ms'] * 1e3)",
+        ('skynav_skyline/test/test_node.py::test_frames_of_one_exposure_pair_within_the_tolerance_of_their_stamps',),
+        'pair_tolerance_ms read as microseconds: frames 0.5 ms apart no longer pair',
+    ),
+    Mutation(
+        'camera-info-k1-k2-swapped',
+        'skynav_core/skynav_core/camera.py',
+        'k1, k2, k3, k4 = (float(x) for x in d)',
+        'k2, k1, k3, k4 = (float(x) for x in d)',
+        ('skynav_core/test/test_camera.py::test_a_distorted_camera_reads_back_from_its_camera_info',),
+        'k1 and k2 swapped when a camera is read from CameraInfo',
+    ),
+    Mutation(
+        'record-never-drains',
+        'skynav_bringup/skynav_bringup/cli/record.py',
+        """                executor.spin_once(timeout_sec=0.1)
+            recorder.drain(executor)""",
+        """                executor.spin_once(timeout_sec=0.1)""",
+        ('test/test_replay_record.py::test_a_recorder_stopped_right_after_a_burst_keeps_all_of_it',),
+        '`skynav record` finishes the file at Ctrl-C without taking what is still queued',
+    ),
 )
 
 
