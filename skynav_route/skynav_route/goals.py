@@ -131,6 +131,7 @@ class ActiveGoal:
     time_limit: TimeLimit
     started: int | None = None  # ns of elapsed time (the node's, its clock's jumps left out) at the goal's start
     last_frame: int | None = None  # ns of elapsed time the last frame was processed (or the start)
+    stop_reason: str | None = None  # why an emergency stop ended it
     driven: float = 0.0  # m
     reached_index: int = -1
     steps: int = 0
@@ -236,19 +237,30 @@ def unplaced(matched: int, start_index: int) -> str | None:
     return text
 
 
-def failure(outcome: str, codes: Any, input_timeout: float, time_limit: TimeLimit, lost: str | None = None) -> Refusal:
-    """Return the Result error code and text of a goal that ended by `outcome` (not reached, not canceled)."""
+def failure(
+    outcome: str,
+    codes: Any,
+    input_timeout: float,
+    time_limit: TimeLimit,
+    lost: str | None = None,
+    stop_reason: str | None = None,
+) -> Refusal:
+    """Return the Result error code and text of a goal that ended by `outcome` (not reached, not canceled); `lost`:
+    the text of LOST if not the usual one, `stop_reason`: what engaged the emergency stop."""
     texts = {
         LOST: (codes.LOST, lost or 'lost: too many unaccepted or unsure frames in a row, recovery failed'),
         STALE: (codes.STALE_INPUT, f'no usable frame for {input_timeout} s'),
         TIMED_OUT: (codes.TIMEOUT, f'the goal ran longer than its time limit of {time_limit.describe()}'),
         SHUTDOWN: (codes.LOST, 'the route node shut down'),
         BLOCKED: (codes.BLOCKED, 'blocked: the bumper reported contact (skynav does not drive around objects)'),
-        EMERGENCY: (codes.EMERGENCY_STOP, EMERGENCY_TEXT),
+        EMERGENCY: (codes.EMERGENCY_STOP, f'emergency stop: {stop_reason or EMERGENCY_INPUT}; the robot stopped'),
     }
     return texts[outcome]
 
 
-EMERGENCY_TEXT = 'emergency stop: the emergency stop input was true, the robot stopped'
-#: why a goal that arrives while the emergency stop is true is refused
-EMERGENCY_REFUSAL = 'emergency stop engaged: no goal drives until the emergency stop input is false again'
+EMERGENCY_INPUT = 'the emergency stop input is true'  # the reason of an emergency stop by its input
+
+
+def emergency_refusal(reasons: str) -> str:
+    """Return why a goal that comes while the emergency stop is engaged (for `reasons`) is refused."""
+    return f'emergency stop engaged ({reasons}): no goal drives until it is released'

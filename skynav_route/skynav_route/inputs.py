@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""One camera frame's messages as the controller sees them: a View in base_link.
+"""One camera frame's messages as the controller sees them: a View in base_link; and how far an IMU says the robot
+leans (imu_tilt).
 
 The stages' messages stay in camera_link (docs/interfaces.md); the controller steers in base_link. With the mount M
 (camera_link's rotation in base_link, skynav_core.mount) the home vector d becomes M d and the compass rotation R
@@ -18,6 +19,9 @@ from skynav_core.mount import direction_to_base, rotation_to_base
 from skynav_core.rotations import as_matrix
 
 from .controller import View
+
+# s by the IMU's stamps that a lean over max_tilt_deg must last before it stops the robot (a jolt is shorter)
+TILT_HOLD = 0.2
 
 
 def compass_rotation(estimate: Any) -> np.ndarray | None:
@@ -54,3 +58,25 @@ def frame_view(stamp: int, match: Any, compass: Any, home: Any, mount: np.ndarra
         view.home_direction, view.home_residual = direction_to_base(mount, direction), float(home.residual)
         view.home_index = int(home.snapshot_index)
     return view
+
+
+def imu_tilt(imu: Any, base_rotation: np.ndarray) -> float | None:
+    """Return how far (rad) base_link's z axis leans from the vertical by a sensor_msgs/Imu: by its orientation when
+    it gives one (REP-145: orientation_covariance[0] is -1 when it does not), else by the direction of its linear
+    acceleration (at rest the reaction to gravity, up). `base_rotation` (3, 3) is the IMU frame's rotation in
+    base_link. None when neither is finite and non-zero."""
+    up = None
+    q = imu.orientation
+    quaternion = np.array([q.x, q.y, q.z, q.w], float)
+    norm = float(np.linalg.norm(quaternion))
+    if imu.orientation_covariance[0] != -1.0 and np.isfinite(norm) and norm > 0:
+        up = as_matrix(quaternion / norm).T[:, 2]  # the world's up in the IMU's frame
+    else:
+        a = imu.linear_acceleration
+        acceleration = np.array([a.x, a.y, a.z], float)
+        norm = float(np.linalg.norm(acceleration))
+        if np.isfinite(norm) and norm > 0:
+            up = acceleration / norm
+    if up is None:
+        return None
+    return float(np.arccos(np.clip((np.asarray(base_rotation, float) @ up)[2], -1.0, 1.0)))

@@ -15,8 +15,12 @@ remapped as any topic (`-r cmd_vel:=/base/cmd_vel`).
 
 Emergency stop: when /emergency_stop says true, the node publishes a zero command at once and an active goal aborts
 with EMERGENCY_STOP; then nothing is published (no goal is active) until a new goal comes, and a goal that comes
-while the stop is still true is refused with EMERGENCY_STOP and never moves. The stops are counted in /diagnostics
-(emergency_stops; emergency_stop says whether it is engaged, and the status is WARN while it is).
+while the stop is still true is refused with EMERGENCY_STOP and never moves. An IMU (/imu, sensor_msgs/Imu,
+optional) that shows the robot leaning more than `max_tilt_deg` from the vertical for TILT_HOLD s (by its stamps)
+stops it the same way, until it is level again (inputs.imu_tilt; the IMU frame's rotation in base_link from
+/tf_static, base_link's own axes while it gives none). A lift that does not tilt the robot is not seen. The stops
+are counted in /diagnostics (emergency_stops; emergency_stop says whether it is engaged, and the status is WARN
+while it is).
 
 A frame is processed when its home vector comes (warping is the last stage), or, when none comes, once a view
 `frame_wait` s newer arrives on /skyline/sh (in the in-process graph, where every node has answered a view before
@@ -57,11 +61,13 @@ from rclpy.parameter import Parameter as RosParameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
 from std_msgs.msg import Bool
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
-from skynav_core.motion import fill_twist, fill_velocity_command
+from skynav_core.motion import BASE_FRAME, fill_twist, fill_velocity_command
+from skynav_core.mount import frame_name
 from skynav_core.namespaces import relative
 from skynav_core.node import TF_STATIC_TOPIC, SkynavNode
 from skynav_core.ros import run_node
@@ -71,11 +77,13 @@ from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficie
 from . import goals
 from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, View
 from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal, TimeLimit
-from .inputs import frame_view
+from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
 EMERGENCY_STOP_TOPIC = '/emergency_stop'
+IMU_TOPIC = '/imu'
+INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
 # the contract's action names, served relative to the node's namespace
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s of the node's clock
@@ -103,6 +111,7 @@ class RouteNode(SkynavNode):
         '/odom',
         '/bumper',
         EMERGENCY_STOP_TOPIC,
+        IMU_TOPIC,
         TF_STATIC_TOPIC,
     )
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
@@ -121,8 +130,9 @@ class RouteNode(SkynavNode):
         self.odom: np.ndarray | None = None  # latest base_link position in odom (x, y), m
         self.odom_at_frame: np.ndarray | None = None
         self.bumped = False  # the bumper's latest word: in contact
-        self.emergency_stop = False  # the emergency stop's latest word: engaged
+        self.stop_reasons: dict[str, str] = {}  # what engages the emergency stop now (INPUT_STOP, TILT_STOP): why
         self.emergency_stops = 0  # times it was engaged
+        self.tilted_since: int | None = None  # ns, IMU stamp since which the robot leans over max_tilt_deg
         self.newest: dict[str, int] = {}  # per frame input topic, its newest stamp (ns) since the time restarted
         self.peer_clients: dict[str, AsyncParameterClient] = {}
         self.steady_clock = RosClock(clock_type=ClockType.STEADY_TIME)  # for waits on other nodes
@@ -135,6 +145,7 @@ class RouteNode(SkynavNode):
         self.input('/odom', Odometry, self.on_odom)
         self.input('/bumper', Bool, self.on_bumper)
         self.input(EMERGENCY_STOP_TOPIC, Bool, self.on_emergency_stop)
+        self.input(IMU_TOPIC, Imu, self.on_imu)
         self.listen_for_mount()
         self.servers = [
             ActionServer(self, kind, relative(name), execute_callback=execute, cancel_callback=self.on_cancel)
@@ -201,22 +212,56 @@ class RouteNode(SkynavNode):
         if self.bumped and self.active is not None:
             self.stop_blocked()
 
-    def on_emergency_stop(self, message: Bool) -> None:
-        """Take the emergency stop's word: engaged, it stops the robot at once and aborts the active goal
-        (EMERGENCY_STOP); while it stays engaged, goals are refused."""
-        engaged = bool(message.data)
-        if engaged and not self.emergency_stop:
+    @property
+    def emergency_stop(self) -> bool:
+        """Return whether the emergency stop is engaged (by its input or the IMU's tilt)."""
+        return bool(self.stop_reasons)
+
+    def engage(self, cause: str, reason: str | None) -> None:
+        """Engage the emergency stop for `cause` (INPUT_STOP, TILT_STOP) because of `reason` (None: release it).
+        Engaged, it stops the robot at once and aborts the active goal (EMERGENCY_STOP); goals are refused while it
+        stays engaged."""
+        if reason is None:
+            if self.stop_reasons.pop(cause, None) is not None and not self.stop_reasons:
+                self.get_logger().info('emergency stop released: a new goal may drive')
+            return
+        if cause not in self.stop_reasons:
             self.emergency_stops += 1
             doing = 'the robot stops and the goal aborts' if self.active is not None else 'no goal drives'
             self.get_logger().error(
-                f'emergency stop engaged: {doing} (EMERGENCY_STOP) until it is released and a new goal comes; '
-                'counted in /diagnostics as emergency_stops'
+                f'emergency stop engaged ({reason}): {doing} (EMERGENCY_STOP) until it is released and a new goal '
+                'comes; counted in /diagnostics as emergency_stops'
             )
-        elif self.emergency_stop and not engaged:
-            self.get_logger().info('emergency stop released: a new goal may drive')
-        self.emergency_stop = engaged
-        if engaged and self.active is not None:
+        self.stop_reasons[cause] = reason
+        if self.active is not None:
             self.stop_emergency()
+
+    def on_emergency_stop(self, message: Bool) -> None:
+        """Take the emergency stop input's word: true engages the stop, false releases it."""
+        self.engage(INPUT_STOP, goals.EMERGENCY_INPUT if message.data else None)
+
+    def on_imu(self, message: Imu) -> None:
+        """Engage the emergency stop while the IMU shows the robot leaning over max_tilt_deg for TILT_HOLD s."""
+        limit = self.values['max_tilt_deg']
+        if limit <= 0:
+            return
+        try:
+            rotation = self.static_transforms.rotation(BASE_FRAME, frame_name(message.header.frame_id) or BASE_FRAME)
+        except ValueError:  # the transforms loop: rejected where they came in
+            rotation = None
+        tilt = imu_tilt(message, np.eye(3) if rotation is None else rotation)
+        if tilt is None:
+            self.reject('non_finite', 'an /imu message has neither a usable orientation nor a usable acceleration')
+            return
+        stamp, degrees = stamp_ns(message.header), math.degrees(tilt)
+        if degrees <= limit:
+            self.tilted_since = None
+            self.engage(TILT_STOP, None)
+            return
+        if self.tilted_since is None or stamp < self.tilted_since:
+            self.tilted_since = stamp
+        if stamp - self.tilted_since >= TILT_HOLD * 1e9:
+            self.engage(TILT_STOP, f'the robot leans {degrees:.0f} deg from the vertical, over max_tilt_deg {limit:g}')
 
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
@@ -296,6 +341,8 @@ class RouteNode(SkynavNode):
 
     def stop_emergency(self, stamp: int | None = None) -> None:
         """Stop the robot on the emergency stop and end the goal with EMERGENCY_STOP (the zero command as stop's)."""
+        if self.active is not None:
+            self.active.stop_reason = '; '.join(self.stop_reasons.values())
         self.stop(stamp)
         self.finish(EMERGENCY, stopped=True)
 
@@ -418,7 +465,8 @@ class RouteNode(SkynavNode):
         """Drive along the route of a FollowRoute goal."""
         request, result, codes = handle.request, FollowRoute.Result(), FollowRoute.Result
         if self.emergency_stop:
-            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.EMERGENCY_REFUSAL))
+            reasons = '; '.join(self.stop_reasons.values())
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(reasons)))
         try:
             count, route, length, path = self.open_map(request.map_path)
         except MapError as exc:
@@ -451,7 +499,8 @@ class RouteNode(SkynavNode):
         """Drive to the place of the Home goal's snapshot."""
         request, result, codes = handle.request, Home.Result(), Home.Result
         if self.emergency_stop:
-            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.EMERGENCY_REFUSAL))
+            reasons = '; '.join(self.stop_reasons.values())
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(reasons)))
         try:
             count, _, _, path = self.open_map(request.map_path)
         except MapError as exc:
@@ -492,7 +541,7 @@ class RouteNode(SkynavNode):
             handle.canceled()
         else:
             result.error_code, result.error_msg = goals.failure(
-                outcome, codes, self.values['input_timeout'], goal.time_limit, lost
+                outcome, codes, self.values['input_timeout'], goal.time_limit, lost, goal.stop_reason
             )
             handle.abort()
         return result

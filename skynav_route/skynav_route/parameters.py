@@ -9,6 +9,7 @@ from dataclasses import fields
 from skynav_core.parameters import Parameter
 
 from .controller import Limits, Settings
+from .inputs import TILT_HOLD
 
 _LIMITS, _SETTINGS = Limits(), Settings()
 
@@ -91,6 +92,13 @@ PARAMETERS = {
     'peer_timeout': Parameter(
         5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s of steady, wall time)"
     ),
+    'max_tilt_deg': Parameter(
+        35.0,
+        'the optional /imu (sensor_msgs/Imu): base_link leaning more than this (deg) from the vertical for '
+        f"{TILT_HOLD} s stops the robot like the emergency stop (EMERGENCY_STOP); by the IMU's orientation, else its "
+        "acceleration's direction, turned into base_link by /tf_static (an IMU frame it does not link counts as "
+        'base_link); 0: off',
+    ),
     'cmd_vel_stamped': Parameter(
         True,
         'publish /cmd_vel as geometry_msgs/TwistStamped (true) or as a bare geometry_msgs/Twist for bases that take '
@@ -104,6 +112,8 @@ def check(values: dict) -> None:
     numbers = [v for v in values.values() if isinstance(v, float)]
     if not all(math.isfinite(v) and v >= 0 for v in numbers):
         raise ValueError('every limit, gain and timeout must be finite and not negative')
+    if values['max_tilt_deg'] > 180:
+        raise ValueError('max_tilt_deg is an angle from the vertical: at most 180 (0: off)')
     if values['max_speed'] <= 0 or values['max_turn_rate'] <= 0 or values['input_timeout'] <= 0:
         raise ValueError('max_speed, max_turn_rate and input_timeout must be more than 0')
     if values['lost_frames'] < 1 or values['arrived_frames'] < 1 or values['lookahead'] < 0:

@@ -95,7 +95,9 @@ def test_every_way_a_goal_fails_has_its_own_code_and_text():
         ]
         assert codes.EMERGENCY_STOP == 9  # the contract's value
         assert len({text for _, text in failures.values()}) == len(failures)
-        assert 'emergency stop' in failures[goals.EMERGENCY][1]
+        assert failures[goals.EMERGENCY][1] == 'emergency stop: the emergency stop input is true; the robot stopped'
+        tilted = goals.failure(goals.EMERGENCY, codes, 1.0, limit, stop_reason='the robot leans 40 deg')
+        assert tilted == (codes.EMERGENCY_STOP, 'emergency stop: the robot leans 40 deg; the robot stopped')
         # the limit and how it was computed: 120 s + 3 x 10 m / 0.5 m/s
         assert failures[goals.TIMED_OUT][1] == (
             'the goal ran longer than its time limit of 180.0 s: goal_timeout 120 s + goal_time_factor 3 x 10.0 m '
@@ -179,6 +181,7 @@ def test_the_parameter_defaults_are_the_controllers_and_bad_values_are_refused()
         ('goal_time_factor', -1.0),
         ('home_distance', math.inf),
         ('goal_timeout', -1.0),
+        ('max_tilt_deg', 181.0),
     ):
         with pytest.raises(ValueError):
             check({**values, name: value})

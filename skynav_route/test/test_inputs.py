@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from skynav_route.controller import Homer, Limits, Settings, ground_angle, route_direction
-from skynav_route.inputs import frame_view
+from skynav_route.inputs import frame_view, imu_tilt
 
 from skynav_core.mount import mount_from_rpy_deg
 from skynav_core.rotations import as_quaternion, home_direction, relative_rotation, rpy_matrix, yaw, yaw_matrix
@@ -89,3 +89,47 @@ def test_homing_turns_towards_home_only_with_the_mount(mount_yaw):
     assert mounted.angular == pytest.approx(0.0, abs=1e-9) and mounted.linear > 0.05  # straight on, speeding up
     unmounted = home_steps(np.eye(3), camera_home)[-1]  # the mount left out: home seems to lie to a side or behind
     assert abs(unmounted.angular) > 0.5 and unmounted.linear == pytest.approx(0.0, abs=1e-9)
+
+
+def imu_message(orientation=None, acceleration=(0.0, 0.0, 9.81)):
+    """Return a sensor_msgs/Imu with an orientation (3, 3; None: the IMU gives none) and a linear acceleration."""
+    from sensor_msgs.msg import Imu
+
+    imu = Imu()
+    if orientation is None:
+        imu.orientation_covariance[0] = -1.0  # REP-145: no orientation
+    else:
+        q = imu.orientation
+        q.x, q.y, q.z, q.w = map(float, as_quaternion(orientation))
+    a = imu.linear_acceleration
+    a.x, a.y, a.z = map(float, acceleration)
+    return imu
+
+
+@pytest.mark.parametrize('roll, pitch', [(0.0, 0.0), (40.0, 0.0), (0.0, -25.0), (30.0, 30.0), (0.0, 120.0)])
+def test_the_tilt_is_the_angle_of_base_links_z_from_the_vertical_by_orientation_or_gravity(roll, pitch):
+    rotation = rpy_matrix(math.radians(roll), math.radians(pitch), math.radians(70.0))  # the heading plays no part
+    expected = math.degrees(math.acos(rotation[2, 2]))
+    by_orientation = imu_tilt(imu_message(rotation, acceleration=(0.0, 0.0, 0.0)), np.eye(3))
+    # at rest the accelerometer reads the reaction to gravity: the world's up in the IMU's frame
+    by_gravity = imu_tilt(imu_message(None, rotation.T @ np.array([0.0, 0.0, 9.81])), np.eye(3))
+    assert math.degrees(by_orientation) == pytest.approx(expected, abs=1e-6)
+    assert math.degrees(by_gravity) == pytest.approx(expected, abs=1e-6)
+
+
+def test_an_imu_mounted_turned_is_read_in_base_link():
+    # the IMU lies on its side (its y axis up) on a level robot: level in base_link, 90 deg in its own frame
+    imu = imu_message(None, (0.0, 9.81, 0.0))
+    mounted = rpy_matrix(math.radians(90.0), 0.0, 0.0)  # the IMU frame's rotation in base_link
+    assert imu_tilt(imu, mounted) == pytest.approx(0.0, abs=1e-9)
+    assert math.degrees(imu_tilt(imu, np.eye(3))) == pytest.approx(90.0)
+
+
+def test_an_imu_without_a_usable_reading_gives_no_tilt():
+    assert imu_tilt(imu_message(None, (0.0, 0.0, 0.0)), np.eye(3)) is None
+    assert imu_tilt(imu_message(None, (math.nan, 0.0, 9.81)), np.eye(3)) is None
+    # an orientation of zeros that does not say it is missing: the acceleration is read instead
+    zeros = imu_message(None, (0.0, 9.81 * math.sin(0.5), 9.81 * math.cos(0.5)))
+    zeros.orientation_covariance[0] = 0.0
+    zeros.orientation.w = 0.0
+    assert imu_tilt(zeros, np.eye(3)) == pytest.approx(0.5)

@@ -670,3 +670,53 @@ def test_waiting_for_a_peer_ends_while_sim_time_stands_still(route_map):
             assert task.exception() is None
         finally:
             driver.close()
+
+
+def imu_at(stamp, tilt_deg):
+    """Return a sensor_msgs/Imu stamped `stamp` (ns) of a robot rolled by `tilt_deg` (its orientation)."""
+    from sensor_msgs.msg import Imu
+
+    imu = Imu()
+    imu.header.frame_id = 'base_link'
+    imu.header.stamp.sec, imu.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+    imu.orientation.x, imu.orientation.w = math.sin(math.radians(tilt_deg) / 2), math.cos(math.radians(tilt_deg) / 2)
+    return imu
+
+
+def test_an_imu_that_shows_the_robot_tipping_stops_it_like_the_emergency_stop(route_map):
+    with route_graph(route_map, 'max_tilt_deg:=35.0') as graph:
+        driver = Driver(graph)
+        node = driver.node
+        try:
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            for _ in range(2):
+                stamp = driver.publish_frame(home_index=9)
+                graph.publish('/imu', imu_at(stamp, 20.0))  # a slope: it drives on
+            graph.publish('/imu', imu_at(stamp + 10_000_000, 50.0))  # a jolt, not lasting
+            graph.publish('/imu', imu_at(stamp + 20_000_000, 10.0))
+            driver.publish_frame(home_index=9)
+            assert not result.done() and len(driver.commands) == 3 and not is_zero(driver.commands[-1])
+            start = driver.stamp()
+            graph.publish('/imu', imu_at(start, 45.0))
+            graph.publish('/imu', imu_at(start + 100_000_000, 45.0))  # 0.1 s over: not yet
+            assert len(driver.commands) == 3
+            graph.publish('/imu', imu_at(start + 200_000_000, 45.0))  # 0.2 s: stop at once
+            assert len(driver.commands) == 4 and is_zero(driver.commands[-1])
+            assert driver.spin_until(result.done)
+            outcome = result.result().result
+            assert error_name(outcome) == 'EMERGENCY_STOP'
+            assert outcome.error_msg == (
+                'emergency stop: the robot leans 45 deg from the vertical, over max_tilt_deg 35; the robot stopped'
+            )
+            assert node.emergency_stops == 1
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))  # still tipped: refused
+            assert driver.spin_until(result.done) and error_name(result.result().result) == 'EMERGENCY_STOP'
+            graph.publish('/imu', imu_at(start + 300_000_000, 5.0))  # level again: a new goal drives
+            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            for _ in range(2):
+                driver.publish_frame(home_index=9)
+            assert len(driver.commands) == 6 and not is_zero(driver.commands[-1])
+            handle.cancel_goal_async()
+            assert driver.spin_until(result.done)
+        finally:
+            driver.close()
