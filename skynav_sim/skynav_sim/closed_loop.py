@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TransformStamped, TwistStamped
+from geometry_msgs.msg import TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
@@ -119,8 +119,14 @@ class SimMowerNode(SkynavNode):
         self.output('/bumper', Bool)
         self.output('/clock', Clock)
         self.output(TF_STATIC_TOPIC, TFMessage, TF_STATIC_QOS)
-        self.commands: list[TwistStamped] = []
-        self.input('/cmd_vel', TwistStamped, self.commands.append)
+        self.commands: list[tuple[int, float, float]] = []  # (stamp ns, forward m/s, turn rad/s) of each command
+        self.input('/cmd_vel', TwistStamped, self.on_command)
+
+    def on_command(self, message: TwistStamped | Twist) -> None:
+        """Take a velocity command: a TwistStamped, or a Twist (the route node's cmd_vel_stamped false) at the graph's
+        time."""
+        twist, stamp = (message.twist, stamp_ns(message.header)) if hasattr(message, 'header') else (message, None)
+        self.commands.append((self.now_ns() if stamp is None else stamp, float(twist.linear.x), float(twist.angular.z)))
 
     def publish_clock(self, stamp: int) -> None:
         """Publish the sim time (ns)."""
@@ -171,10 +177,9 @@ class SimMowerNode(SkynavNode):
 
     def command(self, stamp: int) -> tuple[float, float]:
         """Return the command the base obeys at `stamp` (ns): the latest, unless older than COMMAND_TIMEOUT."""
-        if not self.commands or stamp - stamp_ns(self.commands[-1].header) > COMMAND_TIMEOUT * 1e9:
+        if not self.commands or stamp - self.commands[-1][0] > COMMAND_TIMEOUT * 1e9:
             return 0.0, 0.0
-        twist = self.commands[-1].twist
-        return float(twist.linear.x), float(twist.angular.z)
+        return self.commands[-1][1], self.commands[-1][2]
 
 
 class Simulation:

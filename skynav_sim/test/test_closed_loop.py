@@ -61,9 +61,12 @@ def test_homing_succeeds_from_nine_in_ten_starts(camera, tmp_path):
     assert np.median([r.path_ratio for r in successes]) < 1.5
 
 
-# the simulated graph in a namespace too (its nodes, actions and /clock under /robot1), as one of two robots
-@pytest.mark.parametrize('namespace', ['', 'robot1'], ids=['global', 'namespaced'])
-def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, tmp_path, namespace):
+# the simulated graph in a namespace too (its nodes, actions and /clock under /robot1), as one of two robots, and
+# with a base that takes geometry_msgs/Twist (cmd_vel_stamped false)
+@pytest.mark.parametrize(
+    ('namespace', 'stamped'), [('', True), ('robot1', True), ('', False)], ids=['global', 'namespaced', 'twist']
+)
+def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, tmp_path, namespace, stamped):
     from skynav_sim.closed_loop import Base, home_runs, snapshot_map
     from skynav_sim.scenarios import ScenarioParameters, snapshot_place
     from skynav_sim.sky import parse_time
@@ -86,6 +89,7 @@ def test_a_mower_against_an_object_ends_its_goal_blocked_by_the_bumper(camera, t
         seed,
         max_frames=20,
         base=Base(namespace=namespace),
+        ros_args=['-p', f'cmd_vel_stamped:={str(stamped).lower()}'],
     )
     assert run.stopped == 'BLOCKED' and 'bumper' in run.result.error_msg
     assert [p.tolist() for p in run.path] == [start.tolist()] * 2  # one frame, and it stood still
