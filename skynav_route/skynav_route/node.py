@@ -15,7 +15,7 @@ remapped as any topic (`-r cmd_vel:=/base/cmd_vel`).
 
 Emergency stop: when /emergency_stop says true, the node publishes a zero command at once and an active goal aborts
 with EMERGENCY_STOP; then nothing is published (no goal is active) until a new goal comes, and a goal that comes
-while the stop is still true is refused with EMERGENCY_STOP and never moves. An IMU (/imu, sensor_msgs/Imu,
+while the stop is still true is refused with EMERGENCY_STOP and never moves. An IMU (/camera/imu, sensor_msgs/Imu,
 optional) that shows the robot leaning more than `max_tilt_deg` from the vertical for TILT_HOLD s (by its stamps)
 stops it the same way, until it is level again (inputs.imu_tilt; the IMU frame's rotation in base_link from
 /tf_static, base_link's own axes while it gives none). A lift that does not tilt the robot is not seen. The stops
@@ -82,7 +82,7 @@ from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
 EMERGENCY_STOP_TOPIC = '/emergency_stop'
-IMU_TOPIC = '/imu'
+IMU_TOPIC = '/camera/imu'  # the contract's optional IMU (docs/interfaces.md, Topics)
 INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
 # the contract's action names, served relative to the node's namespace
 FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
@@ -251,7 +251,7 @@ class RouteNode(SkynavNode):
             rotation = None
         tilt = imu_tilt(message, np.eye(3) if rotation is None else rotation)
         if tilt is None:
-            self.reject('non_finite', 'an /imu message has neither a usable orientation nor a usable acceleration')
+            self.reject('non_finite', f'an {IMU_TOPIC} message has no usable orientation nor acceleration')
             return
         stamp, degrees = stamp_ns(message.header), math.degrees(tilt)
         if degrees <= limit:

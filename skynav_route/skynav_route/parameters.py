@@ -94,7 +94,7 @@ PARAMETERS = {
     ),
     'max_tilt_deg': Parameter(
         35.0,
-        'the optional /imu (sensor_msgs/Imu): base_link leaning more than this (deg) from the vertical for '
+        'the optional /camera/imu (sensor_msgs/Imu): base_link leaning more than this (deg) from the vertical for '
         f"{TILT_HOLD} s stops the robot like the emergency stop (EMERGENCY_STOP); by the IMU's orientation, else its "
         "acceleration's direction, turned into base_link by /tf_static (an IMU frame it does not link counts as "
         'base_link); 0: off',

@@ -16,6 +16,7 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
+from skynav_route.node import IMU_TOPIC
 from std_msgs.msg import Bool
 
 from skynav_core.actions import error_name
@@ -691,16 +692,16 @@ def test_an_imu_that_shows_the_robot_tipping_stops_it_like_the_emergency_stop(ro
             handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
             for _ in range(2):
                 stamp = driver.publish_frame(home_index=9)
-                graph.publish('/imu', imu_at(stamp, 20.0))  # a slope: it drives on
-            graph.publish('/imu', imu_at(stamp + 10_000_000, 50.0))  # a jolt, not lasting
-            graph.publish('/imu', imu_at(stamp + 20_000_000, 10.0))
+                graph.publish(IMU_TOPIC, imu_at(stamp, 20.0))  # a slope: it drives on
+            graph.publish(IMU_TOPIC, imu_at(stamp + 10_000_000, 50.0))  # a jolt, not lasting
+            graph.publish(IMU_TOPIC, imu_at(stamp + 20_000_000, 10.0))
             driver.publish_frame(home_index=9)
             assert not result.done() and len(driver.commands) == 3 and not is_zero(driver.commands[-1])
             start = driver.stamp()
-            graph.publish('/imu', imu_at(start, 45.0))
-            graph.publish('/imu', imu_at(start + 100_000_000, 45.0))  # 0.1 s over: not yet
+            graph.publish(IMU_TOPIC, imu_at(start, 45.0))
+            graph.publish(IMU_TOPIC, imu_at(start + 100_000_000, 45.0))  # 0.1 s over: not yet
             assert len(driver.commands) == 3
-            graph.publish('/imu', imu_at(start + 200_000_000, 45.0))  # 0.2 s: stop at once
+            graph.publish(IMU_TOPIC, imu_at(start + 200_000_000, 45.0))  # 0.2 s: stop at once
             assert len(driver.commands) == 4 and is_zero(driver.commands[-1])
             assert driver.spin_until(result.done)
             outcome = result.result().result
@@ -711,7 +712,7 @@ def test_an_imu_that_shows_the_robot_tipping_stops_it_like_the_emergency_stop(ro
             assert node.emergency_stops == 1
             handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))  # still tipped: refused
             assert driver.spin_until(result.done) and error_name(result.result().result) == 'EMERGENCY_STOP'
-            graph.publish('/imu', imu_at(start + 300_000_000, 5.0))  # level again: a new goal drives
+            graph.publish(IMU_TOPIC, imu_at(start + 300_000_000, 5.0))  # level again: a new goal drives
             handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
             for _ in range(2):
                 driver.publish_frame(home_index=9)
