@@ -6,7 +6,9 @@ servers answer a real action client over DDS. The test plays the other nodes: fo
 publishes the place match, compass estimate, home vector and view that the stages would, stamped alike.
 """
 
+import itertools
 import math
+import os
 
 import numpy as np
 import pytest
@@ -23,6 +25,7 @@ from skynav_core.actions import error_name
 from skynav_core.graph import in_process
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
+from skynav_core.namespaces import relative
 from skynav_core.nodes import installed_nodes
 from skynav_core.testing import CanceledGoalHandle, run_without_waiting
 from skynav_localize.mapping import build_map
@@ -31,6 +34,7 @@ from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficie
 
 START = 1_750_000_000_000_000_000  # ns
 FRAME = 200_000_000  # ns between frames
+GRAPHS = itertools.count()  # numbers the in-process graphs of this module, each in a namespace of its own
 SNAPSHOTS = 20
 
 
@@ -67,7 +71,7 @@ class Driver:
         return done()
 
     def send(self, kind, name, goal):
-        client = ActionClient(self.client_node, kind, name)
+        client = ActionClient(self.client_node, kind, relative(name))  # in the graph's namespace
         assert self.spin_until(client.server_is_ready)
         sent = client.send_goal_async(goal, feedback_callback=lambda m: self.feedback.append(m.feedback))
         assert self.spin_until(sent.done) and sent.result().accepted
@@ -116,8 +120,11 @@ class Driver:
 
 
 def route_graph(route_map, *parameters):
+    """The route node in an in-process graph of a namespace of its own: the action servers of earlier tests' graphs,
+    which discovery may still list for a while, are never matched instead of this one's."""
     specs = [s for s in installed_nodes() if s.name == 'route']
-    arguments = ['-p', f'map:={route_map}', '-p', 'configure_peers:=false', '-p', 'input_timeout:=1.0']
+    arguments = ['-r', f'__ns:=/route_test_{os.getpid()}_{next(GRAPHS)}']
+    arguments += ['-p', f'map:={route_map}', '-p', 'configure_peers:=false', '-p', 'input_timeout:=1.0']
     for parameter in parameters:
         arguments += ['-p', parameter]
     return in_process(specs, arguments)
@@ -299,7 +306,7 @@ def test_home_to_an_index_the_map_lacks_aborts_with_a_clear_error(route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            client = ActionClient(driver.client_node, Home, '/skynav/home')
+            client = ActionClient(driver.client_node, Home, relative('/skynav/home'))
             assert driver.spin_until(client.server_is_ready)
             sent = client.send_goal_async(Home.Goal(index=SNAPSHOTS))
             assert driver.spin_until(sent.done)
@@ -318,7 +325,7 @@ def test_a_goal_without_a_map_aborts_no_map(tmp_path, route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            client = ActionClient(driver.client_node, FollowRoute, '/skynav/follow_route')
+            client = ActionClient(driver.client_node, FollowRoute, relative('/skynav/follow_route'))
             assert driver.spin_until(client.server_is_ready)
             sent = client.send_goal_async(FollowRoute.Goal(map_path=str(tmp_path / 'missing.db')))
             assert driver.spin_until(sent.done)
