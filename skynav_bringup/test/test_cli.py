@@ -71,3 +71,9 @@ def test_params_file_must_be_ros_yaml(tmp_path):
     bad.write_text('a: [1, 2\n')
     result = run_skynav('launch', '--params', str(bad))
     assert result.returncode == 1 and one_line_error(result.stderr)
+    # ROS refuses a list that mixes integers and floats (rcl: "Sequence should be of same type"), in every node
+    bad.write_text('/**:\n  ros__parameters:\n    camera_mount_rpy_deg: [0, 0.0, 90.0]\n')
+    for command in (['launch'], ['run', 'missing.mcap', '--out', str(tmp_path / 'out.mcap')]):
+        result = run_skynav(*command, '--params', str(bad))
+        assert result.returncode == 1 and one_line_error(result.stderr), result.stderr
+        assert 'camera_mount_rpy_deg' in result.stderr and '[0.0, 0.0, 90.0]' in result.stderr

@@ -58,7 +58,20 @@ def load_parameter_file(path: str | Path) -> dict[str, dict]:
         raise ParameterFileError(
             f'parameter file {path} is not in the ROS 2 format (node_name: {{ros__parameters: ...}})'
         )
+    for section, entries in content.items():
+        for name, value in entries['ros__parameters'].items():
+            if isinstance(value, list) and len({_kind(item) for item in value}) > 1:
+                raise ParameterFileError(
+                    f'parameter file {path}: {section}: {name}: {value} mixes kinds of values, which ROS refuses '
+                    '(write every number of a list alike, e.g. [0.0, 0.0, 90.0])'
+                )
     return content
+
+
+def _kind(value: Any) -> str:
+    """Return the ROS parameter kind of a YAML value: bool, integer, double, string or other."""
+    kinds = ((bool, 'bool'), (int, 'integer'), (float, 'double'), (str, 'string'))
+    return next((kind for cls, kind in kinds if isinstance(value, cls)), 'other')
 
 
 def read_parameter_file(path: str | Path, node: str, table: ParameterTable) -> dict[str, Any]:

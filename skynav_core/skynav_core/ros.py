@@ -110,18 +110,21 @@ SIGNAL_POLL_S = 0.1  # s: how often a node that takes the signals itself looks w
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
-    apply_ros_environment()
     # A node that drives the robot stops it on the way out, which needs the context alive: it takes the signals
     # itself (a flag its spin loop looks at) instead of rclpy's handler, which shuts the context down first. A flag,
     # not KeyboardInterrupt, so that a signal never lands inside rclpy's own code and leaves it half done.
     own_signals = getattr(node_factory, 'stops_on_signal', False)
     stop = threading.Event()
-    if own_signals:
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda *_: stop.set())
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own_signals else SignalHandlerOptions.ALL)
-    node = None
-    try:
+    node, started = None, False
+    try:  # a Ctrl-C at any moment from here on, even while rclpy starts or the node is built, ends quietly
+        if own_signals:
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(signum, lambda *_: stop.set())
+        apply_ros_environment()
+        rclpy.init(
+            args=args, signal_handler_options=SignalHandlerOptions.NO if own_signals else SignalHandlerOptions.ALL
+        )
+        started = True
         node = node_factory()
         if own_signals:
             spin_until_signal(node, stop)
@@ -130,7 +133,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
-        if rclpy.ok():  # a real failure, not a callback that raced the shutdown a signal started
+        if not started or rclpy.ok():  # a real failure, not a callback that raced the shutdown a signal started
             raise
     finally:
         if node is not None:
