@@ -197,3 +197,45 @@ def test_replay_says_at_once_whom_it_waits_for_and_keeps_saying_it(tmp_path):
     assert lines[1].startswith('skynav replay: waiting for ') and 'skyline' in lines[1], lines
     assert any('5 s: still waiting on' in line and '/nobody_here/camera/uv/image_raw' in line for line in lines), lines
     assert any('publishing anyway' in line for line in lines) and 'published' in lines[-1], lines
+
+
+def test_launch_kills_a_node_that_will_not_stop_and_shows_where_it_hung(tmp_path):
+    # A node that ignores SIGINT and SIGTERM (as a node stuck in a call would): after SIGINT and SIGTERM, each given
+    # its grace, launch has it write its threads' Python stacks, then kills it and exits 1.
+    (tmp_path / 'stubborn_node.py').write_text(
+        textwrap.dedent("""
+        import signal
+        from rclpy.node import Node
+
+        class Stubborn(Node):
+            def __init__(self):
+                super().__init__('stubborn')
+                self.create_timer(0.05, self.hang_here)
+
+            def hang_here(self):
+                for signum in (signal.SIGINT, signal.SIGTERM):
+                    signal.signal(signum, signal.SIG_IGN)
+                print('stubborn node up', flush=True)
+                while True:
+                    signal.pause()
+    """)
+    )
+    dist = tmp_path / 'stubborn_node-1.0.dist-info'
+    dist.mkdir()
+    (dist / 'METADATA').write_text('Metadata-Version: 2.1\nName: stubborn-node\nVersion: 1.0\n')
+    (dist / 'entry_points.txt').write_text('[skynav.nodes]\nstubborn = stubborn_node:Stubborn\n')
+    env = dict(__import__('os').environ, PYTHONPATH=str(tmp_path))
+    launch = subprocess.Popen(
+        [sys.executable, '-m', 'skynav_bringup.cli', 'launch', '--nodes', 'stubborn'],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    wait_text(launch, 'stubborn node up', stream='stdout')
+    launch.send_signal(signal.SIGINT)
+    out, _ = launch.communicate(timeout=120)
+    assert launch.returncode == 1, out
+    assert 'stubborn did not stop: the Python stacks of its threads follow' in out
+    assert 'in hang_here' in out  # faulthandler's stack of the node's main thread
+    assert 'stubborn: process ended with exit code -9' in out

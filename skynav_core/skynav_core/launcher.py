@@ -19,10 +19,12 @@ from typing import TextIO
 
 from .environment import apply_ros_environment
 from .nodes import NodeSpec
+from .run_node import STACKS_SIGNAL
 
 # After SIGINT a node gets this long to shut down before SIGTERM, and as long again before SIGKILL (s).
 STOP_GRACE = 10.0
 POLL_PERIOD = 0.1
+STACKS_WAIT = 1.0  # s a node that would not stop gets to write its stacks before it is killed
 
 
 def node_command(spec: NodeSpec, ros_args: Sequence[str] = ()) -> list[str]:
@@ -104,11 +106,17 @@ class Launcher:
         return 1 if failed else 0
 
     def stop(self) -> None:
-        """Ask every node to stop (SIGINT), then insist (SIGTERM, SIGKILL) on those that do not."""
+        """Ask every node to stop (SIGINT), then insist (SIGTERM, SIGKILL) on those that do not; before the SIGKILL,
+        a node that would not stop is asked for its threads' stacks (run_node.STACKS_SIGNAL), to show where it hung."""
         for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             alive = self.running()
             if not alive:
                 return
+            if signum == signal.SIGKILL:
+                self.say(f'{", ".join(alive)} did not stop: the Python stacks of its threads follow')
+                for name in alive:
+                    self.processes[name].send_signal(STACKS_SIGNAL)
+                time.sleep(STACKS_WAIT)
             self.say(f'sending {signal.Signals(signum).name} to {", ".join(alive)}')
             for name in alive:
                 self.processes[name].send_signal(signum)

@@ -106,6 +106,7 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
 
 
 SIGNAL_POLL_S = 0.1  # s: how often a node that takes the signals itself looks whether one came
+SHUTDOWN_LAG = 0.5  # s a signal's shutdown of the context may lag what it broke
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
@@ -133,13 +134,24 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
-        if not started or rclpy.ok():  # a real failure, not a callback that raced the shutdown a signal started
+        if not started or _context_stays_up():  # a real failure, not one that raced the shutdown a signal started
             raise
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def _context_stays_up() -> bool:
+    """Return whether rclpy's context is still up SHUTDOWN_LAG s after a failure: rclpy's signal handler shuts it
+    down from a thread of its own, so what a signal broke (a node half built) may fail before the context is down."""
+    deadline = time.monotonic() + SHUTDOWN_LAG
+    while rclpy.ok():
+        if time.monotonic() > deadline:
+            return True
+        time.sleep(0.02)
+    return False
 
 
 def spin_until_signal(node: Node, stop: threading.Event) -> None:

@@ -6,11 +6,16 @@
 
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import signal
 import sys
 from types import FrameType
 from typing import NoReturn
+
+#: On this signal the node writes every thread's Python stack to stderr and goes on (`skynav launch` sends it to a
+#: node that has not stopped before it kills the node).
+STACKS_SIGNAL = signal.SIGUSR1
 
 
 def _stop_while_loading(signum: int, frame: FrameType | None) -> NoReturn:
@@ -24,6 +29,7 @@ def main() -> int:
         print('usage: python -m skynav_core.run_node MODULE:CLASS [--ros-args ...]', file=sys.stderr)
         return 2
     module_name, class_name = sys.argv[1].split(':', 1)
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)  # a node that will not stop shows where it hangs
     signal.signal(signal.SIGINT, _stop_while_loading)
     from .ros import run_node  # noqa: PLC0415 (rclpy loads after the handler that makes an early Ctrl-C quiet)
 
