@@ -5,7 +5,8 @@ A node's clock is not always smooth. Under sim time it reads zero until the firs
 the simulator's time; a recording replayed with its own clock jumps back when it loops or starts again. A timeout
 that compared two readings of such a clock would fire on the jump. `ElapsedTime` reads the clock often (a timer of
 the node) and adds up only the steps a running clock makes: a step backwards, or forwards by more than `max_step_ns`,
-is a jump and adds nothing. No rclpy: it takes the clock's readings in ns.
+is a jump and adds nothing, and so is the step from a reading of zero (ROS time zero is a clock not yet started). No
+rclpy: it takes the clock's readings in ns.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ class ElapsedTime:
         """Take a reading of the clock (ns) and return the time passed since the first one, its jumps left out (ns)."""
         if self._last is not None:
             step = clock_ns - self._last
-            if 0 <= step <= self.max_step_ns:
+            if 0 <= step <= self.max_step_ns and (self._last != 0 or step == 0):
                 self.total_ns += step
             else:
                 self.jumps += 1

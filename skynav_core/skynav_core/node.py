@@ -74,6 +74,7 @@ DIAGNOSTICS_PERIOD = 1.0  # s
 # s of the node's clock between readings of elapsed_ns() when no input comes (each input reads it too): under
 # max_stamp_jump_s, so that a running clock's steps count; longer costs less (each wake-up of a node costs ~1 ms)
 TIME_READ_PERIOD = 0.5
+UNBOUNDED_STEP_NS = 2**63 - 1  # in the in-process graph every forward step of the inputs' time passes
 PROCESSING_WINDOW = 100  # inputs whose processing times the diagnostics summarise
 # rmw's value of a message-info sequence number the middleware does not provide.
 SEQUENCE_UNSUPPORTED = 2**64 - 1
@@ -137,7 +138,9 @@ class SkynavNode(Node):
             self.get_logger().error(f'unusable parameters ({exc}); using the default {jump.default} s')
             self.set_parameters([Parameter('max_stamp_jump_s', value=jump.default)])
             self.max_stamp_jump_ns = self._stamp_jump_ns(jump.default)
-        self.elapsed = ElapsedTime(self.max_stamp_jump_ns)  # what the timeouts measure (elapsed_ns)
+        # what the timeouts measure (elapsed_ns): live, the node's clock with its jumps left out; in the in-process
+        # graph, the inputs' own time, whose forward steps all pass (a gap in a recording is time it waited)
+        self.elapsed = ElapsedTime(self.max_stamp_jump_ns if router is None else UNBOUNDED_STEP_NS)
         self.parameter_mount = self._declare_mount()  # camera_link in base_link by camera_mount_rpy_deg
         self.static_mount: np.ndarray | None = None  # ...by /tf_static, once heard (listen_for_mount)
         self.static_transforms = StaticTransforms()
@@ -228,7 +231,8 @@ class SkynavNode(Node):
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         self.max_stamp_jump_ns, self.parameter_mount = jump, mount
-        self.elapsed.max_step_ns = jump
+        if self.router is None:
+            self.elapsed.max_step_ns = jump
         return SetParametersResult(successful=True)
 
     @staticmethod

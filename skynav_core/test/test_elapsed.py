@@ -31,7 +31,7 @@ def test_a_clock_that_jumps_back_keeps_counting_from_where_it_lands():
     assert elapsed.jumps == 1
 
 
-@given(st.lists(st.integers(min_value=0, max_value=SECOND), min_size=1, max_size=50), st.integers(0, 10**18))
+@given(st.lists(st.integers(min_value=0, max_value=SECOND), min_size=1, max_size=50), st.integers(1, 10**18))
 def test_a_running_clock_passes_exactly_its_steps(steps, start):
     elapsed = ElapsedTime(max_step_ns=SECOND)
     clock = start
@@ -48,6 +48,15 @@ def test_time_passed_never_goes_back_nor_outruns_the_steps_taken(readings):
     totals = [elapsed.read(r) for r in readings]
     assert all(b >= a for a, b in zip(totals, totals[1:]))
     assert all(b - a <= SECOND for a, b in zip(totals, totals[1:]))
+
+
+def test_without_a_step_limit_every_forward_step_passes_but_the_start_from_zero():
+    # the in-process graph's time: a gap in a recording is time that passed; time zero is no time yet
+    elapsed = ElapsedTime(max_step_ns=2**63 - 1)
+    assert elapsed.read(0) == 0 and elapsed.read(1_750_000_000 * SECOND) == 0
+    assert elapsed.read(1_750_000_010 * SECOND) == 10 * SECOND
+    assert elapsed.read(1_750_000_000 * SECOND) == 10 * SECOND  # back: a jump
+    assert elapsed.jumps == 2
 
 
 def test_a_step_limit_must_be_positive():
