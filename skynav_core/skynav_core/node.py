@@ -298,6 +298,11 @@ class SkynavNode(Node):
             None if self.router is not None else self.create_publisher(message_type, relative(topic), qos)
         )
 
+    def watched(self, topic: str) -> bool:
+        """Return whether anything takes the output `topic` (always in the in-process graph, which records it): what
+        only a person looks at need not be drawn for nobody."""
+        return self.router is not None or self.count_subscribers(self.resolve_topic_name(relative(topic))) > 0
+
     def flush(self, topic: str, seconds: float) -> bool:
         """Wait up to `seconds` until reliable subscribers acknowledged all published on `topic`; return whether
         they did (always in the in-process graph)."""

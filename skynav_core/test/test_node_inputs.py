@@ -109,3 +109,24 @@ def test_views_are_built_once_per_snapshot_until_the_node_is_configured_again(th
     assert [choice.view(k, 2.0) for k in (2, 1, 2, 1)] == [4.0, 2.0, 4.0, 2.0] and built == [(2.0, 2.0), (1.0, 2.0)]
     choice.configure(three_snapshots, 'index')  # e.g. another degree: views are built afresh
     assert choice.view(2, 2.0) == 4.0 and len(built) == 3
+
+
+def test_an_output_is_watched_only_while_something_takes_it(ros_context):
+    import time
+
+    from rclpy.node import Node
+    from std_msgs.msg import Float64
+
+    from skynav_core.node import SkynavNode
+
+    node = SkynavNode('watched_test', context=ros_context)
+    node.output('/skynav/viz/confidence', Float64)
+    assert not node.watched('/skynav/viz/confidence')
+    viewer = Node('viewer', context=ros_context)
+    viewer.create_subscription(Float64, '/skynav/viz/confidence', lambda _: None, 10)
+    deadline = time.monotonic() + 10
+    while not node.watched('/skynav/viz/confidence') and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert node.watched('/skynav/viz/confidence')
+    viewer.destroy_node()
+    node.destroy_node()

@@ -13,7 +13,9 @@ publishes, per camera frame and stamped with its stamp (docs/interfaces.md, "Vis
 - /skynav/viz/confidence (std_msgs/Float64): 1 - the home vector's residual, 0..1 (0 without one);
 - /skynav/viz/state (std_msgs/Int32): 0 no snapshot matched, 1 a match not accepted, 2 a match accepted.
 
-The last three of a frame, and the markers, go out once the frame is complete (its image, its mask and, with a
+Live, the overlay and the markers are drawn only while a subscriber takes them (a Foxglove client through `skynav
+view`, a recorder): what only a person looks at is not drawn for nobody. The last three of a frame, and the
+markers, go out once the frame is complete (its image, its mask and, with a
 map, its match and home vector), or when the mask of a newer frame shows that nothing more is coming for it. The
 markers, confidence and state need the frame's place match (a map); the overlay needs its image and its mask.
 """
@@ -183,10 +185,12 @@ class VizNode(SkynavNode):
             confidence = scene.confidence(
                 float(frame.home.residual) if frame.home is not None and home is not None else None
             )
-            image = None
-            if frame.uv is not None and frame.mask is not None:
+            image = None  # the overlay and the markers are drawn only while something takes them (watched)
+            if frame.uv is not None and frame.mask is not None and self.watched(OVERLAY_TOPIC):
                 image = self.overlay_image(stamp, frame, home, confidence)
-            markers = self.markers(stamp, frame.match, home) if frame.match is not None else None
+            markers = None
+            if frame.match is not None and self.watched(MARKERS_TOPIC):
+                markers = self.markers(stamp, frame.match, home)
         if image is not None:
             self.emit(OVERLAY_TOPIC, image)
         if frame.match is not None:
