@@ -139,7 +139,12 @@ class CompassNode(SkynavNode):
             return
         with self.processing(stamp):
             estimate = self.compass.estimate(snapshot, current)
-            result = CompassEstimate(snapshot_index=index, residual=float(estimate.residual))
+            result = CompassEstimate(
+                snapshot_index=index,
+                residual=float(estimate.residual),
+                confidence=float(estimate.confidence),
+                confident=bool(estimate.confident),
+            )
             result.header = message.header
             (result.rotation.x, result.rotation.y, result.rotation.z, result.rotation.w) = (
                 float(v) for v in estimate.quaternion

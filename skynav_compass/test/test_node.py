@@ -121,6 +121,16 @@ def test_map_reference_estimates_follow_the_ground_truth(recording, reference, r
     assert np.median(errors['translation']) < 3.0
     assert errors['reference'][0] < 0.5
     assert all(np.isfinite(e.residual) and e.residual >= 0.0 for e in estimates)
+    # how sure it is, published with each estimate: confident where the confidence reaches 1/2 (no residual bound)
+    confidences = np.array([e.confidence for e in estimates])
+    assert np.all((confidences >= 0.0) & (confidences <= 1.0))
+    assert [e.confident for e in estimates] == [bool(c >= 0.5) for c in confidences]
+    flat = [
+        angle_deg(quaternion(e), true_rotation(reference.pose[3:], v.pose[3:]))
+        for v, e in zip(recording.views, estimates)
+    ]
+    assert sum(e.confident for e in estimates) >= 0.5 * len(estimates)
+    assert max(err for err, e in zip(flat, estimates) if e.confident) < 5.0
 
 
 def test_live_reference_is_the_view_stored_by_the_service(recording, reference, reference_map):

@@ -254,7 +254,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
                 '/compass/orientation',
                 'skynav_msgs/msg/CompassEstimate',
                 t,
-                T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i),
+                T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i, 0.9, True),
             )
         )
         direction = T['geometry_msgs/msg/Vector3'](*(lambda v: v / np.linalg.norm(v))(rng.normal(size=3)))

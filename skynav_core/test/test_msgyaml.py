@@ -16,7 +16,8 @@ def _first(msgtype):
 def test_fields_in_definition_order_and_nested():
     text = to_yaml(_first('skynav_msgs/msg/CompassEstimate'))
     data = yaml.safe_load(text)
-    assert list(data) == ['header', 'snapshot_index', 'rotation', 'residual']
+    assert list(data) == ['header', 'snapshot_index', 'rotation', 'residual', 'confidence', 'confident']
+    assert data['confidence'] == 0.9 and data['confident'] is True
     assert data['header']['frame_id'] == 'camera_link'
     assert set(data['rotation']) == {'x', 'y', 'z', 'w'}
     assert '__msgtype__' not in text
