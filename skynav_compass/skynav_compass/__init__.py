@@ -38,8 +38,10 @@ _EXPORTS = {
     'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
     'evaluation': (
         'CompassResult',
+        'ConfidentStatistics',
         'ErrorStatistics',
         'angular_error',
+        'confident_statistics',
         'error_statistics',
         'format_table',
         'heading_error',

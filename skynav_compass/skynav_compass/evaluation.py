@@ -122,6 +122,36 @@ class CompassResult:
         errors = np.where(np.isfinite(self.errors), self.errors, 180.0)[chosen]
         return roc_auc(self.ranking()[chosen], errors < RIGHT_DEG)
 
+    def confident_statistics(self, selection: np.ndarray | None = None) -> ConfidentStatistics:
+        """Return the share of estimates marked confident and the median and worst error (deg) among them (a
+        failed estimate counts as 180 degrees); NaN share without the flag, NaN errors when none is confident."""
+        return confident_statistics(self.errors, self.confident, selection)
+
+
+@dataclass(frozen=True)
+class ConfidentStatistics:
+    """How many estimates are marked confident (share 0..1, count) and how wrong those are (median, max; deg)."""
+
+    share: float
+    count: int
+    median: float
+    max: float
+
+
+def confident_statistics(
+    errors: np.ndarray, confident: np.ndarray | None, selection: np.ndarray | None = None
+) -> ConfidentStatistics:
+    """Return the share of estimates flagged confident and the median and worst error (deg) among those."""
+    nan = float('nan')
+    chosen = slice(None) if selection is None else selection
+    e = np.where(np.isfinite(errors), errors, 180.0)[chosen]
+    if confident is None or e.size == 0:
+        return ConfidentStatistics(nan, 0, nan, nan)
+    flags = np.asarray(confident, dtype=bool)[chosen]
+    if not flags.any():
+        return ConfidentStatistics(0.0, 0, nan, nan)
+    return ConfidentStatistics(float(flags.mean()), int(flags.sum()), float(np.median(e[flags])), float(e[flags].max()))
+
 
 def summary_rows(results: Sequence[CompassResult], groups: Mapping[str, np.ndarray]) -> list[dict]:
     """Return one row per (method, group): statistics of the errors in each group (boolean masks over queries)."""
@@ -129,11 +159,15 @@ def summary_rows(results: Sequence[CompassResult], groups: Mapping[str, np.ndarr
     for result in results:
         for group, selection in groups.items():
             stats = error_statistics(result.errors[selection])
+            sure = result.confident_statistics(selection)
             rows.append(
                 {
                     'method': result.method,
                     'group': group,
                     **stats.as_dict(),
+                    'confident_share': sure.share,
+                    'confident_median': sure.median,
+                    'confident_max': sure.max,
                     'ms_per_estimate': 1e3 * float(np.median(result.seconds[selection]))
                     if np.any(selection)
                     else float('nan'),
@@ -147,17 +181,31 @@ STATISTICS_COLUMNS = (Column('n', 3, 'd'), Column('median', 7, '.2f'), Column('p
 
 
 def share_cell(share: float) -> str:
-    """Return a share (0..1) as a table shows it: whole per cent."""
-    return f'{100 * share:.0f}%'
+    """Return a share (0..1) as a table shows it: whole per cent ('-' for NaN: nothing to count)."""
+    return '-' if np.isnan(share) else f'{100 * share:.0f}%'
+
+
+#: The columns of what the estimates marked confident are: their share, median and worst error (deg).
+CONFIDENT_COLUMNS = (Column('sure', 5), Column('s.med', 7, '.2f'), Column('s.max', 7, '.2f'))
+
+
+def confident_cells(statistics: ConfidentStatistics) -> tuple:
+    """Return the cells of CONFIDENT_COLUMNS: '-' where there is nothing to show (no flag, none confident)."""
+    return (
+        share_cell(statistics.share),
+        *('-' if np.isnan(value) else value for value in (statistics.median, statistics.max)),
+    )
 
 
 def format_table(rows: Sequence[dict]) -> str:
-    """Return a text table of summary rows: method, group, median/p90/max error (deg), share < 2 deg, ms."""
+    """Return a text table of summary rows: method, group, median/p90/max error (deg), share < 2 deg, the share
+    marked confident with the median and worst error among those (deg), ms."""
     columns = (
         Column('method', 28, align='<'),
         Column('views', 12, align='<'),
         *STATISTICS_COLUMNS,
         Column('<2deg', 6),
+        *CONFIDENT_COLUMNS,
         Column('ms', 8, '.2f'),
     )
     return text_table(
@@ -171,6 +219,9 @@ def format_table(rows: Sequence[dict]) -> str:
                 r['p90'],
                 r['max'],
                 share_cell(r['share_under_2deg']),
+                *confident_cells(
+                    ConfidentStatistics(r['confident_share'], 0, r['confident_median'], r['confident_max'])
+                ),
                 r['ms_per_estimate'],
             )
             for r in rows

@@ -31,10 +31,12 @@ from skynav_compass.compass import MAX_TILT
 from skynav_compass.dataset import true_rotation
 from skynav_compass.errors import CompassError
 from skynav_compass.evaluation import (
+    CONFIDENT_COLUMNS,
     RIGHT_DEG,
     STATISTICS_COLUMNS,
     CompassResult,
     ErrorStatistics,
+    confident_cells,
     error_statistics,
     relative_tilt,
     share_cell,
@@ -290,11 +292,14 @@ def format_report(evaluation: RecordingEvaluation) -> str:
         f'against {e.snapshot}',
         'error: 3D rotation error against ground truth (deg); ms: CPU time per estimate'
         + (f' (snapshot prepared once for {", ".join(prepared)})' if prepared else ''),
+        'sure: the share of estimates marked confident; s.med, s.max: the median and worst error among those '
+        '(deg; -: none)',
     ]
     columns: tuple[Column, ...] = (
         Column('method', 26, align='<'),
         *STATISTICS_COLUMNS,
         Column('<2deg', 6),
+        *CONFIDENT_COLUMNS,
         Column('ms', 8, '.2f'),
     )
     for group in GROUPS:
@@ -329,6 +334,7 @@ def format_report(evaluation: RecordingEvaluation) -> str:
                     s.p90,
                     s.max,
                     share_cell(s.share_under),
+                    *confident_cells(result.confident_statistics(selection)),
                     e.milliseconds(result.method, group),
                 )
             )
@@ -343,6 +349,7 @@ def format_report(evaluation: RecordingEvaluation) -> str:
         Column('method', 26, align='<'),
         *STATISTICS_COLUMNS,
         Column(f'<{RIGHT_DEG:g}deg', 6),
+        *CONFIDENT_COLUMNS,
         Column('AUC', 6, '.3f'),
         Column('tilt', 6, '.1f'),
     )
@@ -353,7 +360,17 @@ def format_report(evaluation: RecordingEvaluation) -> str:
         auc = result.separation()
         tilt = float(np.max(result.tilts)) if result.tilts is not None and result.tilts.size else float('nan')
         rows.append(
-            (result.method, s.count, s.median, s.p90, s.max, share_cell(share), '-' if np.isnan(auc) else auc, tilt)
+            (
+                result.method,
+                s.count,
+                s.median,
+                s.p90,
+                s.max,
+                share_cell(share),
+                *confident_cells(result.confident_statistics()),
+                '-' if np.isnan(auc) else auc,
+                tilt,
+            )
         )
     lines.append(text_table(columns, rows))
     for method, reason in e.skipped.items():

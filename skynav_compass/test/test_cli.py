@@ -57,6 +57,32 @@ def test_a_yaw_only_peer_is_measured_in_3d(garden_evaluation):
     assert e.statistics('visual-compass-panorama', 'rotation').median > 5.0
 
 
+def test_the_report_says_how_many_are_confident_and_how_wrong_those_are(garden_evaluation):
+    from skynav_compass.recording import format_report
+
+    e = garden_evaluation
+    lines = format_report(e).splitlines()
+    everything = np.ones(len(e.stamps), dtype=bool)
+    for method in ('fft-masked', 'visual-compass-panorama'):
+        result = e.result(method)
+        assert result.confident is not None
+        rows = [line.split() for line in lines if line.split()[:1] == [method]]
+        assert len(rows) == 3  # pure rotations, moved views, all views
+        for row, selection in zip(rows, (e.groups['rotation'], e.groups['moved'], everything)):
+            flags, errors = result.confident[selection], result.errors[selection]
+            # sure, s.med, s.max: the share flagged confident, the median and worst error among those
+            assert row[6] == f'{100 * flags.mean():.0f}%'
+            if flags.any():
+                assert float(row[7]) == pytest.approx(np.median(errors[flags]), abs=0.005)
+                assert float(row[8]) == pytest.approx(errors[flags].max(), abs=0.005)
+            else:
+                assert row[7:9] == ['-', '-']
+    # the default compass flags every garden view confident and is right on all; the yaw-only peer is
+    # confident too, and the worst of its confident estimates is at least the largest true tilt
+    assert e.result('fft-masked').confident.all()
+    assert e.result('visual-compass-panorama').confident_statistics().max >= e.tilts.max() - 1e-6
+
+
 def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
     from skynav_compass.cli.eval import map_snapshot
     from skynav_compass.recording import evaluate_views
@@ -102,7 +128,7 @@ def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
     assert len(rows) == 3 and medians[0] < 1.0 and medians[1] < 3.0
     # then all 30 views: every estimate right (AUC '-': nothing to separate), none tilted beyond the bound
     assert 'all 30 views; AUC' in out
-    assert rows[2][1] == '30' and rows[2][5] == '100%' and rows[2][6] == '-' and float(rows[2][7]) <= 45.0
+    assert rows[2][1] == '30' and rows[2][5] == '100%' and rows[2][9] == '-' and float(rows[2][10]) <= 45.0
     assert sum(line.startswith('visual-compass-panorama ') for line in out.splitlines()) == 3
     plot = tmp_path / 'plots' / 'synthetic_garden_compass_errors.png'
     assert plot.read_bytes()[:8] == PNG_MAGIC

@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from skynav_compass import (
     CompassResult,
     angular_error,
+    confident_statistics,
     error_statistics,
     format_table,
     heading_error,
@@ -65,6 +66,32 @@ def test_statistics_table_and_plot(tmp_path):
     assert 'translation' in format_table(rows)
     path = plot_errors([result], np.arange(5.0), np.linspace(0, 0.5, 5), tmp_path / 'errors.png', synthetic=True)
     assert path.exists() and path.stat().st_size > 10_000
+
+
+def test_confident_share_and_the_errors_of_the_confident_ones():
+    errors = np.array([0.5, 1.0, 40.0, 3.0, np.inf, 120.0])
+    confident = np.array([True, True, False, True, False, False])
+    result = CompassResult('m', errors, np.full(6, 0.004), confident=confident)
+    sure = result.confident_statistics()
+    assert sure.share == pytest.approx(3 / 6) and sure.count == 3  # confident / all
+    assert sure.max == 3.0 and sure.median == 1.0  # over the confident only: 40, inf and 120 are not
+    assert result.confident_statistics(np.array([False, False, True, True, False, False])).share == 0.5
+    # a failed estimate flagged confident counts as the worst error
+    assert confident_statistics(errors, np.array([False] * 4 + [True, False])).max == 180.0
+    nobody = confident_statistics(errors, np.zeros(6, dtype=bool))
+    assert nobody.share == 0.0 and nobody.count == 0 and np.isnan(nobody.max) and np.isnan(nobody.median)
+    assert np.isnan(CompassResult('m', errors, np.zeros(6)).confident_statistics().share)  # no flag at all
+    # the summary rows and their table carry them per group
+    groups = {'rotation': np.array([True] * 3 + [False] * 3), 'translation': np.array([False] * 3 + [True] * 3)}
+    rows = summary_rows([result], groups)
+    assert rows[0]['confident_share'] == pytest.approx(2 / 3) and rows[0]['confident_max'] == 1.0
+    assert rows[1]['confident_share'] == pytest.approx(1 / 3) and rows[1]['confident_median'] == 3.0
+    table = format_table(rows).splitlines()
+    assert table[0].split()[7:10] == ['sure', 's.med', 's.max']
+    assert table[2].split()[7:10] == ['67%', '0.75', '1.00'] and table[3].split()[7:10] == ['33%', '3.00', '3.00']
+    assert format_table(summary_rows([CompassResult('m', errors, np.zeros(6))], groups)).splitlines()[2].split()[
+        7:10
+    ] == ['-', '-', '-']
 
 
 def test_roc_auc_counts_right_estimates_ranked_above_wrong_ones():
