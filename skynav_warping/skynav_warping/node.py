@@ -12,7 +12,9 @@ The target snapshot: the one the latest accepted place match names (`target: mat
 index (`target: index`), or the match's successor `lookahead` snapshots along the route
 (`target: next`, route following). With `use_compass` a view waits for the compass estimate of
 the same stamp and the search starts from it (unless it tilts the views further apart than
-`max_tilt_deg`, the bound of the whole rotation search). A view or target snapshot without a skyline
+`max_tilt_deg`, the bound of the whole rotation search) and is `confident`: a rotation the compass is not
+sure of (an ambiguous yaw) is no start; the search then aligns the views itself, as without the compass, and
+/diagnostics counts such views as `compass_not_confident`. A view or target snapshot without a skyline
 (all sky or all ground in its field of view) gets no compass estimate and waits for none: its home
 vector has residual 1 (nothing to home on; the direction is the search's best, as for any residual).
 
@@ -25,6 +27,7 @@ compass node chooses its reference).
 from __future__ import annotations
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from skynav_core.images import stamp_ns
 from skynav_core.node import SkynavNode
@@ -60,6 +63,7 @@ class WarpingNode(SkynavNode):
         super().__init__('warping', **kwargs)
         self.declare_table(PARAMETERS)
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
+        self.compass_not_confident = 0  # views whose compass estimate was not confident: aligned without it
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0, on_drop=self.drop_unpaired)
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
@@ -143,7 +147,9 @@ class WarpingNode(SkynavNode):
             )
             snapshot = self.snapshots.view(index, float(message.field_of_view))
             rotation = None
-            if compass is not None:  # against this snapshot or a neighbour: a good start either way
+            if compass is not None and not compass.confident:  # a guess is no start: align the views ourselves
+                self.compass_not_confident += 1
+            elif compass is not None:  # against this snapshot or a neighbour: a good start either way
                 q = compass.rotation
                 rotation = np.array([q.x, q.y, q.z, q.w])
             estimate = estimate_home_vector(current, snapshot, rotation, self.settings)
@@ -155,6 +161,12 @@ class WarpingNode(SkynavNode):
             )
             result.residual = float(1.0 - estimate.confidence)
         self.emit(HOME_TOPIC, result)
+
+    def diagnostic_status(self) -> DiagnosticStatus:
+        """Return the node's status with how many views were aligned without their non-confident compass estimate."""
+        status = super().diagnostic_status()
+        status.values.append(KeyValue(key='compass_not_confident', value=str(self.compass_not_confident)))
+        return status
 
 
 def main(args=None) -> int:

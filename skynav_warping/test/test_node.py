@@ -30,7 +30,7 @@ from skynav_core.nodes import NodeSpec
 from skynav_core.rotations import as_matrix
 from skynav_core.views import recording_views
 from skynav_localize.mapping import build_map
-from skynav_msgs.msg import PlaceMatch, ShCoefficients
+from skynav_msgs.msg import CompassEstimate, PlaceMatch, ShCoefficients
 from skynav_warping import node as warping_node
 from skynav_warping.homing import estimate_home_vector
 
@@ -205,10 +205,14 @@ def test_home_vectors_with_the_compass_point_home(recording, snapshot, home_map,
 
 
 def test_the_homing_starts_from_the_compass_rotation(recording, snapshot, with_compass):
-    """Both messages mean d_snapshot = R d_current: the search starts from the estimate's R, near the true one."""
+    """Both messages mean d_snapshot = R d_current: the search starts from a confident estimate's R, near the true
+    one; a non-confident estimate is no start (None: the search aligns the views itself)."""
     assert len(with_compass.starts) == len(with_compass.estimates) == len(recording.views)
     errors = []
     for view, estimate, start in zip(recording.views, with_compass.estimates, with_compass.starts):
+        if not estimate.confident:
+            assert start is None
+            continue
         q = estimate.rotation
         np.testing.assert_allclose(start, Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), atol=1e-9)
         truth = Rotation.from_quat(snapshot.pose[3:]).inv() * Rotation.from_quat(view.pose[3:])
@@ -238,6 +242,57 @@ def test_a_view_waits_for_its_compass_estimate(recording, home_map, with_compass
         reference = expected[stamp_ns(result.header)]
         assert np.allclose(direction(result), direction(reference))
         assert result.residual == pytest.approx(reference.residual)
+
+
+def compass_estimate(stamp, rotation, confident):
+    """A compass estimate of the view stamped `stamp` (ns): rotation R (scipy Rotation), marked `confident` or not."""
+    message = CompassEstimate(snapshot_index=0, residual=0.1, confidence=0.9 if confident else 0.1, confident=confident)
+    message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+    message.header.frame_id = 'camera_link'
+    x, y, z, w = rotation.as_quat()
+    message.rotation.x, message.rotation.y, message.rotation.z, message.rotation.w = (
+        float(x),
+        float(y),
+        float(z),
+        float(w),
+    )
+    return message
+
+
+def test_only_a_confident_compass_rotation_starts_the_homing(recording, snapshot, home_map):
+    """A wrong rotation marked not confident leaves the home vector as without the compass (counted in /diagnostics);
+    the same wrong rotation marked confident is the search's start, as before."""
+    fov = recording.camera.field_of_view
+    view = [v for v in recording.views if v.label == 'grid'][9]
+    truth = Rotation.from_quat(snapshot.pose[3:]).inv() * Rotation.from_quat(view.pose[3:])
+    # 25 deg of yaw off: inside the search's yaw window around its own alignment, so a search started from it keeps
+    # it (a start far off is checked against the own alignment and loses: it would not show here)
+    wrong = Rotation.from_euler('z', 25, degrees=True) * truth
+    with in_process([WARPING], ['-p', f'map:={home_map}', *NO_COMPASS]) as graph:
+        graph.keep_outputs = True
+        [alone] = feed(graph, sh_message(view, fov))
+    results, starts = {}, []
+
+    def spy(current, snapshot, compass=None, *settings):
+        starts.append(None if compass is None else as_matrix(compass))
+        return estimate_home_vector(current, snapshot, compass, *settings)
+
+    for confident in (False, True):
+        with pytest.MonkeyPatch.context() as patch, in_process([WARPING], ['-p', f'map:={home_map}']) as graph:
+            patch.setattr(warping_node, 'estimate_home_vector', spy)
+            graph.keep_outputs = True
+            node = graph.nodes[0]
+            assert feed(graph, sh_message(view, fov)) == []  # waits for its estimate
+            [results[confident]] = deliver(graph, COMPASS_TOPIC, compass_estimate(view.stamp, wrong, confident))
+            values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+            assert values['compass_not_confident'] == ('0' if confident else '1')
+            assert not node.rejected and node.errors == 0
+    assert starts[0] is None
+    np.testing.assert_allclose(starts[1], wrong.as_matrix(), atol=1e-9)
+    np.testing.assert_allclose(direction(results[False]), direction(alone), atol=1e-12)
+    assert results[False].residual == pytest.approx(alone.residual)
+    # the confident wrong start leads the search elsewhere (measured 40.6 deg): the flag is what separates the two
+    assert np.degrees(np.arccos(np.clip(np.dot(direction(results[True]), direction(alone)), -1, 1))) > 5.0
 
 
 def test_target_next_aims_lookahead_snapshots_beyond_the_match(recording, route_map):
