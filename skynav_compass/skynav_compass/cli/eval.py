@@ -5,7 +5,8 @@ Every frame of the recording goes through the skyline and SH nodes (as in `skyna
 estimates the rotation of every view against one snapshot: by default the recording's frame labelled 'reference'
 (the bundled compass sets, `skynav sim bag compass`), with --map the map snapshot --index. The error of an estimate
 is the angle of the 3D rotation between it and the truth Q_s^-1 Q_c from the ground-truth orientations of
-camera_link. Prints, per method, median, 90th percentile and maximum error and the share under 2 degrees,
+camera_link. Prints, per method, median, 90th percentile and maximum error, the share under 2 degrees and the
+share of estimates the method marks confident with the median and worst error among those (sure, s.med, s.max),
 separately for pure rotations and for moved views (by the frame labels of a synthetic compass set against its
 reference frame, else by the true translation: under / from 0.05 m on), and the CPU time per estimate (views
 prepared once; the fft-* and exhaustive-* compasses prepare the snapshot once, as the compass node does). Then, over
