@@ -32,6 +32,14 @@ is left to home on). Near home the vectors become unsure a little early (within 
 0.05-0.3 m in the synthetic garden and park), so on those frames the robot keeps its last confident course straight
 on (it never steers on an unsure vector) for `arrive_creep` m (by odometry, else by its commands) and then stops.
 
+A compass rotation not marked `confident` (an ambiguous yaw: CompassEstimate.confident) is steered on only where
+it agrees, within COMPASS_AGREEMENT_DEG, with the heading the controller predicts (its last heading turned by its
+last command's turn rate) or with the heading the home vector implies (its bearing against the line of sight to
+its snapshot; without the route's shape: the route's direction against the home vector). A rotation that agrees
+with neither is not turned on: the frame is unsure, as one without a compass (no turn, `recover_speed`), and the
+feedback's confidence is 0; a non-confident rotation that agrees is used, the feedback's confidence then at most
+the compass's own.
+
 Safety: a frame without the inputs to steer on is *unsure*. Unsure frames first make the robot creep straight on
 (recovering); after `lost_frames` of them in a row (or `recover_distance` m of odometry) the goal ends LOST with a
 zero command. Every ending gives a zero command.
@@ -56,6 +64,8 @@ START_OFFSET_SIGMA = 0.3  # m: ...and across it
 MIN_SIGHT = 0.3  # m: a home vector's line of sight is trusted no better than one to a snapshot this far away
 GATE_SIGMAS = 3.0  # a home vector whose line of sight is further than this many standard deviations is ignored
 LOCATE_WINDOW = 10  # snapshots either side of the last nearest one where the nearest point of the route is sought
+# deg: a compass yaw not marked confident is steered on only within this of the predicted or the home vector's heading
+COMPASS_AGREEMENT_DEG = 20.0
 
 
 @dataclass(frozen=True)
@@ -113,6 +123,8 @@ class View:
     match_accepted: bool = False
     rotation: np.ndarray | None = None  # (3, 3) compass R against `rotation_index` in base_link: d_snap = R d_current
     rotation_index: int = -1
+    rotation_confident: bool = True  # CompassEstimate.confident: False, the yaw may be a guess
+    rotation_confidence: float = 1.0  # CompassEstimate.confidence (0..1)
     home_direction: np.ndarray | None = None  # (3,) unit home vector in base_link
     home_residual: float = 1.0
     home_index: int = -1
@@ -390,7 +402,7 @@ class RouteFollower:
             if self.unsure > self.settings.lost_frames:
                 return self._answer(self._motion.stop(view.stamp), view, LOST)
             return self._answer(self._motion.stop(view.stamp), view)
-        if matched and view.rotation is not None:
+        if matched and view.rotation is not None and self._rotation_usable(view):
             self.unsure, self.recovered_distance, self.state = 0, 0.0, FOLLOWING
             desired = self._steer(view, confidence)
             return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
@@ -405,6 +417,40 @@ class RouteFollower:
         self.state = RECOVERING
         desired = Command(self.settings.recover_speed * self.limits.max_speed, 0.0)
         return self._answer(self._motion.limited(desired, view.stamp, self.limits), view)
+
+    def _rotation_usable(self, view: View) -> bool:
+        """Return whether the frame's compass rotation may be steered on: confident, or agreeing within
+        COMPASS_AGREEMENT_DEG with the predicted heading or with the home vector's."""
+        if view.rotation_confident:
+            return True
+        assert view.rotation is not None
+        bound = math.radians(COMPASS_AGREEMENT_DEG)
+        home = view.home_direction
+        home_usable = home is not None and view.home_residual <= self.settings.unsure_residual
+        route, origin = self.route, view.rotation_index
+        if route is None or len(route) < 2 or not 0 <= origin < len(route):
+            # without the route's shape: the route's direction here against the home vector to a snapshot ahead
+            if not home_usable:
+                return False
+            assert home is not None
+            return abs(wrap_angle(ground_angle(route_direction(view.rotation)) - ground_angle(home))) <= bound
+        heading = float(route.headings[origin] + yaw(view.rotation))  # by this compass, the teach's odometry frame
+        if self.position is not None:  # the heading predicted from the last one and the last command's turn
+            dt = (
+                0.0
+                if self._motion.stamp is None
+                else min(max((view.stamp - self._motion.stamp) / 1e9, 0.0), MAX_FRAME_GAP)
+            )
+            if abs(wrap_angle(heading - (self.heading + self._motion.command.angular * dt))) <= bound:
+                return True
+        if home_usable and 0 <= view.home_index < len(route):
+            assert home is not None
+            here = self.position.position if self.position is not None else route.positions[origin]
+            sight = route.positions[view.home_index] - here
+            if float(np.linalg.norm(sight)) >= MIN_SIGHT:  # the heading under which the home vector sees its snapshot
+                implied = math.atan2(sight[1], sight[0]) - ground_angle(home)
+                return abs(wrap_angle(heading - implied)) <= bound
+        return False
 
     def _steer(self, view: View, confidence: float) -> Command:
         """Return the command of a frame with a compass estimate: by the cross-track offset where the route's shape
@@ -438,6 +484,9 @@ class RouteFollower:
     def _answer(self, command: Command, view: View, outcome: str = GOING) -> Step:
         sure = view.home_direction is not None and not self.unsure
         confidence = float(np.clip(1.0 - view.home_residual, 0.0, 1.0)) if sure else 0.0
+        if sure and view.rotation is not None and not view.rotation_confident:  # steered on an agreeing guess
+            compass = view.rotation_confidence if math.isfinite(view.rotation_confidence) else 0.0
+            confidence = min(confidence, max(0.0, compass))
         progress = 1.0 if outcome == REACHED else self.progress()
         return Step(command, self.state, outcome, self.matched, view.home_index, progress, float(confidence))
 

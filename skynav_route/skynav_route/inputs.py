@@ -6,7 +6,9 @@ The stages' messages stay in camera_link (docs/interfaces.md); the controller st
 (camera_link's rotation in base_link, skynav_core.mount) the home vector d becomes M d and the compass rotation R
 (d_snapshot = R d_current between two camera_links) becomes M R M^T between the two base_links, so the heading's
 twist (yaw), the route's direction (the first row of R) and every ground angle the controller takes are the
-robot's, however the camera is turned on it. No rclpy: messages are read by their fields.
+robot's, however the camera is turned on it. The compass's `confident` and `confidence` go with its rotation (the
+controller steers on a non-confident one only where it agrees with its other inputs). No rclpy: messages are read
+by their fields.
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ def frame_view(stamp: int, match: Any, compass: Any, home: Any, mount: np.ndarra
     rotation = compass_rotation(compass) if compass is not None else None
     if rotation is not None:
         view.rotation, view.rotation_index = rotation_to_base(mount, rotation), int(compass.snapshot_index)
+        view.rotation_confident, view.rotation_confidence = bool(compass.confident), float(compass.confidence)
     direction = home_direction(home) if home is not None else None
     if direction is not None:
         view.home_direction, view.home_residual = direction_to_base(mount, direction), float(home.residual)

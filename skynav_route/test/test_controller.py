@@ -263,6 +263,63 @@ def test_follower_turns_towards_the_route_accelerates_gently_and_stops_at_the_en
     assert end.outcome == REACHED and end.command.is_zero and end.progress == 1.0
 
 
+def compass_view(frame: int, route_angle: float | None, confident: bool, home_angle: float = 0.0) -> View:
+    """A frame matched to snapshot 3 of the straight route with a compass rotation saying the route runs at
+    `route_angle` (None: no compass), marked `confident` or not, and a home vector (residual 0.5) at `home_angle`
+    to snapshot 20, 1.7 m ahead along the route."""
+    return View(
+        stamp=frame * FRAME,
+        match_index=3,
+        match_accepted=True,
+        rotation=None if route_angle is None else compass_for(route_angle),
+        rotation_index=3,
+        rotation_confident=confident,
+        rotation_confidence=0.9 if confident else 0.3,
+        home_direction=unit(home_angle),
+        home_residual=0.5,
+        home_index=20,
+    )
+
+
+def cruising_follower() -> RouteFollower:
+    """A follower that has driven on the straight route, on it and along it, for a second at full speed."""
+    follower = RouteFollower(-1, 50, LIMITS, Settings(recover_speed=0.25), straight_route())
+    for f in range(10):
+        assert follower.step(compass_view(f, 0.0, True)).state == FOLLOWING
+    return follower
+
+
+def test_a_wrong_compass_rotation_not_marked_confident_does_not_turn_the_robot():
+    # 1 rad off (an ambiguous yaw read wrong): neither the predicted heading (0) nor the home vector's agree
+    guessed, without = cruising_follower(), cruising_follower()
+    guesses = [guessed.step(compass_view(10 + f, 1.0, False)) for f in range(4)]
+    withouts = [without.step(compass_view(10 + f, None, False)) for f in range(4)]
+    assert [s.command for s in guesses] == [s.command for s in withouts]  # as without a compass rotation
+    assert all(s.command.angular == 0.0 and s.state == RECOVERING for s in guesses)
+    # slowing down towards the recovering share 0.25 of 0.4 m/s (within the deceleration limit)
+    assert [s.command.linear for s in guesses] == pytest.approx([0.35, 0.3, 0.25, 0.2])
+    assert all(s.confidence == 0.0 for s in guesses)  # the user sees the controller unsure (0.5 while following)
+    # the same wrong rotation marked confident is steered on: the flag is what separates them
+    trusting = cruising_follower()
+    trusted = trusting.step(compass_view(10, 1.0, True))
+    assert trusted.state == FOLLOWING and trusted.command.angular > 0.0 and trusted.confidence == 0.5
+
+
+def test_a_compass_rotation_not_marked_confident_is_used_where_odometry_or_the_home_vector_agrees():
+    # 0.2 rad (11 deg) from the predicted heading: within COMPASS_AGREEMENT_DEG, used as a confident one would be,
+    # though the home vector (0.8 rad off the route) disagrees
+    agreeing, confident = cruising_follower(), cruising_follower()
+    used = agreeing.step(compass_view(10, 0.2, False, home_angle=-0.8))
+    reference = confident.step(compass_view(10, 0.2, True, home_angle=-0.8))
+    assert used.state == FOLLOWING and used.command == reference.command and used.command.angular > 0.0
+    assert used.confidence == 0.3 < reference.confidence == 0.5  # at most the compass's own confidence
+    # the first frame has no predicted heading: the home vector's decides (the route, so home, runs 0.2 rad left)
+    first = RouteFollower(-1, 50, LIMITS, Settings(), straight_route())
+    assert first.step(compass_view(0, 0.2, False, home_angle=0.2)).state == FOLLOWING
+    disagreeing = RouteFollower(-1, 50, LIMITS, Settings(), straight_route())
+    assert disagreeing.step(compass_view(0, 0.2, False, home_angle=-0.6)).state == RECOVERING
+
+
 def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
     follower = RouteFollower(5, 30, LIMITS, Settings(), straight_route())
     first = follower.step(follow_view(0, 25, 0.0))  # too far from start_index 5: not believed

@@ -17,10 +17,10 @@ from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch
 STAMP = 1_750_000_000_000_000_000
 
 
-def messages(rotation, direction, residual=0.2, index=4):
+def messages(rotation, direction, residual=0.2, index=4, confident=True):
     """Return the match, compass estimate and home vector of one frame (rotation (3, 3), direction (3,))."""
     match = PlaceMatch(index=index, accepted=True)
-    compass = CompassEstimate(snapshot_index=index)
+    compass = CompassEstimate(snapshot_index=index, confidence=0.9 if confident else 0.2, confident=confident)
     compass.rotation.x, compass.rotation.y, compass.rotation.z, compass.rotation.w = map(float, as_quaternion(rotation))
     home = HomeVector(snapshot_index=index + 2, residual=residual)
     home.direction.x, home.direction.y, home.direction.z = map(float, direction)
@@ -34,6 +34,10 @@ def test_without_a_mount_the_view_holds_the_messages_values():
     np.testing.assert_allclose(view.rotation, rotation, atol=1e-12)
     np.testing.assert_allclose(view.home_direction, [1.0, 0.0, 0.0])  # normalised
     assert (view.home_index, view.home_residual) == (6, 0.2)
+    assert (view.rotation_confident, view.rotation_confidence) == (True, 0.9)
+    unsure = frame_view(STAMP, *messages(rotation, direction, confident=False), np.eye(3))
+    assert (unsure.rotation_confident, unsure.rotation_confidence) == (False, 0.2)  # the rotation itself is kept
+    np.testing.assert_allclose(unsure.rotation, rotation, atol=1e-12)
 
 
 def test_missing_or_unusable_messages_leave_their_part_of_the_view_empty():

@@ -92,7 +92,7 @@ class Driver:
         clock.clock.sec, clock.clock.nanosec = divmod(stamp, 1_000_000_000)
         self.graph.publish('/clock', clock)
         match = PlaceMatch(map_name='line', index=index, accepted=accepted, distance=0.1)
-        compass = CompassEstimate(snapshot_index=index, residual=0.1)
+        compass = CompassEstimate(snapshot_index=index, residual=0.1, confidence=0.9, confident=True)
         compass.rotation.z, compass.rotation.w = math.sin(0.1), math.cos(0.1)  # the route runs 0.2 rad to the right
         vector = HomeVector(snapshot_index=index + 6 if home_index is None else home_index, residual=residual)
         vector.direction.x, vector.direction.y = 1.0, 0.0
