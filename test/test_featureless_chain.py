@@ -154,3 +154,6 @@ def test_the_node_graph_over_a_featureless_drive_with_its_own_map(kind, tmp_path
         assert found.get('/compass/orientation', []) == [] and found.get('/homing/home_vector', []) == []
     else:  # a level horizon: a skyline, but one alike everywhere on the drive
         assert all(0.0 <= h.residual <= 1.0 for h in found.get('/homing/home_vector', []))
+        # and alike at every yaw: whatever the compass estimates, it is not sure of it
+        estimates = found.get('/compass/orientation', [])
+        assert estimates and not any(e.confident for e in estimates), [(e.confidence, e.confident) for e in estimates]
