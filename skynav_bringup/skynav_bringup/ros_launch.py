@@ -106,9 +106,10 @@ def graph_launch(
 
 def parameter_files(params_file: str = '') -> list[Path]:
     """Return the parameter files every node reads: the shipped one (if installed), then the user's."""
-    share = share_directory('skynav_bringup')
-    shipped = None if share is None else share / 'config' / 'skynav.yaml'
-    files = [shipped] if shipped is not None and shipped.is_file() else []
+    from .cli.launch import default_params_file  # noqa: PLC0415 (where the shipped file lives: one place)
+
+    shipped = default_params_file()
+    files = [shipped] if shipped is not None else []
     if params_file:
         user = Path(params_file).expanduser().resolve()
         load_parameter_file(user)  # a ParameterFileError naming the file when it is no ROS 2 parameter file

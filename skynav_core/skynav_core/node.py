@@ -283,7 +283,7 @@ class SkynavNode(Node):
         # A number at or below the last one is a new publisher: the node missed its first ones (sequence - 1).
         # Gaps are told apart only while the topic has a single publisher.
         missed = sequence - last - 1 if sequence > last else sequence - 1
-        if missed > 0 and self.count_publishers(self.resolve_topic_name(relative(topic))) == 1:
+        if missed > 0 and self.count_publishers(self.live_name(topic)) == 1:
             self.drop(
                 'lost',
                 missed,
@@ -298,10 +298,14 @@ class SkynavNode(Node):
             None if self.router is not None else self.create_publisher(message_type, relative(topic), qos)
         )
 
+    def live_name(self, topic: str) -> str:
+        """Return the name a contract topic has on the live graph: in the node's namespace, remapped."""
+        return self.resolve_topic_name(relative(topic))
+
     def watched(self, topic: str) -> bool:
         """Return whether anything takes the output `topic` (always in the in-process graph, which records it): what
         only a person looks at need not be drawn for nobody."""
-        return self.router is not None or self.count_subscribers(self.resolve_topic_name(relative(topic))) > 0
+        return self.router is not None or self.count_subscribers(self.live_name(topic)) > 0
 
     def flush(self, topic: str, seconds: float) -> bool:
         """Wait up to `seconds` until reliable subscribers acknowledged all published on `topic`; return whether
