@@ -50,6 +50,16 @@ def pytest_report_header(config: pytest.Config) -> str:
 
 
 @pytest.fixture
+def own_ros_domain(monkeypatch):
+    """A ROS domain id of the test's alone (for a test that lists every topic of its domain); ask for it before
+    ros_context and anything else that starts ROS."""
+    domain, lock = claim_domain_id()
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(domain))
+    yield domain
+    lock.close()
+
+
+@pytest.fixture
 def ros_context():
     """An initialised rclpy context of the test's own, shut down afterwards."""
     import rclpy

@@ -35,7 +35,9 @@ def coefficients(path: Path) -> dict[int, object]:
     return {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec: m for m in messages}
 
 
-def test_two_namespaced_graphs_on_one_domain_each_give_exactly_their_own_run(tmp_path, skynav_main, ros_context):
+def test_two_namespaced_graphs_on_one_domain_each_give_exactly_their_own_run(
+    own_ros_domain, tmp_path, skynav_main, ros_context
+):
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node

@@ -163,3 +163,6 @@ def spin_until_signal(node: Node, stop: threading.Event) -> None:
             executor.spin_once(timeout_sec=SIGNAL_POLL_S)
     finally:
         executor.remove_node(node)
+        # now, while the context is up: left to the garbage collector (the node keeps a reference to its executor)
+        # it would destroy its guard condition after rclpy's shutdown and print a traceback at exit
+        executor.shutdown()
