@@ -268,6 +268,7 @@ MUTATIONS = (
         '(self.heading - self._motion.command.angular * dt)',
         (
             'skynav_route/test/test_controller.py::test_a_compass_rotation_not_marked_confident_is_used_where_odometry_or_the_home_vector_agrees',
+            'skynav_route/test/test_controller.py::test_the_predicted_heading_follows_the_last_commands_turn',
         ),
         'the predicted heading turns against the last command',
     ),

@@ -320,6 +320,27 @@ def test_a_compass_rotation_not_marked_confident_is_used_where_odometry_or_the_h
     assert disagreeing.step(compass_view(0, 0.2, False, home_angle=-0.6)).state == RECOVERING
 
 
+def test_the_predicted_heading_follows_the_last_commands_turn():
+    # turning left hard (the route runs 0.6 rad left of the robot), then a frame 0.5 s later whose rotation, not
+    # marked confident, says the robot turned on as commanded: it agrees with the prediction and is used; the
+    # same turn the other way round is not (the home vector, residual too high, has no say)
+    def turning() -> tuple[RouteFollower, float]:
+        """A cruising follower turned towards the route for 0.6 s, and its last turn rate (rad/s)."""
+        follower = cruising_follower()
+        for f in range(10, 15):
+            follower.step(compass_view(f, 0.6, True))
+        return follower, follower.step(compass_view(15, 0.6, True)).command.angular
+
+    gap = 5 * FRAME  # ns
+    for sign, state in ((1.0, FOLLOWING), (-1.0, RECOVERING)):
+        follower, turn = turning()
+        assert turn > 0.5  # to the left
+        view = compass_view(15, 0.6 - sign * turn * gap / 1e9, False)  # heading -0.6 +- turn x 0.5 s
+        view.stamp = 15 * FRAME + gap
+        view.home_residual = 2.0 * Settings().unsure_residual
+        assert follower.step(view).state == state, sign
+
+
 def test_follower_waits_for_a_match_near_the_start_and_never_goes_backwards():
     follower = RouteFollower(5, 30, LIMITS, Settings(), straight_route())
     first = follower.step(follow_view(0, 25, 0.0))  # too far from start_index 5: not believed
