@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
-# Every evaluation on the four real Stellarium landscapes (README, "Real skylines"): render the sets into
+# Every evaluation on the four real Stellarium landscapes (docs/results.md): render the sets into
 # OUT_DIR (default build/landscapes; the renders hold GPL data, never commit them), then print the skyline,
 # compass (snapshot at the views' time and at noon; SH degree 16 and 32) and localization tables, with a map
 # built from each landscape's teach drive. About 10 minutes on one core. Run after `make setup`.

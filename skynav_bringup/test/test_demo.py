@@ -5,8 +5,8 @@ route), each as a newcomer meets it, with its figures held to what the chain doe
 
 Measured: 57 snapshots of 80 teach frames; on the repeat drive 89 of 89 views accepted, all within 1 m of their
 true place; compass error median 0.8 deg; in the simulator 69 snapshots taught over 8.16 m by odometry, and the
-mower reaches the taught route's end from 0.3 m beside its start in the morning, median 0.12 m from the route.
-About 60 s.
+mower reaches the taught route's end from 0.3 m beside its start in the morning, median 0.02-0.03 m from the route
+(docs/results.md, "Demo"). About a minute and a half of CPU.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ networks), or a Fast DDS discovery server that every participant asks. The trans
 memory between processes of one machine (UDP between machines); 'udp' uses UDP only.
 
 With a discovery server, start it before the nodes: with the Fast DDS 2.14 of the wheels, participants that
-started before their server did may never find each other through it (README 'Robot and base station').
+started before their server did may never find each other through it (docs/networking.md, 'Robot and base station').
 A plain client learns only of the topics it reads or writes; the tools that list the graph (record, echo,
 replay) are made super clients (ROS_SUPER_CLIENT), which learn of every topic.
 
@@ -103,7 +103,7 @@ def socket_buffer_warning(proc_sys: Path = Path('/proc/sys')) -> str | None:
     return (
         f'{" and ".join(low)} bytes, below the {SOCKET_BUFFER} of the UDP socket buffers the Fast DDS profile asks '
         f'for: large messages to other hosts (camera images) will be lost; as root, sysctl -w {raise_all} '
-        "(README 'Robot and base station')"
+        "(docs/networking.md, 'Robot and base station')"
     )
 
 

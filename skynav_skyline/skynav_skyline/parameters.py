@@ -39,7 +39,7 @@ PARAMETERS = {
     # reach 0.7 or more below it; a ground ring with sky beyond surrounds 75-100 % of the azimuths in hurricane's
     # views and at most 13 % in the other seed 4 sets. Checked on views they were not set on (other places, tilts
     # up to 30 degrees, the synthetic training and compass sets: 58-100 % in hurricane, at most 31 % elsewhere);
-    # README, Sky/ground segmentation.
+    # docs/methods.md, Sky/ground segmentation.
     'hole_margin': Parameter(
         0.5, 'ground enclosed by sky that nowhere falls this far below its threshold is sky (log units); 0: off'
     ),

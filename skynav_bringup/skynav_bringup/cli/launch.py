@@ -8,7 +8,7 @@ map of the nodes that compare against one (localize, compass, warping). --namesp
 /NS (skynav_core.namespaces) and --remap renames a topic for every node. On a full ROS 2 install,
 `ros2 launch skynav_bringup skynav.launch.py` starts the same graph.
 
-Across machines (a robot and a base station, README 'Robot and base station'): --discovery-range
+Across machines (a robot and a base station, docs/networking.md, 'Robot and base station'): --discovery-range
 subnet, --static-peers where multicast is blocked, or --discovery-server (with --serve-discovery on
 the one host that runs the server), and the transport (shm: shared memory between processes of this
 machine, UDP between machines; udp: UDP only).
