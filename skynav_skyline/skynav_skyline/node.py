@@ -5,7 +5,9 @@ Takes one camera (parameter `camera`; docs/interfaces.md, "Cameras as robots hav
 /camera/uv/image_raw and /camera/green/image_raw, paired by stamp, with /camera/uv/camera_info; or one colour
 camera on /camera/image_raw (raw or Bayer) or /camera/image_raw/compressed (JPEG/PNG), with /camera/camera_info.
 Publishes /skyline/mask (mono8, the input's size, 255 sky, 0 ground and outside the image circle) with the input's
-stamp. UV-only methods do not wait for green; colour frames are segmented by `colour_method`.
+stamp. UV-only methods do not wait for green; colour frames are segmented by `colour_method`. An exposure so
+largely saturated or dark that the rules, not the image, would decide its mask (skynav_skyline.exposure) gets no
+mask (so no /skyline/sh either): one log line, and /diagnostics counts it as `overexposed` or `underexposed`.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
 from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_IMAGE
 from skynav_skyline.errors import SkylineError
+from skynav_skyline.exposure import ExposureError
 
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, colour_params, skyline_params
@@ -164,6 +167,9 @@ class SkylineNode(SkynavNode):
         with self.processing(stamp):
             try:
                 mask = segment()
+            except ExposureError as exc:  # its classes are not measured: no mask rather than one decided by rule
+                self.reject(exc.reason, f'exposure stamped {stamp} is not segmented: {exc}')
+                return
             except ValueError as exc:
                 self.reject('invalid_image', f'exposure stamped {stamp}: {exc}')
                 return

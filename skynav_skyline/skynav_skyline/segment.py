@@ -19,6 +19,9 @@ discriminant too, and where the two masks disagree on more than that share of
 the image circle the discriminant's is taken: the learned thresholds do not
 fit this image.
 
+Exposure check. A frame more than half saturated, or nine tenths dark, in the image circle is refused
+(exposure.ExposureError): the saturated-is-sky and dark-is-ground rules, not the image, would decide its mask.
+
 Bimodality test. A histogram split is *bimodal* when it has at least
 MIN_SECTOR_PIXELS trusted pixels, Otsu's separability (between-class over
 total variance at the chosen cut; about 0.64 for one Gaussian, 0.75 for a
@@ -61,6 +64,7 @@ from skynav_skyline.errors import SkylineError
 
 from . import discriminant
 from .classify import CHANNEL_MODES, GROUND, SKY, UV_GREEN_CONTRAST_ANGLE, GlobalModel, project
+from .exposure import check_exposure
 from .features import REFERENCE_PERCENTILE, Features, decode, extract_features, log_feature
 from .geometry import SectorLayout, SkylineGeometry
 from .structure import RAY_COUNT, RAY_STEP, outermost_band_end, unanchored_ground
@@ -445,6 +449,7 @@ class SkylineSegmenter:
         circle, p = self._row.circle, self.params
         pixels = np.ascontiguousarray(rgb).reshape(-1, 3).take(self._pixels, axis=0)  # (n, 3): the circle's pixels
         channels = [decode(pixels[None, :, k], LINEAR_ENCODING) for k in range(3)]
+        check_exposure(channels, circle)
         logs = np.stack([log_feature(c, circle, p.reference_percentile, self._stride) for c in channels])
         trusted = circle & channels[0].trusted & channels[1].trusted & channels[2].trusted
         dark = channels[0].dark & channels[1].dark & channels[2].dark
@@ -536,7 +541,7 @@ class SkylineSegmenter:
             raise SkylineError("channel mode 'uv-green' needs the green image")
         if green is not None and np.shape(green)[:2] != np.shape(uv)[:2]:
             raise SkylineError(f'UV image {np.shape(uv)} and green image {np.shape(green)} differ in shape')
-        return extract_features(
+        features = extract_features(
             self._pack(uv, encoding_uv),
             self._pack(green, encoding_green) if p.uses_green else None,
             encoding_uv,
@@ -546,6 +551,8 @@ class SkylineSegmenter:
             p.reference_percentile,
             stride=self._stride,
         )
+        check_exposure([features.uv] if features.green is None else [features.uv, features.green], self._row.circle)
+        return features
 
     def _threshold_row(
         self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None, p: SkylineParams

@@ -227,3 +227,44 @@ def test_frames_of_one_exposure_pair_within_the_tolerance_of_their_stamps(scene)
         graph.feed(raw('/camera/green/image_raw', image(green), T0 + 2 * 10**8 + 5 * ms // 2))
         assert len(masks_of(graph)) == 2
         assert sum(node.rejected.values()) == 0 and node.errors == 0
+
+
+def test_an_overexposed_or_underexposed_frame_gets_no_mask_and_is_counted():
+    """The bundled garden drive's first frame gives a mask; with 20 times its gain (clipped: ground saturated too, two
+    thirds of the image circle) it would be mostly sky by the saturated-is-sky rule, with a 40th of it (95 % dark)
+    mostly ground by the dark-is-ground rule: neither is segmented, each is one counted reject."""
+    from pathlib import Path
+
+    from sensor_msgs.msg import CameraInfo
+
+    from skynav_skyline.dataset import labelled_frames
+
+    bag = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_garden_repeat.mcap'
+    frame = next(iter(labelled_frames(bag)))
+    info = CameraInfo()
+    for key, value in frame.camera.camera_info_fields().items():
+        setattr(info, key, value)
+    full = {'mono8': 255, 'mono16': 65535}
+
+    def exposure(gain, stamp):
+        """Feed the frame with its raw values times `gain`, clipped to the encoding's range; return its masks."""
+        before = len(masks_of(graph))
+        for topic, pixels, encoding in (
+            ('/camera/uv/image_raw', frame.uv, frame.encoding[0]),
+            ('/camera/green/image_raw', frame.green, frame.encoding[1]),
+        ):
+            scaled = np.clip(np.rint(pixels.astype(float) * gain), 0, full[encoding]).astype(pixels.dtype)
+            graph.feed(raw(topic, image(scaled, encoding), stamp))
+        return masks_of(graph)[before:]
+
+    with in_process([SPEC]) as graph:
+        graph.keep_outputs = True
+        node = graph.nodes[0]
+        graph.feed(raw('/camera/uv/camera_info', info, T0))
+        assert len(exposure(1.0, T0)) == 1
+        assert exposure(20.0, T0 + 10**8) == [] and node.rejected == {'overexposed': 1}
+        assert exposure(1 / 40, T0 + 2 * 10**8) == [] and node.rejected == {'overexposed': 1, 'underexposed': 1}
+        assert len(exposure(1.0, T0 + 3 * 10**8)) == 1  # the node goes on
+        values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+        assert values['rejected_overexposed'] == '1' and values['rejected_underexposed'] == '1'
+        assert node.errors == 0

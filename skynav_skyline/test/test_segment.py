@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from skynav_skyline.classify import classification_rate
+from skynav_skyline.exposure import ExposureError
 from skynav_skyline.geometry import SkylineGeometry
 from skynav_skyline.segment import (
     METHODS,
@@ -256,10 +257,18 @@ def test_bad_input_raises_clear_errors(scene_factory, encoder):
         segment(uv, green, 'mono8', 'mono8', circle[:-1])
     with pytest.raises(ValueError, match='no finite pixel'):
         segment(np.full(uv.shape, np.nan, np.float32), None, '32FC1', None, circle)
-    with pytest.raises(ValueError, match='trusted pixels'):
+    # all dark, all saturated: refused for the exposure (skynav_skyline.exposure) before anything is counted
+    with pytest.raises(ExposureError, match='underexposed'):
         segment(np.zeros_like(uv), None, 'mono8', None, circle)
-    with pytest.raises(ValueError, match='trusted pixels'):
+    with pytest.raises(ExposureError, match='overexposed'):
         segment(np.full_like(uv, 255), None, 'mono8', None, circle)
+    # half saturated, the rest dark but for 50 pixels: an exposure within the bounds, too few pixels measured
+    inside = np.flatnonzero(np.asarray(circle, bool))
+    few = np.zeros_like(uv)
+    few.flat[inside[: inside.size // 2]] = 255
+    few.flat[inside[inside.size // 2 : inside.size // 2 + 50]] = 100
+    with pytest.raises(ValueError, match='trusted pixels'):
+        segment(few, None, 'mono8', None, circle)
     with pytest.raises(ValueError, match='needs the green image'):
         segment(uv, None, 'mono8', None, circle, channels='uv-green')
     with pytest.raises(ValueError, match='learned threshold'):
