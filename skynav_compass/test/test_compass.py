@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_compass import Compass, CompassConfig, CompassView, build_problem, cap_visibility, estimate_rotation
+from skynav_compass.compass import MIN_RIVAL_MARGIN, RIVAL_MARGIN_SCALE, rival_margin
 from skynav_compass.evaluation import heading, relative_tilt
 from skynav_compass.refine import refine
 from skynav_core.rotations import rotation_angle
@@ -258,3 +259,33 @@ def test_the_confidence_ranks_estimates():
                 assert np.degrees(angle_between(estimate, q_s.inv() * q_c)) < 1.0
         confidences[name] = values
     assert min(confidences['rugged']) > 0.5 > max(confidences['flat'])
+
+
+def symmetric(azimuth):
+    """A skyline alike at every azimuth and the one half a turn round it: two yaws fit it equally well."""
+    return np.radians(15.0 + 8.0 * np.cos(2 * azimuth) + 4.0 * np.sin(6 * azimuth + 0.3))
+
+
+def test_a_rival_that_fits_as_well_takes_the_confidence_however_sharp_the_best():
+    """Two rotations half a turn apart explain a two-fold skyline alike: whichever wins, it is not confident."""
+    for current in ([70.0, 8.0, 5.0], [100.0, -10.0, 4.0]):
+        q_s = Rotation.from_euler('ZYX', [10.0, 3.0, -2.0], degrees=True)
+        q_c = q_s * Rotation.from_euler('ZYX', current, degrees=True)
+        truth = (q_s.inv() * q_c).as_matrix()
+        estimate = Compass(16).estimate(skyline_view(q_s, symmetric), skyline_view(q_c, symmetric))
+        errors = [np.degrees(rotation_angle(h.matrix, truth)) for h in estimate.hypotheses[:2]]
+        assert min(errors) < 1.0 and max(errors) > 170.0  # the truth and its half turn, the best two
+        assert estimate.details['sharpness'] * estimate.details['verified'].contrast[0] > 0.5  # sharp on its own
+        assert estimate.details['rival_margin'] < MIN_RIVAL_MARGIN
+        assert not estimate.confident, current
+        # the rugged skyline under the same rotations: no rival comes close, the estimate is confident
+        rugged_estimate = Compass(16).estimate(skyline_view(q_s, rugged), skyline_view(q_c, rugged))
+        assert rugged_estimate.details['rival_margin'] > RIVAL_MARGIN_SCALE and rugged_estimate.confident
+
+
+def test_the_rival_margin_compares_the_best_with_the_closest_distinct_rival():
+    assert rival_margin(np.array([0.01, 0.04, 0.02])) == pytest.approx(0.75)
+    assert rival_margin(np.array([0.02, 0.02])) == 0.0
+    assert rival_margin(np.array([0.0, 0.0])) == 0.0  # both fit perfectly: a tie
+    assert rival_margin(np.array([0.0, 0.01])) == 1.0
+    assert rival_margin(np.array([0.02])) == 1.0  # no rival
