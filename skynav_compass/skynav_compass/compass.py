@@ -18,8 +18,8 @@ least cost wins. The estimate is R with d_snapshot = R d_current in camera_link 
 cost there, and a confidence in [0, 1] that ranks estimates: how sharply the cost rises along the optimum's least
 determined axis (the Hessian's smallest eigenvalue over the typical grid cost), times how much skyline the overlap
 holds (verified: the share two unrelated masks of its sky shares would disagree on) and how much better the best
-fits the masks than the closest distinct rival (MIN_RIVAL_MARGIN: never confident below it), or how clearly the best's cost stands out of the
-other hypotheses' (not verified).
+fits the masks than the closest distinct rival (MIN_RIVAL_MARGIN: never confident below it), or how clearly the
+best's cost stands out of the other hypotheses' (not verified).
 
 Many views compared against one snapshot: `prepared = compass.prepare(snapshot)` does the snapshot's share of the
 work once (padded and complex coefficients, the derivative matrix of the refinement), and

@@ -13,9 +13,9 @@ a live view stored by calling the ~/store_reference service ('live').
 A view or snapshot without a skyline (all sky or all ground in its field of view) fits every rotation
 alike: it gets no estimate, and is counted ('featureless', 'featureless_snapshot') instead.
 
-Rejected views are counted in /diagnostics by reason (docs/cli.md, 'What the nodes report'): a message the compass cannot use
-('malformed', 'non_finite', 'degree', 'fill': skynav_core.sh_input), 'out_of_order', no snapshot to compare
-against ('no_map', 'no_match', 'match_beyond_map': skynav_core.snapshots; 'no_reference': no live view
+Rejected views are counted in /diagnostics by reason (docs/cli.md, 'What the nodes report'): a message the
+compass cannot use ('malformed', 'non_finite', 'degree', 'fill': skynav_core.sh_input), 'out_of_order', no snapshot
+to compare against ('no_map', 'no_match', 'match_beyond_map': skynav_core.snapshots; 'no_reference': no live view
 stored yet), 'featureless' and 'featureless_snapshot'.
 """
 
