@@ -77,3 +77,16 @@ def test_params_file_must_be_ros_yaml(tmp_path):
         result = run_skynav(*command, '--params', str(bad))
         assert result.returncode == 1 and one_line_error(result.stderr), result.stderr
         assert 'camera_mount_rpy_deg' in result.stderr and '[0.0, 0.0, 90.0]' in result.stderr
+
+
+def test_a_package_found_twice_on_the_path_gives_its_commands_once(monkeypatch):
+    # an overlay workspace over an underlay lists a package's entry points twice: the first on the path wins
+    import skynav_bringup.cli as cli
+
+    listed = list(cli.entry_points(group=cli.COMMAND_GROUP))
+    follow = next(ep for ep in listed if ep.name == 'follow')
+    shadowed = type(follow)('follow', 'skynav_bringup.cli.info', cli.COMMAND_GROUP)  # a later copy, another module
+    monkeypatch.setattr(cli, 'entry_points', lambda group: [*listed, shadowed])
+    parser = build_parser(['follow', '--help'])
+    choices = next(a for a in parser._actions if a.__class__.__name__ == '_SubParsersAction').choices
+    assert choices['follow'].get_default('run').__module__ == follow.value

@@ -72,7 +72,10 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
             groups[path] = sub
         return groups[path]
 
-    commands = sorted(entry_points(group=COMMAND_GROUP), key=lambda ep: ep.name)
+    # A package found twice on the path (an overlay workspace over an underlay, a build beside the source) lists its
+    # commands twice: the first on the path wins, as its modules do.
+    unique = {ep.name: ep for ep in reversed(list(entry_points(group=COMMAND_GROUP)))}
+    commands = sorted(unique.values(), key=lambda ep: ep.name)
     chosen = None if argv is None else _chosen_command(argv, {ep.name for ep in commands})
     # Sorted, a group's own module ('eval') comes before its commands ('eval.compass').
     for ep in commands:
