@@ -117,7 +117,9 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     # home vectors to the snapshot 6 ahead of the latest match the warping node had, in the current camera_link.
     # Live, that match may be of a later view than the one homed (the topics arrive independently and the
     # warping node may lag); skynav_warping/test/test_node.py checks the targets exactly, in order.
-    assert len(homing) >= 0.9 * len(truth), f'{missing(homing, truth)}\n{warnings}'
+    # the warping node gives none where the views do not determine the direction (`skynav run` of this drive: 14 of
+    # the 89 views, 13 of them off by more than 30 degrees before it refused them)
+    assert len(homing) >= 0.75 * len(truth), f'{missing(homing, truth)}\n{warnings}'
     targets = {min(m.index + 6, len(snapshots) - 1) for m in matches.values() if m.accepted}
     errors = []
     for stamp, vector in homing.items():

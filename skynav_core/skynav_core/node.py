@@ -298,6 +298,10 @@ class SkynavNode(Node):
             None if self.router is not None else self.create_publisher(message_type, relative(topic), qos)
         )
 
+    def publishes(self, topic: str) -> bool:
+        """Return whether this node declared `topic` as an output."""
+        return topic in self._output_publishers
+
     def live_name(self, topic: str) -> str:
         """Return the name a contract topic has on the live graph: in the node's namespace, remapped."""
         return self.resolve_topic_name(relative(topic))

@@ -28,7 +28,10 @@ without /odom) has no shape to place the robot on: there the robot steers along 
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
-is left to home on). Near home the vectors become unsure a little early (within the warping's shortest step:
+is left to home on). A frame whose home vector the warping node refused (it publishes none whose direction the
+views do not determine: at the snapshot, or too close to tell) is unsure too, as long as home vectors come at all
+(`View.home_expected`; without any, the frames are missing and the goal ends LOST). Near home the vectors become
+unsure a little early (within the warping's shortest step:
 0.05-0.3 m in the synthetic garden and park), so on those frames the robot keeps its last confident course straight
 on (it never steers on an unsure vector) for `arrive_creep` m (by odometry, else by its commands) and then stops.
 
@@ -128,6 +131,9 @@ class View:
     home_direction: np.ndarray | None = None  # (3,) unit home vector in base_link
     home_residual: float = 1.0
     home_index: int = -1
+    # whether home vectors come at all (something publishes them): a frame without one then had its vector refused by
+    # the warping node (a direction the views do not determine: at the snapshot, or too close to tell)
+    home_expected: bool = False
     odometry: float | None = None  # m driven since the previous frame, by /odom (None without odometry)
 
 
@@ -506,6 +512,11 @@ class Homer:
 
     def step(self, view: View) -> Step:
         """Return the command for one frame."""
+        if view.home_direction is None and view.home_expected:
+            # the warping node refused this frame's home vector: the views do not determine a direction (at the
+            # snapshot, or too close to tell), as an unsure vector says
+            self.missing = 0
+            return self._unsure(view, 0.0)
         if view.home_direction is None or view.home_index != self.index:
             self.missing += 1
             outcome = LOST if self.missing > self.settings.lost_frames else GOING
@@ -513,15 +524,7 @@ class Homer:
         self.missing = 0
         confidence = float(np.clip(1.0 - view.home_residual, 0.0, 1.0))
         if view.home_residual > self.settings.unsure_residual:
-            self.unsure += 1
-            if self.unsure > 1:  # travel since the first unsure frame: odometry, else the last command
-                self.crept += self._motion.travelled(view)
-            crept_enough = self.crept >= self.settings.arrive_creep or not self.driving
-            if self.unsure >= self.settings.arrived_frames and crept_enough:
-                return Step(self._motion.stop(view.stamp), STOPPING, REACHED, confidence=confidence)
-            # unsure near home: keep the last confident course straight on (never steer on a guess), then stop
-            desired = Command(self.speed_share * self.limits.max_speed if self.driving else 0.0, 0.0)
-            return Step(self._motion.limited(desired, view.stamp, self.limits), RECOVERING, confidence=confidence)
+            return self._unsure(view, confidence)
         self.unsure, self.crept = 0, 0.0
         error = ground_angle(view.home_direction)
         if self.driving and abs(error) > math.pi / 2:  # it points back: home was passed
@@ -531,3 +534,16 @@ class Homer:
         command = self._motion.limited(desired, view.stamp, self.limits)
         self.driving = self.driving or command.linear > 0.0
         return Step(command, FOLLOWING, confidence=confidence)
+
+    def _unsure(self, view: View, confidence: float) -> Step:
+        """Return the command of a frame without a confident home vector: arrived after `arrived_frames` of them in a
+        row (once crept `arrive_creep` m, if the robot drove), until then straight on along the last course."""
+        self.unsure += 1
+        if self.unsure > 1:  # travel since the first unsure frame: odometry, else the last command
+            self.crept += self._motion.travelled(view)
+        crept_enough = self.crept >= self.settings.arrive_creep or not self.driving
+        if self.unsure >= self.settings.arrived_frames and crept_enough:
+            return Step(self._motion.stop(view.stamp), STOPPING, REACHED, confidence=confidence)
+        # unsure near home: keep the last confident course straight on (never steer on a guess), then stop
+        desired = Command(self.speed_share * self.limits.max_speed if self.driving else 0.0, 0.0)
+        return Step(self._motion.limited(desired, view.stamp, self.limits), RECOVERING, confidence=confidence)

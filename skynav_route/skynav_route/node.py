@@ -81,6 +81,7 @@ from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
 
 CMD_TOPIC = '/cmd_vel'
+HOME_TOPIC = '/homing/home_vector'
 EMERGENCY_STOP_TOPIC = '/emergency_stop'
 IMU_TOPIC = '/camera/imu'  # the contract's optional IMU (docs/interfaces.md, Topics)
 INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
@@ -107,7 +108,7 @@ class RouteNode(SkynavNode):
         '/skyline/sh',
         '/localization/match',
         '/compass/orientation',
-        '/homing/home_vector',
+        HOME_TOPIC,
         '/odom',
         '/bumper',
         EMERGENCY_STOP_TOPIC,
@@ -141,7 +142,7 @@ class RouteNode(SkynavNode):
         self.input(
             '/compass/orientation', CompassEstimate, lambda m: self._keep('/compass/orientation', self.compass, m)
         )
-        self.input('/homing/home_vector', HomeVector, self.on_home_vector)
+        self.input(HOME_TOPIC, HomeVector, self.on_home_vector)
         self.input('/odom', Odometry, self.on_odom)
         self.input('/bumper', Bool, self.on_bumper)
         self.input(EMERGENCY_STOP_TOPIC, Bool, self.on_emergency_stop)
@@ -265,7 +266,7 @@ class RouteNode(SkynavNode):
 
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
-        self._keep('/homing/home_vector', self.homes, message)
+        self._keep(HOME_TOPIC, self.homes, message)
         stamp = stamp_ns(message.header)
         if stamp <= self.last_frame:
             self.reject('late', 'a home vector came after its frame was answered without it')
@@ -291,11 +292,21 @@ class RouteNode(SkynavNode):
         """Return what the controller knows of the frame stamped `stamp`, in base_link (the camera's mount)."""
         match, compass, home = self.matches.get(stamp), self.compass.get(stamp), self.homes.get(stamp)
         view = frame_view(stamp, match, compass, home, self.mount)
+        view.home_expected = self.home_vectors_come()
         if self.odom is not None:
             previous = self.odom_at_frame if self.odom_at_frame is not None else self.odom
             view.odometry = float(np.linalg.norm(self.odom - previous))
             self.odom_at_frame = self.odom.copy()
         return view
+
+    def home_vectors_come(self) -> bool:
+        """Return whether some node publishes home vectors (live: a publisher of the topic; in process: a node of the
+        graph): a frame without one then had its vector refused by the warping node (the views do not determine a
+        direction), which the Homer takes as unsure, not as missing."""
+        if self.router is None:
+            return self.count_publishers(self.live_name(HOME_TOPIC)) > 0
+        nodes = getattr(self.router, 'nodes', ())
+        return any(node is not self and node.publishes(HOME_TOPIC) for node in nodes)
 
     def process(self, stamp: int) -> None:
         """Answer one camera frame with one command while a goal is active; nothing while idle."""

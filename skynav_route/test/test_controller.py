@@ -426,6 +426,27 @@ def test_homer_started_at_home_stops_without_driving():
     assert [s.outcome for s in steps] == ['', '', REACHED] and all(s.command.is_zero for s in steps)
 
 
+def test_homer_takes_frames_whose_home_vector_was_refused_as_unsure_and_arrives():
+    # the warping node publishes no home vector whose direction the views do not determine (at the snapshot): while
+    # home vectors come at all, such a frame is unsure, as one with a large residual; without any it is missing
+    homer = Homer(0, LIMITS, Settings(arrived_frames=3, arrive_creep=0.05))
+    for f in range(10):
+        homer.step(home_view(f, 0.0))
+    speed = homer._motion.command.linear
+    assert speed > 0.0
+    refused = [homer.step(View(stamp=(10 + f) * FRAME, home_expected=True)) for f in range(3)]
+    assert [s.outcome for s in refused] == ['', '', REACHED]  # straight on through them, then arrived
+    assert [s.command.angular for s in refused] == [0.0] * 3 and refused[-1].command.is_zero
+    assert [s.command.linear for s in refused[:2]] == pytest.approx([speed] * 2)
+    assert all(s.confidence == 0.0 for s in refused)
+    started_home = Homer(0, LIMITS, Settings(arrived_frames=3))
+    steps = [started_home.step(View(stamp=f * FRAME, home_expected=True)) for f in range(3)]
+    assert [s.outcome for s in steps] == ['', '', REACHED] and all(s.command.is_zero for s in steps)
+    silent = Homer(0, LIMITS, Settings(arrived_frames=3, lost_frames=2))  # nothing publishes home vectors
+    steps = [silent.step(View(stamp=f * FRAME)) for f in range(3)]
+    assert [s.outcome for s in steps] == ['', '', LOST] and all(s.command.is_zero for s in steps)
+
+
 def test_homer_is_lost_without_home_vectors_to_its_snapshot():
     homer = Homer(4, LIMITS, Settings(lost_frames=2))
     steps = [homer.step(home_view(f, 0.0, index=3)) for f in range(3)]  # home vectors to another snapshot

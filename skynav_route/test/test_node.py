@@ -119,10 +119,11 @@ class Driver:
         self.executor.shutdown()
 
 
-def route_graph(route_map, *parameters):
-    """The route node in an in-process graph of a namespace of its own: the action servers of earlier tests' graphs,
-    which discovery may still list for a while, are never matched instead of this one's."""
-    specs = [s for s in installed_nodes() if s.name == 'route']
+def route_graph(route_map, *parameters, others=()):
+    """The route node (and the nodes named in `others` after it) in an in-process graph of a namespace of its own:
+    the action servers of earlier tests' graphs, which discovery may still list for a while, are never matched
+    instead of this one's."""
+    specs = [s for name in ('route', *others) for s in installed_nodes() if s.name == name]
     arguments = ['-r', f'__ns:=/route_test_{os.getpid()}_{next(GRAPHS)}']
     arguments += ['-p', f'map:={route_map}', '-p', 'configure_peers:=false', '-p', 'input_timeout:=1.0']
     for parameter in parameters:
@@ -233,6 +234,26 @@ def test_a_robot_never_placed_on_the_route_is_lost_where_it_stands(route_map, st
             assert outcome.reached_index == -1 and all(is_zero(c) for c in driver.commands)
         finally:
             driver.close()
+
+
+def test_home_arrives_on_frames_whose_home_vector_the_warping_node_refused(route_map):
+    # the warping node publishes no home vector whose direction the views do not determine (at the snapshot): with
+    # it in the graph, frames without one are unsure, and a few in a row mean arrived; without it they are missing
+    for others, outcome in ((('warping',), 'NONE'), ((), 'LOST')):
+        with route_graph(route_map, 'lost_frames:=3', 'arrived_frames:=3', others=others) as graph:
+            driver = Driver(graph)
+            try:
+                assert driver.node.home_vectors_come() == bool(others)
+                handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+                for _ in range(5):
+                    if not result.done():
+                        driver.publish_frame(home=False)
+                assert driver.spin_until(result.done)
+                assert error_name(result.result().result) == outcome
+                assert all(is_zero(c) for c in driver.commands)  # started at home: it never drove
+                assert len(driver.commands) == (3 if others else 4)
+            finally:
+                driver.close()
 
 
 def test_lost_stops_the_robot_and_aborts(route_map):

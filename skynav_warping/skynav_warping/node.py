@@ -3,10 +3,19 @@
 
 Subscribes /skyline/sh (fill 'zero': the masked comparison needs the seen part alone),
 /localization/match and, with `use_compass`, /compass/orientation; publishes /homing/home_vector
-(skynav_msgs/HomeVector) for every view: the unit direction towards the target snapshot's place in
-the current camera_link, the rotation R (d_snapshot = R d_current), and as residual the 3D-warping
-cost at the optimum relative to the best pure rotation's: near 0 the views agree once moved, near
-1 they tell nothing about where home is (for instance, at home).
+(skynav_msgs/HomeVector) for every view whose home direction the views determine: the unit direction
+towards the target snapshot's place in the current camera_link, the rotation R (d_snapshot = R
+d_current), and as residual the 3D-warping cost at the optimum relative to the best pure rotation's
+(1 - confidence): near 0 the views agree once moved, near 1 a step explains little more than a turn.
+
+A view whose home direction the views do not determine gets no home vector (skynav_warping.warping3d:
+not `confident`): where no step explains the views clearly better than a pure rotation (confidence
+below `confidence_threshold`, 0.03: at the snapshot's place or too near it to tell, where parallax
+vanishes; or 0 when the best cost falls below zero, the band limit's ringing), and where a step the
+other way explains about as much as the best one (`opposite_share` at or above `max_opposite_share`,
+0.5: the residual is flat over directions). It is logged (at most one
+line a LOG_PERIOD) and counted in /diagnostics as `undetermined`; the route node takes a frame without
+a home vector as unsure (homing: several in a row mean arrived).
 
 The target snapshot: the one the latest accepted place match names (`target: match`), a fixed
 index (`target: index`), or the match's successor `lookahead` snapshots along the route
@@ -15,8 +24,8 @@ the same stamp and the search starts from it (unless it tilts the views further 
 `max_tilt_deg`, the bound of the whole rotation search) and is `confident`: a rotation the compass is not
 sure of (an ambiguous yaw) is no start; the search then aligns the views itself, as without the compass, and
 /diagnostics counts such views as `compass_not_confident`. A view or target snapshot without a skyline
-(all sky or all ground in its field of view) gets no compass estimate and waits for none: its home
-vector has residual 1 (nothing to home on; the direction is the search's best, as for any residual).
+(all sky or all ground in its field of view) gets no compass estimate and waits for none, and no home
+vector either (nothing to home on: counted as `undetermined`).
 
 Rejected views are counted in /diagnostics by reason (README, 'Nodes'): a message the search cannot use
 ('malformed', 'non_finite', 'degree', 'fill': skynav_core.sh_input), 'out_of_order', and no snapshot to
@@ -39,7 +48,7 @@ from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficie
 from skynav_sh.product import message_sky_share, shows_skyline
 from skynav_warping.errors import WarpingError
 
-from .homing import estimate_home_vector
+from .homing import HomeEstimate, estimate_home_vector
 from .parameters import PARAMETERS, TARGETS
 from .views import view_from_coefficients
 from .warping3d import WarpingSettings
@@ -49,6 +58,7 @@ MATCH_TOPIC = '/localization/match'
 COMPASS_TOPIC = '/compass/orientation'
 HOME_TOPIC = '/homing/home_vector'
 WARPING_FILLS = ('zero',)  # the masked comparison needs the seen part alone
+LOG_PERIOD = 10.0  # s: at most one log line this often about views whose home vector was refused
 
 
 class WarpingNode(SkynavNode):
@@ -64,6 +74,7 @@ class WarpingNode(SkynavNode):
         self.declare_table(PARAMETERS)
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
         self.compass_not_confident = 0  # views whose compass estimate was not confident: aligned without it
+        self.undetermined = 0  # views whose home direction the views do not determine: no home vector published
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0, on_drop=self.drop_unpaired)
         self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
         self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
@@ -153,19 +164,41 @@ class WarpingNode(SkynavNode):
                 q = compass.rotation
                 rotation = np.array([q.x, q.y, q.z, q.w])
             estimate = estimate_home_vector(current, snapshot, rotation, self.settings)
+            if not estimate.confident:
+                self.refuse(stamp, index, estimate)
+                return
             result = HomeVector(snapshot_index=index)
             result.header = message.header
-            result.direction.x, result.direction.y, result.direction.z = (float(v) for v in estimate.best_direction)
+            result.direction.x, result.direction.y, result.direction.z = (float(v) for v in estimate.direction)
             (result.rotation.x, result.rotation.y, result.rotation.z, result.rotation.w) = (
                 float(v) for v in estimate.quaternion
             )
             result.residual = float(1.0 - estimate.confidence)
         self.emit(HOME_TOPIC, result)
 
+    def refuse(self, stamp: int, index: int, estimate: HomeEstimate) -> None:
+        """Count (and log, rate-limited) a view whose home direction the views do not determine: no home vector."""
+        self.undetermined += 1
+        threshold, bound = self.settings.confidence_threshold, self.settings.max_opposite_share
+        why = (
+            f'a step explains the views barely better than a turn (confidence {estimate.confidence:.3f} < '
+            f'{threshold:g}: at the snapshot or too near it to tell, or a view without a skyline)'
+            if estimate.confidence < threshold or estimate.distance_ratio == 0
+            else f'a step the other way explains as much ({estimate.warp.opposite_share:.2f} of the best step, '
+            f'over {bound:g})'
+        )
+        self.get_logger().info(
+            f'no home vector to snapshot {index} for the view stamped {stamp}: {why}; counted in /diagnostics as '
+            'undetermined',
+            throttle_duration_sec=LOG_PERIOD,
+        )
+
     def diagnostic_status(self) -> DiagnosticStatus:
-        """Return the node's status with how many views were aligned without their non-confident compass estimate."""
+        """Return the node's status with how many views were aligned without their non-confident compass estimate,
+        and how many got no home vector because the views do not determine its direction."""
         status = super().diagnostic_status()
         status.values.append(KeyValue(key='compass_not_confident', value=str(self.compass_not_confident)))
+        status.values.append(KeyValue(key='undetermined', value=str(self.undetermined)))
         return status
 
 

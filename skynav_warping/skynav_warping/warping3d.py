@@ -28,7 +28,16 @@ Search:
    current x, y, z), all moves of a step costed in one batch; after a few steps only the best one goes on.
 3. Reference: the best rotation with no translation, refined alongside and then once more, finer, from the best
    hypothesis's rotation. With its cost D0 and the best cost D, confidence = 1 - D / D0: under a pure rotation a
-   translation explains nothing, and the result says so (no confident home vector).
+   translation explains nothing, and the result says so (no confident home vector). A best cost at or below zero
+   (a mean squared difference never is: the band limit's ringing, where the views share next to nothing) gives
+   confidence 0 too.
+4. Direction: the best step turned about the current z into the other half of the plane (OPPOSITE_TURNS: 90 to
+   270 degrees away), at its length and rotation. The largest share of the best step's cost reduction D0 - D that
+   such a step explains is `opposite_share`: well below 0 where the views determine the direction (a step the other
+   way makes the prediction worse than standing still), near 1 or above where they do not (a flat residual over
+   directions: a step any way explains about as much). A home vector is confident only when the translation
+   explains enough (confidence >= confidence_threshold) and its direction is determined (opposite_share below
+   max_opposite_share); both tests are relative to the pair of views at hand.
 """
 
 from __future__ import annotations
@@ -48,6 +57,8 @@ from skynav_warping.errors import WarpingError
 from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
 from skynav_warping.views import WarpView
 
+#: Turns (rad) about the current z of the best step that test its direction: into the other half of the plane.
+OPPOSITE_TURNS = np.radians(np.arange(90.0, 270.1, 15.0))
 SMALLEST_RATIO = 0.015  # |t| / rho of the shortest step hypothesised: no home vector is confident nearer home
 RATIO_STEPS = 18  # ratios on the geometric grid from SMALLEST_RATIO, a factor 2^(1/3) apart (up to 0.76)
 
@@ -76,6 +87,9 @@ class WarpingSettings:
     max_iterations: int = 30  # pattern-search steps
     min_step: float = np.radians(1.0)  # the pattern search stops below this step
     confidence_threshold: float = 0.03  # least relative cost reduction by a translation for a confident vector
+    # most of the best step's cost reduction a step turned 90 degrees or more away may explain for a confident vector:
+    # past half, the other half of the plane explains the views about as well (the direction is not determined)
+    max_opposite_share: float = 0.5
     check_compass: bool = True  # with a start rotation, also search from the own pre-alignment where they disagree
 
     def __post_init__(self) -> None:
@@ -94,9 +108,12 @@ class WarpResult:
     residual: float  # masked mean squared difference at the optimum (view units^2)
     residual_no_translation: float  # the same for the best pure rotation
     confidence: float  # 1 - residual / residual_no_translation, in [0, 1]
-    confident: bool  # confidence >= the settings' threshold
+    confident: bool  # confidence >= the settings' threshold and opposite_share below the settings' bound
     evaluations: int  # hypotheses costed
     start_rotation: np.ndarray  # R0 the best hypothesis started from (the compass estimate, or the pre-alignment)
+    # largest share of the best step's cost reduction explained by the step turned 90-270 degrees about z (inf when
+    # no step reduces the cost: no direction at all)
+    opposite_share: float = np.inf
 
 
 class DegreeTables:
@@ -633,9 +650,17 @@ def warp_home_vector(
     if reference.cost <= best.cost:  # no step explains the views better than a pure rotation
         best = Hypothesis(best.direction, 0, reference.rotation, reference.cost, 0.0, start=reference.start)
     assert best.start is not None  # every hypothesis carries the start rotation of its coarse search
-    usable = np.isfinite(best.cost) and np.isfinite(reference.cost) and reference.cost > 0  # views overlap
+    # views overlap, and the costs are comparisons: a mean squared difference is never below 0, so a cost at or below
+    # it is the band limit's ringing (views that share too little, e.g. nearly all sky), whose ratio means nothing
+    usable = np.isfinite(best.cost) and np.isfinite(reference.cost) and reference.cost > 0 and best.cost > 0
     confidence = float(np.clip(1.0 - best.cost / reference.cost, 0.0, 1.0)) if usable else 0.0
-    confident = bool(confidence >= settings.confidence_threshold and best.ratio > 0)
+    opposite = np.inf
+    if confidence > 0 and best.ratio > 0:
+        opposite, spent = opposite_share(tables, x, s, best, reference.cost)
+        evaluations += spent
+    confident = bool(
+        confidence >= settings.confidence_threshold and best.ratio > 0 and opposite < settings.max_opposite_share
+    )
     return WarpResult(
         direction=best.direction.copy() if confident else np.zeros(3),
         best_direction=best.direction.copy(),
@@ -647,7 +672,28 @@ def warp_home_vector(
         confident=confident,
         evaluations=int(evaluations),
         start_rotation=best.start,
+        opposite_share=float(opposite),
     )
+
+
+def opposite_share(
+    tables: WarpingTables, current: np.ndarray, snapshot: np.ndarray, best: Hypothesis, still: float
+) -> tuple[float, int]:
+    """Return the largest share of the best hypothesis's cost reduction (still - best.cost, still: the best pure
+    rotation's cost) that the same step turned by OPPOSITE_TURNS about the current z explains, and the costs spent.
+
+    current, snapshot: terms (3, n) at the full degree; best.cost < still.
+    """
+    turned = np.array([yaw_matrix(angle) @ best.direction for angle in OPPOSITE_TURNS])
+    costs = hypothesis_costs(
+        tables.fine,
+        current,
+        snapshot,
+        turned,
+        np.full(len(turned), best.ratio),
+        np.repeat(np.asarray(best.rotation, float)[None], len(turned), axis=0),
+    )
+    return float(np.max(still - costs) / (still - best.cost)), len(turned)
 
 
 def _coarse_hypotheses(

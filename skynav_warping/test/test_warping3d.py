@@ -103,6 +103,42 @@ def test_a_step_of_two_hundredths_of_the_scene_distance_is_homed_confidently():
             assert angular_errors(result.direction[None], -position[None])[0] < 3.0
 
 
+@pytest.mark.parametrize('seed', [1, 2])
+def test_a_step_up_or_down_explains_the_views_but_gives_no_direction_on_the_ground(seed):
+    # a camera 0.15 rho below or above the snapshot's place: a step explains 90 % of the cost (confidence 0.90-0.92),
+    # but the step turned any way about z explains as much (opposite share 1.0), so no home vector is confident;
+    # the same world homes a level step of 0.3 rho (opposite share -1.3 and -2.2: the other way is worse than a turn)
+    world = blob_scene(seed)
+    snapshot = render_equal_distance_view(world, np.zeros(3), np.eye(3), degree=SETTINGS.degree)
+    for height in (-0.15, 0.15):
+        current = render_equal_distance_view(world, np.array([0.0, 0.0, height]), np.eye(3), degree=SETTINGS.degree)
+        result = warp_home_vector(current, snapshot, np.eye(3))
+        assert result.confidence > 10 * SETTINGS.confidence_threshold  # the translation explains plenty...
+        assert result.opposite_share >= SETTINGS.max_opposite_share  # ...but not which way
+        assert not result.confident and np.all(result.direction == 0.0)
+        assert abs(result.best_direction[2]) > 0.9  # the search found the vertical step all the same
+    level = render_equal_distance_view(world, np.array([0.3, 0.0, 0.0]), np.eye(3), degree=SETTINGS.degree)
+    result = warp_home_vector(level, snapshot, np.eye(3))
+    assert result.confident and result.opposite_share < 0.0
+
+
+def test_a_cost_below_zero_from_views_of_nearly_all_sky_gives_no_confident_home_vector():
+    # a horizon 10 degrees below the level (a 200-degree camera sees a rim of ground, as a view from a roof does):
+    # steps of 0.3-0.4 rho drive the best cost below zero (-1e-4 against 1.2-1.5e-4 without a step), the band
+    # limit's ringing where the views share next to nothing; 1 - D / D0 made that confidence 1 (a confident vector,
+    # 20 degrees off); a mean squared difference is never negative, so the ratio means nothing and no vector is given
+    def scene(d):
+        elevation, azimuth = np.arcsin(np.clip(d[..., 2], -1, 1)), np.arctan2(d[..., 1], d[..., 0])
+        return 0.5 * (1 + np.tanh((elevation + 0.17 - 0.03 * np.sin(3 * azimuth)) / 0.06))
+
+    snapshot = render_equal_distance_view(scene, np.zeros(3), np.eye(3), degree=SETTINGS.degree)
+    for step in (0.3, 0.4):
+        current = render_equal_distance_view(scene, np.array([step, 0.0, 0.0]), np.eye(3), degree=SETTINGS.degree)
+        result = warp_home_vector(current, snapshot, np.eye(3))
+        assert result.residual < 0.0 < result.residual_no_translation
+        assert result.confidence == 0.0 and not result.confident and np.all(result.direction == 0.0)
+
+
 def test_pure_rotation_gives_no_confident_home_vector(scene, snapshot):
     rng = np.random.default_rng(11)
     for _ in range(3):

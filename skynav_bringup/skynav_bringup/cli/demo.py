@@ -302,6 +302,7 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     with open_bag(run_bag) as bag:
         compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]
         homing = [bag.deserialize(raw) for raw in bag.messages(['/homing/home_vector'])]
+        views = sum(1 for _ in bag.messages(['/skyline/sh']))
     with MapStore.open(map_file) as store:
         snapshots = store.poses()
 
@@ -347,6 +348,11 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     )
     print(f'  {far.sum():3d} at {HOMING_NEAR:g} m or more: {percentiles(direction_errors[far])}')
     print(f"  {(~far).sum():3d} nearer (little parallax; at the route's end): {percentiles(direction_errors[~far])}")
+    print(
+        f'  {(direction_errors > HOMING_MISS).sum()} of the {len(homing)} off by more than {HOMING_MISS:g} deg; '
+        f'{views - len(homing)} of the {views} views got none (the views did not determine the direction, or no '
+        'snapshot was matched yet)'
+    )
     miss = direction_errors > HOMING_MISS
     if miss.any() and (~miss).any():
         print(
