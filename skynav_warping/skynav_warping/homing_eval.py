@@ -12,8 +12,10 @@ map snapshot with a ground-truth pose. Methods:
 - '2d-warping', 'min-warping': the planar baselines on panoramic bands unwrapped from the skyline node's masks;
   they need the snapshot's mask, so they run only when the snapshot is a frame of the recording.
 
-3D-warping's direction is the optimum's (best_direction), also when it is not confident: the node publishes that
-one too, with residual 1 - confidence. Times are CPU seconds (time.process_time, all threads of the process) of
+3D-warping's direction is the optimum's (best_direction), also when it is not confident; the node publishes only the
+confident ones (the others' direction the views do not determine). The table's `confident` column is the share the
+node would publish, `off >30 deg` how many of those are off by more than MISS_DEG, and of how many.
+Times are CPU seconds (time.process_time, all threads of the process) of
 one estimate from the node's input: preparing the current view and estimating, plus the snapshot's preparation
 spread over all estimates; tables built once per process (compass grid, warping tables, panorama remaps) and the
 skyline and SH nodes are not counted.
@@ -47,6 +49,7 @@ from skynav_warping.warping3d import WarpingSettings
 
 EVAL_TILT_BINS = ((0.0, 10.0), (10.0, 20.0), (20.0, 30.0))  # degrees
 MIN_DISTANCE = 0.05  # m: views nearer the snapshot than this have no defined home direction and are left out
+MISS_DEG = 30.0  # deg: a home vector off by more than this is a miss (the table counts those the node publishes)
 
 
 class HomingEvalError(WarpingError):
@@ -126,17 +129,21 @@ class HomingEvaluation:
             *(Column(label, width) for label in labels),
             Column('ms/estimate', width - 1, '.1f'),
             Column('confident', 11),
+            Column(f'off >{MISS_DEG:g} deg', 15),
         )
         rows: list[list] = [['', *(f'(n={first[label][0]})' for label in labels)]]
         for method, result in self.results.items():
             cells = [self.statistics(method)[label] for label in labels]
             confident = '-' if result.confident is None else f'{100.0 * np.mean(result.confident):.0f} %'
+            published = np.ones(len(result.directions), bool) if result.confident is None else result.confident
+            missed = int(np.count_nonzero(self.errors(method)[published] > MISS_DEG))
             rows.append(
                 [
                     method,
                     *(f'{median:.1f} / {p90:.1f}' if np.isfinite(median) else '-' for _, median, p90 in cells),
                     1e3 * result.seconds,
                     confident,
+                    f'{missed} of {int(np.count_nonzero(published))}',
                 ]
             )
         return text_table(columns, rows, gap='', rule=False)

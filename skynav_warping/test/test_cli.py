@@ -88,6 +88,13 @@ def test_statistics_cover_every_bin_and_method(evaluation):
         assert median == pytest.approx(np.median(evaluation.errors(method))) and p90 >= median
     table = evaluation.table().splitlines()
     assert len(table) == 2 + len(METHODS) and 'ms/estimate' in table[0] and '(n=40)' in table[1]
+    # the vectors the node would publish (the confident ones) off by more than 30 degrees, and of how many
+    assert 'off >30 deg' in table[0]
+    for method in ('3d-warping', 'min-warping'):
+        result = evaluation.results[method]
+        published = np.ones(40, bool) if result.confident is None else result.confident
+        cell = f'{np.count_nonzero(evaluation.errors(method)[published] > 30.0)} of {np.count_nonzero(published)}'
+        assert next(row for row in table if row.split()[0] == method).endswith(cell), cell
 
 
 def test_true_directions_follow_the_contract(evaluation):
