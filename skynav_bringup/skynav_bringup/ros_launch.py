@@ -106,7 +106,7 @@ def graph_launch(
 
 def parameter_files(params_file: str = '') -> list[Path]:
     """Return the parameter files every node reads: the shipped one (if installed), then the user's."""
-    from .cli.launch import default_params_file  # noqa: PLC0415 (where the shipped file lives: one place)
+    from .parameters import default_params_file  # noqa: PLC0415 (where the shipped file lives: one place)
 
     shipped = default_params_file()
     files = [shipped] if shipped is not None else []

@@ -160,8 +160,8 @@ def measure(bag_path: Path, map_path: Path, params: Path | None, warmup: int, fr
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import message_class
 
+    from ..parameters import ros_arguments
     from . import CliError
-    from .run import ros_arguments
 
     open_map(map_path).close()  # a map the nodes would refuse stops here, in one line
     specs = installed_nodes()

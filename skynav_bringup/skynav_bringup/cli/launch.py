@@ -70,15 +70,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def default_params_file() -> Path | None:
-    """Return the parameter file shipped with skynav_bringup, if installed."""
-    from skynav_core.environment import share_directory
-
-    share = share_directory('skynav_bringup')
-    path = None if share is None else share / 'config' / 'skynav.yaml'
-    return path if path is not None and path.is_file() else None
-
-
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
     from skynav_core.launcher import Launcher
@@ -87,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.nodes import installed_nodes
     from skynav_core.ros import StopRequest
 
+    from ..parameters import ros_arguments
     from . import CliError
-    from .run import ros_arguments
 
     if args.map is not None and not args.map.is_file():
         raise CliError(f'{args.map}: no such map file')

@@ -28,26 +28,6 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--nodes', nargs='+', metavar='NAME', help='run only these nodes')
 
 
-def ros_arguments(
-    params: Path | None, map_path: Path | None, namespace: str = '', scratch: Path | None = None
-) -> list[str]:
-    """Return the --ros-args of the graph: the shipped defaults, then the user's parameter file, and the map; in a
-    namespace, the files' node sections rewritten into `scratch` to match there (skynav_core.namespaces)."""
-    from skynav_core.cli import graph_arguments
-    from skynav_core.namespaces import write_any_namespace_file
-
-    from .launch import default_params_file
-
-    shipped = default_params_file()
-    arguments = (['--params-file', str(shipped)] if shipped is not None else []) + graph_arguments(params, map_path)
-    if namespace:
-        assert scratch is not None  # the caller keeps the rewritten files while the graph runs
-        for k, value in enumerate(arguments):
-            if k > 0 and arguments[k - 1] == '--params-file':
-                arguments[k] = str(write_any_namespace_file(Path(value), scratch / f'{k}-{Path(value).name}'))
-    return arguments
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the graph; return the exit code."""
     from tqdm import tqdm
@@ -58,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
 
+    from ..parameters import ros_arguments
     from . import CliError
 
     specs = installed_nodes()
