@@ -31,7 +31,7 @@ _EXPORTS = {
         'to_padded',
         'from_padded',
     ),
-    'refine': ('refine', 'newton_prediction', 'within_tilt'),
+    'refine': ('refine', 'newton_prediction'),
     'verify': ('Verification', 'verify', 'recovered_masks'),
     'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
     'yaw': ('PanoramicCompass', 'YawCompass'),

@@ -38,14 +38,10 @@ from skynav_compass.refine import Refined, newton_prediction, refine
 from skynav_compass.so3 import EulerGrid
 from skynav_compass.verify import current_masks, is_binary, verify
 from skynav_compass.views import CompassView
-from skynav_core.rotations import as_matrix, rotation_angle, zyz_matrix
+from skynav_core.rotations import MAX_TILT, as_matrix, rotation_angle, zyz_matrix
 
 View = CompassView | np.ndarray
 Snapshot = CompassView | np.ndarray | PreparedSnapshot  # a view, or one prepared by Compass.prepare
-#: Largest tilt between the two views searched by default (rad): a mower's camera tilts by some 20-25 degrees on
-#: rough lawn, so two views on opposite slopes differ by up to 45 (the bundled bumpy homing grid: 35 at most; the
-#: compass sets: 36). A wider bound lets more wrong hypotheses in (see docs/methods.md, "The 3D compass").
-MAX_TILT = np.radians(45.0)
 #: Evidence (sharpness x skyline share, rad^-2) at which the confidence is 1/2: on the real-landscape and synthetic
 #: compass sets, estimates within 5 degrees of the truth mostly lie far above it, wrong ones below it.
 CONFIDENCE_SCALE = 0.05

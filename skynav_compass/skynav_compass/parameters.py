@@ -6,8 +6,7 @@ from __future__ import annotations
 import math
 
 from skynav_core.parameters import Parameter
-
-from .compass import MAX_TILT
+from skynav_core.rotations import MAX_TILT
 
 REFERENCES = ('match', 'index', 'live')  # what the compass compares against
 

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 import yaml
 
-from skynav_compass.compass import MAX_TILT
 from skynav_compass.dataset import true_rotation
 from skynav_compass.errors import CompassError
 from skynav_compass.evaluation import (
@@ -45,6 +44,7 @@ from skynav_compass.evaluation import (
 from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
 from skynav_compass.runner import Method, NodeViews, build_method, compass_result, timed_estimates
 from skynav_core.evaluation import Column, text_table, unknown_methods
+from skynav_core.rotations import MAX_TILT
 from skynav_core.views import recording_views
 
 GROUPS = ('rotation', 'moved')  # pure rotations, views moved against the snapshot

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skynav_compass.cost import CostProblem, Jet
+from skynav_core.rotations import within_tilt
 
 
 @dataclass(frozen=True)
@@ -79,11 +80,6 @@ def _newton_step(gradient: np.ndarray, hessian: np.ndarray) -> np.ndarray:
 def _orthonormalise(matrix: np.ndarray) -> np.ndarray:
     """Return a 3x3 matrix near a rotation moved onto SO(3) (one Newton step of the polar decomposition)."""
     return 1.5 * matrix - 0.5 * matrix @ matrix.T @ matrix
-
-
-def within_tilt(matrix: np.ndarray, max_tilt: float | None) -> bool:
-    """Return whether R (3x3) tilts z by at most max_tilt (rad; None: any tilt): R_zz >= cos(max_tilt)."""
-    return max_tilt is None or float(matrix[2, 2]) >= math.cos(max_tilt) - 1e-12
 
 
 def newton_prediction(

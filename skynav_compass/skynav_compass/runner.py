@@ -19,7 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from skynav_compass.compass import MAX_TILT, Compass, CompassConfig, any_tilt_config
+from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
 from skynav_compass.errors import CompassError
 from skynav_compass.estimate import CompassEstimate
 from skynav_compass.evaluation import CompassResult, angular_error, relative_tilt
@@ -28,6 +28,7 @@ from skynav_compass.features import FeatureCompass, FeatureConfig
 from skynav_compass.methods import METHODS, PREPARED, CompassMethod
 from skynav_compass.views import CompassView
 from skynav_compass.yaw import PanoramicCompass, YawCompass
+from skynav_core.rotations import MAX_TILT
 from skynav_sh.fisheye import FisheyeTransform
 
 

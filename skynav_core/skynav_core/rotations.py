@@ -24,6 +24,13 @@ RotationLike = Union[
 ]  # a scipy Rotation, matrices (..., 3, 3) or quaternions (..., 4)
 
 
+#: Largest tilt between two views of a ground robot's upward camera (rad): a mower's camera tilts by some 20-25
+#: degrees on rough lawn, so two views on opposite slopes differ by up to 45 (the bundled bumpy homing grid: 35 at
+#: most; the compass sets: 36). The compass searches no further by default; a wider bound lets more wrong hypotheses
+#: in (see docs/methods.md, "The 3D compass").
+MAX_TILT = float(np.radians(45.0))
+
+
 def _scipy_rotation() -> type[Rotation]:
     """Return scipy's Rotation class."""
     # imported on first use: scipy.spatial takes some 0.2 s to load, which every node's start would pay
@@ -147,6 +154,11 @@ def tilt(rotation: RotationLike) -> np.ndarray | float:
     z = as_matrix(rotation)[..., 2, 2]
     angle = np.arccos(np.clip(z, -1.0, 1.0))
     return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def within_tilt(matrix: np.ndarray, max_tilt: float | None) -> bool:
+    """Return whether R (3x3) tilts z by at most max_tilt (rad; None: any tilt): R_zz >= cos(max_tilt)."""
+    return max_tilt is None or float(matrix[2, 2]) >= float(np.cos(max_tilt)) - 1e-12
 
 
 def yaw(rotation: RotationLike) -> np.ndarray | float:

@@ -18,6 +18,7 @@ from skynav_core.rotations import (
     rotation_angle,
     tilt,
     wrap_angle,
+    within_tilt,
     yaw,
     yaw_matrix,
     zyz_angles,
@@ -180,3 +181,10 @@ def test_wrap_angle_broadcasts_over_arrays_as_over_scalars():
     wrapped = wrap_angle(angles)
     assert wrapped.shape == angles.shape
     np.testing.assert_array_equal(wrapped, np.vectorize(wrap_angle)(angles))
+
+
+def test_within_tilt_is_the_tilt_against_the_bound():
+    rotations = Rotation.random(200, random_state=7).as_matrix()
+    for bound in (0.1, 0.5, 1.2):
+        assert [within_tilt(r, bound) for r in rotations] == [tilt(r) <= bound for r in rotations]
+    assert all(within_tilt(r, None) for r in rotations)  # no bound

@@ -16,8 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from skynav_compass.refine import within_tilt
-from skynav_core.rotations import RotationLike, as_matrix, as_quaternion
+from skynav_core.rotations import RotationLike, as_matrix, as_quaternion, within_tilt
 from skynav_sh.product import seen_mean, shows_skyline
 from skynav_warping.views import WarpView
 from skynav_warping.warping3d import WarpingSettings, WarpResult, warp_home_vector

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 
-from skynav_compass.compass import MAX_TILT
 from skynav_core.parameters import Parameter
+from skynav_core.rotations import MAX_TILT
 
 TARGETS = ('match', 'index', 'next')  # which snapshot to home to
 

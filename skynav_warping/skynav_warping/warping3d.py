@@ -47,9 +47,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from skynav_compass.compass import MAX_TILT
-from skynav_compass.refine import within_tilt
-from skynav_core.rotations import rotation_angle, yaw_matrix, zyz_angles
+from skynav_core.rotations import MAX_TILT, rotation_angle, within_tilt, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
 from skynav_sh.rotation import quarter_turn_sparse, rotate, z_rotation_index
 from skynav_sh.translation import z_translation_blocks

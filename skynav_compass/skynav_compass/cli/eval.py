@@ -111,7 +111,7 @@ def max_tilt(degrees: float | None) -> float:
     """Return the tilt bound (rad) of --max-tilt (deg), by default the compass's."""
     import numpy as np
 
-    from ..compass import MAX_TILT
+    from skynav_core.rotations import MAX_TILT
 
     return MAX_TILT if degrees is None else float(np.radians(degrees))
 
