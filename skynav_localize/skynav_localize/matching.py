@@ -37,6 +37,22 @@ place descriptors of skynav and the baselines share one code path.
   vouched for snapshots that advance steadily (least-squares slope within the speed range). The first alternative
   keeps a robot that rejoins a distinct route after a detour localized at once; the second refuses a sequence
   that stalls or jitters in place where the route looks alike, while a steady drive there still earns its matches.
+- Against the map's own statistics (skynav's sequence methods, outside tracking): how near a view must be to its
+  place differs from route to route (the skyline of a real landscape 40 m away changes about five times less over a
+  metre of route than a synthetic garden's), so two more bounds are measured on the map itself. The *view change* at
+  a snapshot is its mean distance to the snapshots `exclusion` before and after it (about a metre of route). A
+  match's *relative distance* is the lesser of the sequence's distance at its place and the newest view's distance
+  at its snapshot, each over the view change there; it is accepted only where that is at most
+  max_relative_distance. A view 1.5 m beside the route lies about as far from its place as a view a third to a half
+  of a metre along the route does, farther than a view on the route under another light and tilt (the lesser of
+  the two: just after a detour the sequence still holds the views off the route, and the newest view back answers
+  for itself). The *displaced ratio* of a snapshot is the ratio at it of its neighbours `exclusion` snapshots away
+  (their distance to it over their least distance to a snapshot more than `exclusion` from both; the smaller side's):
+  a view about a metre from the place under the teach's light. Above 1 the neighbourhood resembles places
+  elsewhere more than the place itself: the place is told apart by something that changes abruptly along the route
+  and recurs off it (on the real landscapes, the tilt of the terrain). Such a place counts as distinct (the
+  self-similarity alternative above) only with a displaced ratio at most max_displaced_ratio; otherwise its match
+  needs a steady drive.
 - Tracking (while the robot follows the route it was taught): the question is no longer which stretch of the whole
   route the view shows but how far the robot has come along it since the last accepted match. The match is sought
   only in the tracking window (RouteTracker: with odometry of the drive and of the teach, around the place the
@@ -104,6 +120,12 @@ class Acceptance:
     motion_slack: float | None = None
     # the matched snapshot's self-similarity, unless the sequence's views vouched for a steady drive; None: no bound
     max_self_similarity: float | None = None
+    # sequences, outside tracking: the sequence distance over the map's own view change at the sequence's place
+    # (view_change: across `exclusion` snapshots); None: no bound
+    max_relative_distance: float | None = None
+    # with the self-similarity: the displaced ratio of the matched snapshot (the ratio at it of its neighbours
+    # `exclusion` snapshots away, views about a metre from it), unless the views vouched for a steady drive
+    max_displaced_ratio: float | None = None
 
     def accepts(
         self, score: np.ndarray | float, distance: np.ndarray | float, view_score: np.ndarray | float | None = None
@@ -120,13 +142,27 @@ class Acceptance:
             return np.asarray(view_score) <= self.max_view_score
         return np.asarray(score) <= self.max_score
 
-    def passes_place_tests(self, consistent: np.ndarray, steady: np.ndarray, self_similarity: np.ndarray) -> np.ndarray:
+    def passes_relative_distance(self, relative_distance: np.ndarray | float) -> np.ndarray | bool:
+        """Return whether matches pass the bound on the distance relative to the map's view change (vectorised)."""
+        if self.max_relative_distance is None:
+            return np.ones(np.shape(relative_distance), dtype=bool)
+        return np.asarray(relative_distance) <= self.max_relative_distance
+
+    def passes_place_tests(
+        self,
+        consistent: np.ndarray,
+        steady: np.ndarray,
+        self_similarity: np.ndarray,
+        displaced_ratio: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Return whether matches pass the tests of a route that looks alike (vectorised; see the module notes)."""
         distinct = (
             np.ones(np.shape(self_similarity), dtype=bool)
             if self.max_self_similarity is None
             else np.asarray(self_similarity) <= self.max_self_similarity
         )
+        if self.max_displaced_ratio is not None and displaced_ratio is not None:
+            distinct = distinct & (np.asarray(displaced_ratio) <= self.max_displaced_ratio)
         if self.motion_slack is None:
             return distinct
         return np.asarray(consistent, dtype=bool) & (distinct | np.asarray(steady, dtype=bool))
@@ -389,6 +425,34 @@ def self_similarity(local_step: np.ndarray, look_alike: np.ndarray) -> np.ndarra
     """Return the route's step over the distance to the nearest look-alike (snapshots, (N,)): 0 with none, 1 when
     both are 0; lower = a place that stands out."""
     return distance_ratio(local_step, look_alike)
+
+
+def view_change(rows: np.ndarray, indices: np.ndarray, exclusion: int) -> np.ndarray:
+    """Return per snapshot (K,) of the map the view change across `exclusion` snapshots there: the mean distance from
+    it to the snapshots `exclusion` before and after it (the one that exists at the route's ends; 0 on a map of at
+    most `exclusion` snapshots), from its distance rows (K, N) to every snapshot."""
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    indices = np.atleast_1d(np.asarray(indices, dtype=np.intp))
+    n = rows.shape[1]
+    total, count = np.zeros(indices.size), np.zeros(indices.size)
+    for other in (indices - exclusion, indices + exclusion):
+        inside = (other >= 0) & (other < n)
+        total[inside] += rows[np.flatnonzero(inside), other[inside]]
+        count += inside
+    with np.errstate(invalid='ignore'):
+        return np.where(count > 0, total / np.maximum(count, 1), 0.0)
+
+
+def displaced_ratios(rows: np.ndarray, places: np.ndarray, neighbours: np.ndarray, exclusion: int) -> np.ndarray:
+    """Return the ratios (K,) at snapshots `places` of their `neighbours` (K,), from the neighbours' distance rows
+    (K, N) to every snapshot: the distance to the place over the least distance to a snapshot more than `exclusion`
+    from both (0 with none, as distance_ratio)."""
+    rows = np.atleast_2d(np.asarray(rows, dtype=float))
+    places, neighbours = np.atleast_1d(places), np.atleast_1d(neighbours)
+    snapshots = np.arange(rows.shape[1])[None, :]
+    far = (np.abs(snapshots - places[:, None]) > exclusion) & (np.abs(snapshots - neighbours[:, None]) > exclusion)
+    second = np.min(np.where(far, rows, np.inf), axis=1, initial=np.inf)
+    return distance_ratio(rows[np.arange(rows.shape[0]), places], second)
 
 
 class RouteTracker:

@@ -22,6 +22,7 @@ skynav_core.sh_input) and 'out_of_order'.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from geometry_msgs.msg import Twist, TwistStamped
@@ -35,7 +36,7 @@ from skynav_core.sh_input import usable_coefficients
 from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
 from .localizer import METHODS, OUR_METHODS, Localizer
-from .matching import Acceptance, SequenceParams
+from .matching import SequenceParams
 from .parameters import PARAMETERS
 from .teach_server import COMMAND_QOS, COMMAND_TOPIC, ODOM_QOS, ODOM_TOPIC, TeachServer, odometry_pose
 from .teaching import OdometryTrack
@@ -95,8 +96,12 @@ class LocalizeNode(SkynavNode):
             if math.isnan(values['max_self_similarity'])
             else values['max_self_similarity']
         )
-        acceptance = Acceptance(
-            ratio, values['max_distance'], method_acceptance.exclusion, view, method_acceptance.motion_slack, alike
+        acceptance = dataclasses.replace(
+            method_acceptance,
+            max_score=ratio,
+            max_distance=values['max_distance'],
+            max_view_score=view,
+            max_self_similarity=alike,
         )
         sequence = SequenceParams(values['sequence_length'], values['min_speed'], values['max_speed'])
         try:

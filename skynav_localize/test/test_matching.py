@@ -20,6 +20,7 @@ from skynav_localize.matching import (
     SequenceParams,
     best_candidates,
     contrast_normalise,
+    displaced_ratios,
     distance_ratio,
     local_steps,
     motion_tests,
@@ -30,6 +31,7 @@ from skynav_localize.matching import (
     sequence_scores,
     single_frame,
     trajectory_scores,
+    view_change,
     view_in_place,
 )
 
@@ -262,6 +264,41 @@ def test_acceptance_where_the_route_looks_alike():
     # a view vouches by its own ratio at the snapshot it chose (sequences), or by the match's ratio (single frames)
     np.testing.assert_array_equal(acceptance.vouches(np.array([0.1, 0.9]), np.array([0.5, 0.3])), [False, True])
     np.testing.assert_array_equal(Acceptance(0.45).vouches(np.array([0.1, 0.9])), [True, False])
+
+
+def test_acceptance_bounds_the_relative_distance_and_the_displaced_ratio_of_a_distinct_place():
+    acceptance = Acceptance(0.4, max_view_score=0.45, motion_slack=3, max_self_similarity=0.3, max_displaced_ratio=2.0)
+    consistent = np.ones(4, dtype=bool)
+    steady = np.array([False, False, True, False])
+    alike = np.full(4, 0.1)  # every place stands out by its look-alike elsewhere
+    displaced = np.array([0.5, 3.0, 3.0, 2.0])  # above 2: a metre from the place, views look like elsewhere
+    np.testing.assert_array_equal(
+        acceptance.passes_place_tests(consistent, steady, alike, displaced), [True, False, True, True]
+    )
+    # without the displaced ratios (or without a bound on them) only the self-similarity counts
+    assert np.all(acceptance.passes_place_tests(consistent, steady, alike))
+    relative = np.array([0.1, 0.33, 0.5, np.inf])
+    np.testing.assert_array_equal(
+        Acceptance(0.4, max_relative_distance=0.33).passes_relative_distance(relative), [True, True, False, False]
+    )
+    assert np.all(Acceptance(0.4).passes_relative_distance(relative))
+
+
+def test_view_change_and_displaced_ratio_of_a_route():
+    # snapshots on a line, a metre per snapshot: distances are metres along it, and the view changes evenly
+    positions = np.arange(30.0)
+    rows = np.abs(positions[:, None] - positions[None, :])
+    exclusion = 3
+    indices = np.array([0, 10, 29])
+    np.testing.assert_allclose(view_change(rows[indices], indices, exclusion), [3.0, 3.0, 3.0])
+    assert view_change(rows[:2, :2], np.array([0, 1]), exclusion).tolist() == [0.0, 0.0]  # nothing 3 snapshots on
+    # the snapshot 3 after 10 is 3 from it and 4 from the nearest snapshot more than 3 from both (6 or 17): 0.75
+    np.testing.assert_allclose(displaced_ratios(rows[[13]], np.array([10]), np.array([13]), exclusion), [0.75])
+    # where the route jumps (a view that changes abruptly between 10 and 13), the neighbour resembles the far
+    # snapshots more than the place: a ratio above 1
+    jump = positions + 20.0 * (positions >= 12)
+    rows = np.abs(jump[:, None] - jump[None, :])
+    assert displaced_ratios(rows[[13]], np.array([10]), np.array([13]), exclusion)[0] > 1.0
 
 
 def uneven_route(count: int = 200) -> np.ndarray:
