@@ -289,3 +289,23 @@ def test_the_rival_margin_compares_the_best_with_the_closest_distinct_rival():
     assert rival_margin(np.array([0.0, 0.0])) == 0.0  # both fit perfectly: a tie
     assert rival_margin(np.array([0.0, 0.01])) == 1.0
     assert rival_margin(np.array([0.02])) == 1.0  # no rival
+
+
+def test_a_hypothesis_found_twice_is_not_its_own_rival(monkeypatch):
+    """Two starts that refine to the same optimum (common on real masks) must not read as a rival that fits as well."""
+    q_s = Rotation.from_euler('ZYX', [20.0, 4.0, -3.0], degrees=True)
+    q_c = q_s * Rotation.from_euler('ZYX', [130.0, 18.0, -9.0], degrees=True)
+    views = skyline_view(q_s, rugged), skyline_view(q_c, rugged)
+    once = Compass(16).estimate(*views)
+    found = Compass._verified_optima
+
+    def twice(self, problem, starts, start_jets, details):
+        results = found(self, problem, starts, start_jets, details)
+        details['verified'] = details['verified'].subset(np.r_[0, np.arange(len(results))])
+        return [results[0], *results]
+
+    monkeypatch.setattr(Compass, '_verified_optima', twice)
+    doubled = Compass(16).estimate(*views)
+    assert once.confident and doubled.confident
+    assert doubled.details['rival_margin'] == once.details['rival_margin'] > RIVAL_MARGIN_SCALE
+    assert doubled.confidence == once.confidence
