@@ -19,7 +19,7 @@ ALLOWED = {
     'skynav_compass': {'skynav_msgs', 'skynav_core', 'skynav_sh'},
     'skynav_warping': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_compass'},
     'skynav_sim': {'skynav_msgs', 'skynav_core', 'skynav_localize'},
-    'skynav_route': {'skynav_msgs', 'skynav_core', 'skynav_sh', 'skynav_localize', 'skynav_compass', 'skynav_warping'},
+    'skynav_route': {'skynav_msgs', 'skynav_core'},
     'skynav_viz': {'skynav_msgs', 'skynav_core'},
     'skynav_bringup': {
         'skynav_msgs',
