@@ -61,6 +61,9 @@ from skynav_core.rotations import wrap_angle, yaw
 LOCALIZING, FOLLOWING, RECOVERING, STOPPING = 'localizing', 'following', 'recovering', 'stopping'
 # outcomes of a step: '' goes on, the others end the goal
 GOING, REACHED, LOST = '', 'reached', 'lost'
+#: snapshots: a Homer that has had no home vector yet takes frames without one as a refusal near home (arriving) only
+#: where the frame's accepted place match lies within this many snapshots of its own (some 0.3 m at 0.1 m spacing)
+ARRIVAL_MATCH_SNAPSHOTS = 3
 MAX_FRAME_GAP = 1.0  # s: a longer gap between frames counts as this much for the acceleration limits
 START_ALONG_SIGMA = 0.5  # m: standard deviation of the position along the route when the first match places the robot
 START_OFFSET_SIGMA = 0.3  # m: ...and across it
@@ -508,11 +511,20 @@ class Homer:
         self.crept = 0.0  # m driven straight on through them
         self.missing = 0  # consecutive frames without a home vector to this snapshot
         self.driving = False  # whether the robot has driven towards home yet (overshoot needs that)
+        self.heard = False  # whether a home vector to this snapshot has come during the goal
         self._motion = _Motion()
+
+    def _refusal_credible(self, view: View) -> bool:
+        """Return whether a frame without a home vector may be a refusal near home: home vectors to this snapshot
+        came before (the warping node serves this goal), or the frame's accepted place match lies within
+        ARRIVAL_MATCH_SNAPSHOTS of it. A warping node that rejects every view (a wrong SH degree, say) is otherwise
+        silent in the same way, and would let the robot report arriving where it stands."""
+        near = view.match_accepted and abs(view.match_index - self.index) <= ARRIVAL_MATCH_SNAPSHOTS
+        return self.heard or near
 
     def step(self, view: View) -> Step:
         """Return the command for one frame."""
-        if view.home_direction is None and view.home_expected:
+        if view.home_direction is None and view.home_expected and self._refusal_credible(view):
             # the warping node refused this frame's home vector: the views do not determine a direction (at the
             # snapshot, or too close to tell), as an unsure vector says
             self.missing = 0
@@ -521,7 +533,7 @@ class Homer:
             self.missing += 1
             outcome = LOST if self.missing > self.settings.lost_frames else GOING
             return Step(self._motion.stop(view.stamp), RECOVERING if not outcome else STOPPING, outcome)
-        self.missing = 0
+        self.missing, self.heard = 0, True
         confidence = float(np.clip(1.0 - view.home_residual, 0.0, 1.0))
         if view.home_residual > self.settings.unsure_residual:
             return self._unsure(view, confidence)

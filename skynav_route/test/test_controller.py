@@ -439,9 +439,17 @@ def test_homer_takes_frames_whose_home_vector_was_refused_as_unsure_and_arrives(
     assert [s.command.angular for s in refused] == [0.0] * 3 and refused[-1].command.is_zero
     assert [s.command.linear for s in refused[:2]] == pytest.approx([speed] * 2)
     assert all(s.confidence == 0.0 for s in refused)
+    # started at home: no home vector yet, but the place match names the snapshot (within 3): arrived
     started_home = Homer(0, LIMITS, Settings(arrived_frames=3))
-    steps = [started_home.step(View(stamp=f * FRAME, home_expected=True)) for f in range(3)]
+    at_home = [View(stamp=f * FRAME, home_expected=True, match_index=1, match_accepted=True) for f in range(3)]
+    steps = [started_home.step(view) for view in at_home]
     assert [s.outcome for s in steps] == ['', '', REACHED] and all(s.command.is_zero for s in steps)
+    # no home vector ever, and the place match elsewhere (or none): a warping node that rejects every view looks the
+    # same, so the frames are missing, not a refusal near home: lost, never arrived
+    for match_index, accepted in ((9, True), (1, False)):
+        far = Homer(0, LIMITS, Settings(arrived_frames=3, lost_frames=2))
+        views = [View(f * FRAME, match_index, accepted, home_expected=True) for f in range(3)]
+        assert [far.step(view).outcome for view in views] == ['', '', LOST]
     silent = Homer(0, LIMITS, Settings(arrived_frames=3, lost_frames=2))  # nothing publishes home vectors
     steps = [silent.step(View(stamp=f * FRAME)) for f in range(3)]
     assert [s.outcome for s in steps] == ['', '', LOST] and all(s.command.is_zero for s in steps)

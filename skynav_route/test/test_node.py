@@ -239,7 +239,10 @@ def test_a_robot_never_placed_on_the_route_is_lost_where_it_stands(route_map, st
 def test_home_arrives_on_frames_whose_home_vector_the_warping_node_refused(route_map):
     # the warping node publishes no home vector whose direction the views do not determine (at the snapshot): with
     # it in the graph, frames without one are unsure, and a few in a row mean arrived; without it they are missing
-    for others, outcome in ((('warping',), 'NONE'), ((), 'LOST')):
+    # (a warping node that refuses every view while the place match lies far from the goal's snapshot would look
+    # the same: those frames are missing, and the goal is lost, not reached where the robot stands)
+    cases = ((('warping',), 4, 'NONE'), ((), 4, 'LOST'), (('warping',), 12, 'LOST'))
+    for others, matched, outcome in cases:
         with route_graph(route_map, 'lost_frames:=3', 'arrived_frames:=3', others=others) as graph:
             driver = Driver(graph)
             try:
@@ -247,11 +250,11 @@ def test_home_arrives_on_frames_whose_home_vector_the_warping_node_refused(route
                 handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
                 for _ in range(5):
                     if not result.done():
-                        driver.publish_frame(home=False)
+                        driver.publish_frame(index=matched, home=False)
                 assert driver.spin_until(result.done)
                 assert error_name(result.result().result) == outcome
                 assert all(is_zero(c) for c in driver.commands)  # started at home: it never drove
-                assert len(driver.commands) == (3 if others else 4)
+                assert len(driver.commands) == (3 if outcome == 'NONE' else 4)
             finally:
                 driver.close()
 
