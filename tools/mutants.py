@@ -353,6 +353,14 @@ MUTATIONS = (
         'the Homer takes a refused home vector as a missing one (LOST near home) and a missing one as arrived',
     ),
     Mutation(
+        'refusal-always-credible',
+        'skynav_route/skynav_route/controller.py',
+        '        return self.heard or near',
+        '        return True',
+        ('skynav_route/test/test_controller.py', 'skynav_route/test/test_node.py'),
+        'a Homer that never heard a home vector arrives on silence wherever the robot stands',
+    ),
+    Mutation(
         'confident-share-over-all',
         'skynav_compass/skynav_compass/evaluation.py',
         '    return ConfidentStatistics(float(flags.mean()), int(flags.sum()),',
