@@ -28,15 +28,10 @@ from typing import Any
 import numpy as np
 
 from skynav_compass.errors import CompassError
-from skynav_compass.so3 import (
-    EulerGrid,
-    complex_form,
-    rotate_degree_major,
-    so3_correlation_cells,
-    stacked_generators,
-    to_padded,
-)
+from skynav_compass.so3 import EulerGrid, complex_form, so3_correlation_cells, stacked_generators
 from skynav_compass.views import CompassView
+from skynav_sh.layouts import to_padded
+from skynav_sh.rotation import rotate_degree_major
 from skynav_sh.spectra import illumination_invariant
 
 COSTS = ('masked', 'plain')
@@ -195,8 +190,8 @@ class PreparedSnapshot:
         """Return the (r n, channels k) matrix M with channel values (and derivatives) = vec(D(R) b) @ M, cached.
 
         vec(D(R) b) runs over the current-side functions turned by R laid out degree first, [l, function j, m + L]
-        (so3.rotate_degree_major); r is the number of them the channels use, n = (L+1)(2L+1); k is 13 with
-        derivatives (value, gradient and Hessian in u of exp(u) R), else 1.
+        (skynav_sh.rotation.rotate_degree_major); r is the number of them the channels use, n = (L+1)(2L+1); k is 13
+        with derivatives (value, gradient and Hessian in u of exp(u) R), else 1.
         """
         key = (channels, derivatives)
         cached = self._matrices.get(key)

@@ -17,9 +17,9 @@ import numpy as np
 from skynav_compass.compass import UNITS
 from skynav_compass.cost import CostProblem, PreparedSnapshot, build_problem, prepare_snapshot
 from skynav_compass.estimate import CompassEstimate, Hypothesis
-from skynav_compass.so3 import quarter_turn_padded, rotate_z_padded
 from skynav_compass.views import CompassView
 from skynav_core.rotations import rotation_angle, zyz_matrix
+from skynav_sh.rotation import quarter_turn_padded, rotate_z_padded, z_rotation_factors_padded
 
 View = CompassView | np.ndarray
 Snapshot = CompassView | np.ndarray | PreparedSnapshot  # a view, or one prepared by ExhaustiveCompass.prepare
@@ -45,12 +45,8 @@ def grid_channel_values(
     columns = turned.transpose(2, 3, 1, 0).reshape(L + 1, size, -1)  # (L+1, 2L+1, r G)
     back = np.matmul(np.swapaxes(turn, 1, 2), columns)  # J^T
     beta = np.asarray(betas, dtype=float)
-    m = np.arange(-L, L + 1)
-    angle = beta[:, None] * np.abs(m)[None, :]  # (B, 2L+1)
-    sign = np.where(m > 0, -1.0, 1.0)
-    stepped = (
-        np.cos(angle)[:, None, :, None] * back[None] + (sign * np.sin(angle))[:, None, :, None] * back[None, :, ::-1, :]
-    )  # (B, L+1, 2L+1, r G)
+    cos, sin = z_rotation_factors_padded(L, beta)  # (B, 2L+1)
+    stepped = cos[:, None, :, None] * back[None] + sin[:, None, :, None] * back[None, :, ::-1, :]  # (B, L+1, 2L+1, r G)
     rotated = np.matmul(turn[None], stepped)  # (B, L+1, 2L+1, r G)
     n_beta, n_gamma = len(beta), len(gammas)
     # ((L+1)(2L+1), r B G): the columns of term j form one block (a strided view BLAS takes as it is)

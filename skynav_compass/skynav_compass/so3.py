@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
-"""SO(3) machinery on real SH coefficients (camera_link): padded layout, Wigner tables, rotations, generators.
+"""The compass's SO(3) machinery on real SH coefficients (camera_link): generators, Wigner tables, the correlation.
 
-Padded layout: coefficients (..., (L+1)^2) in the contract's flat order become (..., L+1, 2L+1) arrays with
-entry [l, m + L] (zero where |m| > l), so every degree is a row and per-degree matrices act by batched matmul.
+Coefficients are in skynav_sh's padded layout (skynav_sh.layouts: (..., L+1, 2L+1), entry [l, m + L]); their
+rotations (rotate_by_matrix, rotate_degree_major, rotate_z_padded, the quarter turn J) live in skynav_sh.rotation.
 Rotation convention (as skynav_sh.rotate): D(R) c are the coefficients of f(R^T d); D(R1 R2) = D(R1) D(R2);
 R = Rz(alpha) Ry(beta) Rz(gamma) (ZYZ) has D = Z(alpha) J Z(beta) J^T Z(gamma), J = D(Rx(-90 deg)).
 Complex form: A_lm = s_m (c_l|m| + i sgn(m) c_l,-|m|) / sqrt(2) (A_l0 = c_l0, s_m = (-1)^m for m > 0, else 1)
@@ -21,34 +21,7 @@ from scipy.fft import irfft2, next_fast_len
 from scipy.sparse import block_diag, vstack
 
 from skynav_compass.errors import CompassError
-from skynav_core.rotations import zyz_angles
-from skynav_sh.basis import degree_from_size, degree_order
-from skynav_sh.rotation import quarter_turn
-
-
-@lru_cache(maxsize=16)
-def _flat_to_padded(max_degree: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return (row l, column m + L) of every flat coefficient index of degree L."""
-    l, m = degree_order(max_degree)
-    return np.asarray(l), np.asarray(m + max_degree)
-
-
-def to_padded(coefficients: np.ndarray, max_degree: int | None = None) -> np.ndarray:
-    """Return coefficients (..., (L'+1)^2) in the padded layout (..., L+1, 2L+1), truncated or zero-extended to L."""
-    coefficients = np.asarray(coefficients, dtype=float)
-    source = degree_from_size(coefficients.shape[-1])
-    degree = source if max_degree is None else int(max_degree)
-    keep = min(source, degree)
-    rows, cols = _flat_to_padded(keep)
-    out = np.zeros(coefficients.shape[:-1] + (degree + 1, 2 * degree + 1))
-    out[..., rows, cols - keep + degree] = coefficients[..., : (keep + 1) ** 2]
-    return out
-
-
-def from_padded(padded: np.ndarray) -> np.ndarray:
-    """Return the flat coefficients (..., (L+1)^2) of a padded array (..., L+1, 2L+1)."""
-    rows, cols = _flat_to_padded(padded.shape[-2] - 1)
-    return padded[..., rows, cols]
+from skynav_sh.rotation import quarter_turn_padded, rotate_z_padded
 
 
 @lru_cache(maxsize=16)
@@ -70,94 +43,7 @@ def complex_form(padded: np.ndarray) -> np.ndarray:
     return real_weight * padded[..., positive] + 1j * imag_weight * padded[..., negative]
 
 
-# --- rotations of padded coefficients ----------------------------------------------------------------------
-
-
-@lru_cache(maxsize=16)
-def quarter_turn_padded(max_degree: int) -> np.ndarray:
-    """Return J_l = D_l(Rx(-90 deg)) for l = 0..L as a read-only padded stack (L+1, 2L+1, 2L+1)."""
-
-    L = int(max_degree)
-    out = np.zeros((L + 1, 2 * L + 1, 2 * L + 1))
-    for l, block in enumerate(quarter_turn(L)):
-        out[l, L - l : L + l + 1, L - l : L + l + 1] = block
-    out.flags.writeable = False
-    return out
-
-
-@lru_cache(maxsize=16)
-def _z_factors(max_degree: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return |m| and the sine's sign (-1 for m > 0) per padded column of degree L."""
-    m = np.arange(-max_degree, max_degree + 1)
-    return np.abs(m).astype(float), np.where(m > 0, -1.0, 1.0)
-
-
-def rotate_z_padded(padded: np.ndarray, alpha: float | np.ndarray) -> np.ndarray:
-    """Return Z(alpha) applied to padded coefficients (..., L+1, 2L+1): f turned by alpha (rad) about +z.
-
-    An array of angles (*A) gives (*A, ..., L+1, 2L+1): every angle applied to the whole input.
-    """
-    order, sign = _z_factors((padded.shape[-1] - 1) // 2)
-    if np.ndim(alpha) == 0:
-        angle = float(alpha) * order
-    else:
-        alpha = np.asarray(alpha, dtype=float)
-        angle = alpha.reshape(alpha.shape + (1,) * (padded.ndim - 1) + (1,)) * order  # (*A, 1.., 2L+1)
-    return np.cos(angle) * padded + (sign * np.sin(angle)) * padded[..., ::-1]
-
-
-def _zyz_steps(matrix: np.ndarray, max_degree: int) -> tuple[np.ndarray, np.ndarray]:
-    """Return cos and signed sin (K, 3, 2L+1) per padded column of the z-steps gamma, beta, alpha of K rotations."""
-    # the ZYZ angles of all K rotations (..., 3, 3) in one batched call
-    angles = np.stack(zyz_angles(matrix.reshape(-1, 3, 3))[::-1], axis=-1)  # (K, 3): gamma, beta, alpha
-    order, sign = _z_factors(max_degree)
-    phases = angles[:, :, None] * order
-    return np.cos(phases), sign * np.sin(phases)
-
-
-def rotate_by_matrix(padded: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """Return D(R) applied to padded coefficients (..., L+1, 2L+1): the function turned by R (3x3).
-
-    A stack of K matrices (K, 3, 3) gives (K, ..., L+1, 2L+1), every input turned by every R.
-    """
-    matrix = np.asarray(matrix, dtype=float)
-    batch = matrix.shape[:-2]
-    L = padded.shape[-2] - 1
-    turn = quarter_turn_padded(L)
-    expand = (slice(None),) + (None,) * (padded.ndim - 1)
-    cos, sin = _zyz_steps(matrix, L)
-    x = cos[:, 0][expand] * padded + sin[:, 0][expand] * padded[..., ::-1]
-    x = np.matmul(x[..., None, :], turn)[..., 0, :]  # J^T x, as the row x^T J
-    x = cos[:, 1][expand] * x + sin[:, 1][expand] * x[..., ::-1]
-    x = np.matmul(turn, x[..., None])[..., 0]
-    x = cos[:, 2][expand] * x + sin[:, 2][expand] * x[..., ::-1]
-    return x.reshape(batch + padded.shape)
-
-
-@lru_cache(maxsize=16)
-def _quarter_turn_transposed(max_degree: int) -> np.ndarray:
-    """Return J_l^T for l = 0..L, contiguous and read-only (L+1, 2L+1, 2L+1)."""
-    out = np.ascontiguousarray(np.swapaxes(quarter_turn_padded(max_degree), -1, -2))
-    out.flags.writeable = False
-    return out
-
-
-def rotate_degree_major(stack: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """Return D(R) applied to functions laid out degree first, (L+1, r, 2L+1) [l, function, m + L].
-
-    The same rotation as rotate_by_matrix, with every quarter turn one matrix product per degree for all r
-    functions at once. A stack of K matrices (K, 3, 3) gives (K, L+1, r, 2L+1).
-    """
-    matrix = np.asarray(matrix, dtype=float)
-    batch = matrix.shape[:-2]
-    L = stack.shape[-3] - 1
-    cos, sin = (factor[:, :, None, None, :] for factor in _zyz_steps(matrix, L))
-    x = cos[:, 0] * stack + sin[:, 0] * stack[..., ::-1]
-    x = x @ quarter_turn_padded(L)  # J^T x, as the rows x^T J
-    x = cos[:, 1] * x + sin[:, 1] * x[..., ::-1]
-    x = x @ _quarter_turn_transposed(L)  # J x, as the rows x^T J^T
-    x = cos[:, 2] * x + sin[:, 2] * x[..., ::-1]
-    return x.reshape(batch + stack.shape)
+# --- generators of the padded rotations (the Newton refinement's derivatives) ---------------------------------
 
 
 @lru_cache(maxsize=16)

@@ -21,7 +21,8 @@ from functools import lru_cache
 import numpy as np
 
 from skynav_compass.cost import CostProblem
-from skynav_compass.so3 import from_padded, rotate_by_matrix
+from skynav_sh.layouts import from_padded
+from skynav_sh.rotation import rotate_by_matrix
 from skynav_sh.transform import GaussLegendreGrid
 
 #: Sample grid: 65 Gauss-Legendre rings of 128 nodes, 2.8 degrees apart (more if the views' degree needs them).

@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """A snapshot prepared once (Compass.prepare, ExhaustiveCompass.prepare) gives the same estimates as the raw view.
 
-Also the pieces the prepared path uses: the degree-first rotation against rotate_by_matrix, and the runner's
-NAME+prepared methods.
+Also the runner's NAME+prepared methods (the degree-first rotation the prepared path uses is tested against
+rotate_by_matrix in skynav_sh/test/test_layouts.py).
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ from skynav_compass import (
     run_methods,
     standard_methods,
 )
-from skynav_compass.so3 import rotate_by_matrix, rotate_degree_major, to_padded
 from skynav_sh.basis import degree_order
 from skynav_sh.rotation import rotate
 
@@ -84,21 +83,6 @@ def test_a_snapshot_prepared_for_another_setting_is_refused():
         Compass(DEGREE - 2).estimate(prepared, currents[0])
     with pytest.raises(TypeError):
         Compass(DEGREE).prepare(band_limited(2))  # the masked cost needs a CompassView
-
-
-def test_degree_first_rotation_matches_rotate_by_matrix():
-    padded = to_padded(np.stack([band_limited(k) for k in range(3)]))  # (3, L+1, 2L+1)
-    by_degree = np.ascontiguousarray(padded.transpose(1, 0, 2))
-    matrices = np.concatenate(
-        [
-            Rotation.random(5, random_state=3).as_matrix(),
-            Rotation.from_euler('ZYZ', [[0.3, 0.0, 0.2], [0.3, np.pi, -1.0], [0, np.pi / 2, 0]]).as_matrix(),
-            np.eye(3)[None],
-        ]
-    )
-    expected = rotate_by_matrix(padded, matrices)  # (K, 3, L+1, 2L+1)
-    assert np.allclose(rotate_degree_major(by_degree, matrices).transpose(0, 2, 1, 3), expected, atol=1e-12)
-    assert np.allclose(rotate_degree_major(by_degree, matrices[0]).transpose(1, 0, 2), expected[0], atol=1e-12)
 
 
 def test_runner_prepares_the_snapshot_once_for_prepared_methods():

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: Apache-2.0
-"""SO(3) machinery against skynav_sh: padded layout, rotations, Wigner small d, generators, the FFT correlation."""
+"""The compass's SO(3) machinery against skynav_sh: complex form, Wigner small d, generators, the FFT correlation."""
 
 from __future__ import annotations
 
@@ -11,37 +11,18 @@ from skynav_compass.so3 import (
     EulerGrid,
     complex_form,
     correlation_products,
-    from_padded,
     generators,
-    rotate_by_matrix,
-    rotate_z_padded,
     so3_correlation,
-    to_padded,
     wigner_small_d_table,
 )
-from skynav_sh.rotation import rotate, rotate_z, wigner_small_d
+from skynav_sh.layouts import to_padded
+from skynav_sh.rotation import rotate, rotate_by_matrix, rotate_z_padded, wigner_small_d
 
 DEGREE = 8
 
 
 def random_coefficients(seed: int, degree: int = DEGREE) -> np.ndarray:
     return np.random.default_rng(seed).standard_normal((degree + 1) ** 2)
-
-
-def test_padded_round_trip_and_truncation():
-    c = random_coefficients(0)
-    assert np.array_equal(from_padded(to_padded(c)), c)
-    assert np.array_equal(from_padded(to_padded(c, 5)), c[:36])
-    extended = from_padded(to_padded(c, 10))
-    assert np.array_equal(extended[:81], c) and not extended[81:].any()
-
-
-@pytest.mark.parametrize('seed', range(3))
-def test_rotation_matches_skynav_sh(seed):
-    c = random_coefficients(seed)
-    r = Rotation.random(random_state=seed)
-    assert np.allclose(from_padded(rotate_by_matrix(to_padded(c), r.as_matrix())), rotate(c, r), atol=1e-12)
-    assert np.allclose(from_padded(rotate_z_padded(to_padded(c), 0.7)), rotate_z(c, 0.7), atol=1e-13)
 
 
 def test_complex_form_diagonalises_z_rotations():

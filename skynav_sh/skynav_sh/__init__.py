@@ -28,19 +28,28 @@ _EXPORTS = {
     ),
     'transform': ('GaussLegendreGrid', 'analysis', 'grid', 'synthesis', 'synthesis_at'),
     'fisheye': ('FILLS', 'FisheyeTransform', 'camera_image_values', 'image_values'),
+    'layouts': ('from_padded', 'to_padded'),
     'rotation': (
+        'apply_sparse',
         'quarter_turn',
+        'quarter_turn_padded',
         'quarter_turn_sparse',
         'rotate',
+        'rotate_by_matrix',
+        'rotate_degree_major',
         'rotate_y',
         'rotate_z',
+        'rotate_z_padded',
         'rotate_zyz',
         'wigner_d',
         'wigner_d_matrix',
         'wigner_d_recurrence',
         'wigner_small_d',
         'y_rotation_block',
+        'z_phases',
         'z_rotation_blocks',
+        'z_rotation_factors',
+        'z_rotation_factors_padded',
         'z_rotation_index',
     ),
     'coupling': ('RealGaunt', 'real_gaunt'),
@@ -76,6 +85,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_sh.basis import *  # noqa: F401,F403
     from skynav_sh.coupling import *  # noqa: F401,F403
     from skynav_sh.fisheye import *  # noqa: F401,F403
+    from skynav_sh.layouts import *  # noqa: F401,F403
     from skynav_sh.product import *  # noqa: F401,F403
     from skynav_sh.rotation import *  # noqa: F401,F403
     from skynav_sh.spectra import *  # noqa: F401,F403

@@ -7,6 +7,9 @@ The per-degree matrices D_l(R) of this action satisfy D(R1 R2) = D(R1) D(R2) and
 A rotation is given as a scipy Rotation, a 3x3 matrix or a quaternion (x, y, z, w) as ROS and scipy order it;
 ZYZ Euler angles (alpha, beta, gamma) mean R = Rz(alpha) Ry(beta) Rz(gamma) (scipy 'ZYZ', intrinsic). The rotation
 maths itself (matrices, quaternions, ZYZ angles) lives in skynav_core.rotations.
+Both coefficient layouts turn here: the flat (..., (L+1)^2) one of the contract (rotate, rotate_z, ...) and the
+padded (..., L+1, 2L+1) one of skynav_sh.layouts (rotate_z_padded, rotate_by_matrix, rotate_degree_major); their
+z-steps read the same cos(m alpha), sin(m alpha) table (z_phases), indexed per layout.
 """
 
 from __future__ import annotations
@@ -190,6 +193,9 @@ def quarter_turn(max_degree: int) -> tuple[np.ndarray, ...]:
     return tuple(blocks)
 
 
+# --- z-rotations: cos(m alpha), sin(m alpha) per order once; the flat and padded layouts only index them -----
+
+
 @lru_cache(maxsize=16)
 def z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Return (|m|, sign, partner index) for every flat index: the z-step pairs c_l,m with c_l,-m."""
@@ -198,17 +204,51 @@ def z_rotation_index(max_degree: int) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return np.abs(m), np.where(m > 0, -1.0, 1.0), l * l + l - m
 
 
-def _z_rotation_factors(max_degree: int, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return (cos(|m| alpha), signed sin(|m| alpha), partner index) for every flat index of degree <= L."""
-    order, sign, partner = z_rotation_index(max_degree)
-    angle = np.arange(max_degree + 1) * alpha
-    return np.cos(angle)[order], sign * np.sin(angle)[order], partner
+@lru_cache(maxsize=32)
+def _z_rows(max_degree: int, padded: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Return, per entry of the layout, its row of the cos table and of the signed sin table of z_phases."""
+    m = np.arange(-max_degree, max_degree + 1) if padded else degree_order(max_degree)[1]
+    # the sine enters with sign -1 for m > 0 (cos-type) and +1 for m <= 0: rows L + 1 .. 2L of the signed table
+    # [sin(m a) for m = 0..L; -sin(m a) for m = 1..L] hold -sin
+    return np.abs(m), np.where(m > 0, max_degree + m, -m)
+
+
+def z_phases(max_degree: int, angles: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return cos(m a) and sin(m a) for the orders m = 0..L, shape (L+1,) + angles.shape; angles in rad."""
+    multiple = np.arange(int(max_degree) + 1).reshape((-1,) + (1,) * np.ndim(angles)) * np.asarray(angles, dtype=float)
+    return np.cos(multiple), np.sin(multiple)
+
+
+def _layout_z_factors(max_degree: int, angles: float | np.ndarray, padded: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Return cos(|m| a) and signed sin(|m| a) per entry of the layout, shape (entries,) + angles.shape."""
+    cos, sin = z_phases(max_degree, angles)
+    cos_rows, sin_rows = _z_rows(int(max_degree), padded)
+    # one gather per table (no full-size temporaries): the signs sit in the small table
+    return cos[cos_rows], np.concatenate([sin, -sin[1:]])[sin_rows]
+
+
+def z_rotation_factors(max_degree: int, angles: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return cos(|m| a), signed sin(|m| a), shape (n,) + angles.shape, and the partner index (flat layout).
+
+    The z-step by a is cos * c + sin * c[partner] along the coefficient axis.
+    """
+    cos, sin = _layout_z_factors(max_degree, angles, padded=False)
+    return cos, sin, z_rotation_index(int(max_degree))[2]
+
+
+def z_rotation_factors_padded(max_degree: int, angles: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return cos(|m| a) and signed sin(|m| a) per padded column, shape angles.shape + (2L+1,), contiguous.
+
+    The z-step by a of padded coefficients p (..., L+1, 2L+1) is cos * p + sin * p[..., ::-1].
+    """
+    cos, sin = _layout_z_factors(max_degree, angles, padded=True)
+    return np.ascontiguousarray(np.moveaxis(cos, 0, -1)), np.ascontiguousarray(np.moveaxis(sin, 0, -1))
 
 
 def rotate_z(coefficients: np.ndarray, alpha: float) -> np.ndarray:
     """Return the coefficients (..., n) of f turned by alpha (rad) about +z: g(theta, phi) = f(theta, phi - alpha)."""
     coefficients = np.asarray(coefficients, dtype=float)
-    cos, sin, partner = _z_rotation_factors(degree_from_size(coefficients.shape[-1]), alpha)
+    cos, sin, partner = z_rotation_factors(degree_from_size(coefficients.shape[-1]), alpha)
     return cos * coefficients + sin * coefficients[..., partner]
 
 
@@ -221,17 +261,18 @@ def quarter_turn_sparse(max_degree: int):  # -> tuple[scipy.sparse.csr_matrix, s
     return forward, forward.T.tocsr()
 
 
-def _apply_sparse(matrix, coefficients: np.ndarray) -> np.ndarray:
-    """Return matrix @ c for coefficient vectors c along the last axis of (..., n)."""
-    flat = coefficients.reshape(-1, coefficients.shape[-1])
-    return np.asarray(matrix @ flat.T).T.reshape(coefficients.shape)
+def apply_sparse(matrix, coefficients: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Return matrix @ c for the coefficient vectors c along the given axis of coefficients (default the last)."""
+    moved = np.moveaxis(coefficients, axis, 0)
+    product = np.asarray(matrix @ moved.reshape(moved.shape[0], -1)).reshape(moved.shape)
+    return np.moveaxis(product, 0, axis)
 
 
 def rotate_y(coefficients: np.ndarray, beta: float) -> np.ndarray:
     """Return the coefficients of f turned by beta (rad) about +y, by J Z(beta) J^T (fixed quarter turns)."""
     coefficients = np.asarray(coefficients, dtype=float)
     forward, backward = quarter_turn_sparse(degree_from_size(coefficients.shape[-1]))
-    return _apply_sparse(forward, rotate_z(_apply_sparse(backward, coefficients), beta))
+    return apply_sparse(forward, rotate_z(apply_sparse(backward, coefficients), beta))
 
 
 def rotate_zyz(coefficients: np.ndarray, alpha: float, beta: float, gamma: float) -> np.ndarray:
@@ -246,7 +287,7 @@ def rotate(coefficients: np.ndarray, rotation: RotationLike) -> np.ndarray:
 
 def z_rotation_blocks(max_degree: int, alpha: float) -> list[np.ndarray]:
     """Return the per-degree matrices Z_l(alpha) of a turn by alpha (rad) about +z."""
-    cos, sin, partner = _z_rotation_factors(int(max_degree), alpha)
+    cos, sin, partner = z_rotation_factors(int(max_degree), alpha)
     blocks = []
     for part in degree_slices(max_degree):
         size = part.stop - part.start
@@ -268,3 +309,82 @@ def wigner_d_matrix(rotation: RotationLike, max_degree: int) -> np.ndarray:
     """Return the block-diagonal ((L+1)^2, (L+1)^2) matrix of all D_l(R)."""
 
     return dense_block_diag(*wigner_d(rotation, max_degree))
+
+
+# --- rotations of padded coefficients (skynav_sh.layouts: (..., L+1, 2L+1), entry [l, m + L]) ----------------
+
+
+@lru_cache(maxsize=16)
+def quarter_turn_padded(max_degree: int) -> np.ndarray:
+    """Return J_l = D_l(Rx(-90 deg)) for l = 0..L as a read-only padded stack (L+1, 2L+1, 2L+1)."""
+
+    L = int(max_degree)
+    out = np.zeros((L + 1, 2 * L + 1, 2 * L + 1))
+    for l, block in enumerate(quarter_turn(L)):
+        out[l, L - l : L + l + 1, L - l : L + l + 1] = block
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=16)
+def _quarter_turn_transposed(max_degree: int) -> np.ndarray:
+    """Return J_l^T for l = 0..L, contiguous and read-only (L+1, 2L+1, 2L+1)."""
+    out = np.ascontiguousarray(np.swapaxes(quarter_turn_padded(max_degree), -1, -2))
+    out.flags.writeable = False
+    return out
+
+
+def rotate_z_padded(padded: np.ndarray, alpha: float | np.ndarray) -> np.ndarray:
+    """Return Z(alpha) applied to padded coefficients (..., L+1, 2L+1): f turned by alpha (rad) about +z.
+
+    An array of angles (*A) gives (*A, ..., L+1, 2L+1): every angle applied to the whole input.
+    """
+    cos, sin = z_rotation_factors_padded((padded.shape[-1] - 1) // 2, alpha)
+    if np.ndim(alpha) > 0:
+        expand = np.shape(alpha) + (1,) * (padded.ndim - 1) + cos.shape[-1:]  # (*A, 1.., 2L+1)
+        cos, sin = cos.reshape(expand), sin.reshape(expand)
+    return cos * padded + sin * padded[..., ::-1]
+
+
+def _zyz_steps(matrix: np.ndarray, max_degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return cos and signed sin (K, 3, 2L+1) per padded column of the z-steps gamma, beta, alpha of K rotations."""
+    # the ZYZ angles of all K rotations (..., 3, 3) in one batched call
+    angles = np.stack(zyz_angles(matrix.reshape(-1, 3, 3))[::-1], axis=-1)  # (K, 3): gamma, beta, alpha
+    return z_rotation_factors_padded(max_degree, angles)
+
+
+def rotate_by_matrix(padded: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Return D(R) applied to padded coefficients (..., L+1, 2L+1): the function turned by R (3x3).
+
+    A stack of K matrices (K, 3, 3) gives (K, ..., L+1, 2L+1), every input turned by every R.
+    """
+    matrix = np.asarray(matrix, dtype=float)
+    batch = matrix.shape[:-2]
+    L = padded.shape[-2] - 1
+    turn = quarter_turn_padded(L)
+    expand = (slice(None),) + (None,) * (padded.ndim - 1)
+    cos, sin = _zyz_steps(matrix, L)
+    x = cos[:, 0][expand] * padded + sin[:, 0][expand] * padded[..., ::-1]
+    x = np.matmul(x[..., None, :], turn)[..., 0, :]  # J^T x, as the row x^T J
+    x = cos[:, 1][expand] * x + sin[:, 1][expand] * x[..., ::-1]
+    x = np.matmul(turn, x[..., None])[..., 0]
+    x = cos[:, 2][expand] * x + sin[:, 2][expand] * x[..., ::-1]
+    return x.reshape(batch + padded.shape)
+
+
+def rotate_degree_major(stack: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Return D(R) applied to functions laid out degree first, (L+1, r, 2L+1) [l, function, m + L].
+
+    The same rotation as rotate_by_matrix, with every quarter turn one matrix product per degree for all r
+    functions at once. A stack of K matrices (K, 3, 3) gives (K, L+1, r, 2L+1).
+    """
+    matrix = np.asarray(matrix, dtype=float)
+    batch = matrix.shape[:-2]
+    L = stack.shape[-3] - 1
+    cos, sin = (factor[:, :, None, None, :] for factor in _zyz_steps(matrix, L))
+    x = cos[:, 0] * stack + sin[:, 0] * stack[..., ::-1]
+    x = x @ quarter_turn_padded(L)  # J^T x, as the rows x^T J
+    x = cos[:, 1] * x + sin[:, 1] * x[..., ::-1]
+    x = x @ _quarter_turn_transposed(L)  # J x, as the rows x^T J^T
+    x = cos[:, 2] * x + sin[:, 2] * x[..., ::-1]
+    return x.reshape(batch + stack.shape)

@@ -49,10 +49,17 @@ import numpy as np
 
 from skynav_core.rotations import MAX_TILT, rotation_angle, within_tilt, yaw_matrix, zyz_angles
 from skynav_sh.basis import degree_order, n_coefficients
-from skynav_sh.rotation import quarter_turn_sparse, rotate, z_rotation_index
+from skynav_sh.rotation import (
+    apply_sparse,
+    quarter_turn_sparse,
+    rotate,
+    z_phases,
+    z_rotation_factors,
+    z_rotation_index,
+)
 from skynav_sh.translation import z_translation_blocks
 from skynav_warping.errors import WarpingError
-from skynav_warping.shbatch import apply_sparse, rotate_columns, rotate_zyz_columns, z_factors
+from skynav_warping.shbatch import rotate_columns, rotate_zyz_columns
 from skynav_warping.views import WarpView
 
 #: Turns (rad) about the current z of the best step that test its direction: into the other half of the plane.
@@ -202,8 +209,8 @@ class WarpingTables:
         self.azimuths = self.step * np.arange(settings.azimuth_steps)
         self.polar = np.pi / 2 - np.asarray(settings.ring_elevations, dtype=float)
         L = settings.coarse_degree
-        self.azimuth_cos, self.azimuth_sin, self.partner = z_factors(L, -self.azimuths)  # (n, n_az)
-        self.ring_cos, self.ring_sin, _ = z_factors(L, -self.polar)  # (n, n_rings)
+        self.azimuth_cos, self.azimuth_sin, self.partner = z_rotation_factors(L, -self.azimuths)  # (n, n_az)
+        self.ring_cos, self.ring_sin, _ = z_rotation_factors(L, -self.polar)  # (n, n_rings)
         self.yaw = self.step * np.where(
             np.arange(settings.azimuth_steps) > settings.azimuth_steps // 2,
             np.arange(settings.azimuth_steps) - settings.azimuth_steps,
@@ -283,12 +290,12 @@ def _ring_frames(tables: WarpingTables, stack: np.ndarray) -> np.ndarray:
         tables.azimuth_cos[:, None] * stack[:, :, None]
         + tables.azimuth_sin[:, None] * stack[tables.partner][:, :, None]
     )  # Z(-phi_j)
-    u = apply_sparse(tables.coarse.backward, z)  # J^T, (n, k, n_az)
+    u = apply_sparse(tables.coarse.backward, z, axis=0)  # J^T, (n, k, n_az)
     y = (
         tables.ring_cos[:, None, :, None] * u[:, :, None]
         + tables.ring_sin[:, None, :, None] * u[tables.partner][:, :, None]
     )  # Z(-theta_i)
-    return apply_sparse(tables.coarse.forward, y)  # J
+    return apply_sparse(tables.coarse.forward, y, axis=0)  # J
 
 
 def coarse_costs(
@@ -548,8 +555,7 @@ def align_rotation(
     q_num = group @ np.einsum('it,itk->ik', left * m_sign[:, None], c[partner])
     p_den = group @ (current[0][:, None] * c[:, 0])
     q_den = group @ ((current[0] * m_sign)[:, None] * c[partner, 0])
-    angles = np.arange(tables.coarse.degree + 1)[:, None] * tables.azimuths[None, :]  # (L + 1, n_az)
-    cos, sin = np.cos(angles), np.sin(angles)
+    cos, sin = z_phases(tables.coarse.degree, tables.azimuths)  # cos, sin(|m| psi): (L + 1, n_az)
     costs = _costs(p_num.T @ cos + q_num.T @ sin, p_den.T @ cos + q_den.T @ sin, _overlap_floor(snapshot))  # (K, n_az)
     k, q = np.unravel_index(np.argmin(costs), costs.shape)
     return turns[k] @ yaw_matrix(tables.azimuths[q]), float(costs[k, q])
