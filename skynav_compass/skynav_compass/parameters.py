@@ -7,6 +7,7 @@ import math
 
 from skynav_core.parameters import Parameter
 from skynav_core.rotations import MAX_TILT
+from skynav_sh.basis import DEFAULT_DEGREE
 
 REFERENCES = ('match', 'index', 'live')  # what the compass compares against
 
@@ -17,7 +18,7 @@ PARAMETERS = {
         f'what to compare against: {", ".join(REFERENCES)} (match: the snapshot of the latest accepted place match)',
     ),
     'index': Parameter(0, "the snapshot of reference 'index'"),
-    'max_degree': Parameter(16, 'SH degree of the estimate'),
+    'max_degree': Parameter(DEFAULT_DEGREE, 'SH degree of the estimate'),
     'max_tilt_deg': Parameter(
         float(math.degrees(MAX_TILT)),
         'largest tilt between the current view and the snapshot considered (deg, up to 180); '

@@ -29,6 +29,7 @@ from skynav_compass.methods import METHODS, PREPARED, CompassMethod
 from skynav_compass.views import CompassView
 from skynav_compass.yaw import PanoramicCompass, YawCompass
 from skynav_core.rotations import MAX_TILT
+from skynav_sh.basis import DEFAULT_DEGREE
 from skynav_sh.fisheye import FisheyeTransform
 
 
@@ -126,7 +127,7 @@ def build_method(
     return Method(name, view, compass.estimate, compass.prepare if prepared else None)
 
 
-def standard_methods(camera, max_degree: int = 16, names: Sequence[str] | None = None) -> list[Method]:
+def standard_methods(camera, max_degree: int = DEFAULT_DEGREE, names: Sequence[str] | None = None) -> list[Method]:
     """Return the named methods (default all of the registry) for frames given by images, a camera and degree L.
 
     A name may end in +prepared (methods.PREPARED) for a compass that prepares the snapshot once.

@@ -16,6 +16,7 @@ from skynav_core.lazy import lazy_exports
 
 _EXPORTS = {
     'basis': (
+        'DEFAULT_DEGREE',
         'SPHERE_AREA',
         'degree_from_size',
         'degree_order',

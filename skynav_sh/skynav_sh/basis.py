@@ -16,6 +16,10 @@ import numpy as np
 from skynav_sh.errors import ShError
 
 SPHERE_AREA = 4 * np.pi  # sr, solid angle of the whole unit sphere
+#: The SH degree L skynav works at by default: the SH node publishes it and the compass and warping nodes use it
+#: (views of another degree are refused or cut). Degrees with their own meaning keep their own names, e.g. the
+#: localizer's DESCRIPTOR_DEGREE its acceptance thresholds were calibrated at.
+DEFAULT_DEGREE = 16
 SQRT2 = np.sqrt(2.0)
 
 

@@ -7,6 +7,7 @@ import math
 
 from skynav_core.parameters import Parameter
 from skynav_core.rotations import MAX_TILT
+from skynav_sh.basis import DEFAULT_DEGREE
 
 TARGETS = ('match', 'index', 'next')  # which snapshot to home to
 
@@ -18,7 +19,7 @@ PARAMETERS = {
     'index': Parameter(0, "the snapshot of target 'index'"),
     'lookahead': Parameter(6, "how many snapshots beyond the matched one target 'next' aims at"),
     'use_compass': Parameter(True, 'start from the compass estimate of the same view (wait for it)'),
-    'max_degree': Parameter(16, 'SH degree of the search'),
+    'max_degree': Parameter(DEFAULT_DEGREE, 'SH degree of the search'),
     'max_tilt_deg': Parameter(
         float(math.degrees(MAX_TILT)),
         'largest tilt between the current view and the snapshot the rotation search considers (deg)',

@@ -48,7 +48,7 @@ from functools import lru_cache
 import numpy as np
 
 from skynav_core.rotations import MAX_TILT, rotation_angle, within_tilt, yaw_matrix, zyz_angles
-from skynav_sh.basis import degree_order, n_coefficients
+from skynav_sh.basis import DEFAULT_DEGREE, degree_order, n_coefficients
 from skynav_sh.rotation import (
     apply_sparse,
     quarter_turn_sparse,
@@ -77,7 +77,7 @@ def default_ratios() -> tuple[float, ...]:
 class WarpingSettings:
     """Search settings of 3D-warping (angles in rad, ratios |t| / rho)."""
 
-    degree: int = 16  # SH degree L of the local refinement and the reported cost
+    degree: int = DEFAULT_DEGREE  # SH degree L of the local refinement and the reported cost
     coarse_degree: int = 10  # SH degree of the coarse search; at most `degree` (a lower `degree` lowers it too)
     azimuth_steps: int = 48  # coarse directions per ring = yaw corrections per turn (7.5 degrees)
     ring_elevations: tuple[float, ...] = tuple(np.radians([-20.0, -10.0, 0.0, 10.0, 20.0]))
