@@ -38,17 +38,18 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core import netns
+from skynav_core.names import GREEN_IMAGE, HOME_VECTOR, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.network import DISCOVERY_SERVER_PORT, socket_buffer_warning
 from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 PROBE = Path(__file__).parents[1] / 'test' / 'graph_probe.py'
-CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)
 FRAME_PERIOD_NS = 100_000_000  # the drive's 10 Hz
 LINK_SAMPLE_PERIOD = 0.1  # s between two readings of the link's byte counter
 DROPS = (('base', 'Udp.RcvbufErrors'), ('robot', 'Udp.SndbufErrors'), ('base', 'Ip.ReasmFails'))
 SPLITS = {
-    'images across': (('skyline', 'sh', 'localize', 'compass', 'warping', 'route'), '/camera/uv/image_raw', 1),
-    'coefficients across': (('localize', 'compass', 'warping', 'route'), '/skyline/sh', 4),
+    'images across': (('skyline', 'sh', 'localize', 'compass', 'warping', 'route'), UV_IMAGE, 1),
+    'coefficients across': (('localize', 'compass', 'warping', 'route'), SKYLINE_SH, 4),
 }  # base station's nodes, the topic that crosses, how many base station readers it has
 
 
@@ -138,7 +139,7 @@ def measure(split: str, drive: Path, map_file: Path, work: Path, domain: int, tr
         sent = hosts.link_bytes() - before
         after = {'robot': robot.snmp(), 'base': base.snmp()}
         drops = {f'{h} {name}': after[h][name] - counters[h][name] for h, name in DROPS}
-    camera, home = receptions(camera_log, CAMERA[0]), receptions(home_log, '/homing/home_vector')
+    camera, home = receptions(camera_log, CAMERA[0]), receptions(home_log, HOME_VECTOR)
     latency = np.array([home[s] - camera[s] for s in home if s in camera]) / 1e6
     return {
         'bytes_per_s': drive_rate(samples, min(camera.values()), max(camera.values())) if camera else 0.0,

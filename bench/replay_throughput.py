@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.environment import apply_ros_environment
+from skynav_core.names import GREEN_IMAGE, UV_IMAGE
 from skynav_core.testing import claim_domain_id, start_skynav, wait_text
 
 WIDTH, HEIGHT = 640, 480
@@ -39,12 +40,12 @@ def write_pairs(path: Path, pairs: int) -> list[bytes]:
     scene = 20000 + 15000 * np.sin(u / 50.0) * np.cos(v / 40.0)
     blobs = []
     with BagWriter(path, compress=False) as writer:
-        for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
+        for topic in (UV_IMAGE, GREEN_IMAGE):
             writer.add_topic(topic, 'sensor_msgs/msg/Image')
         for i in range(pairs):
             t = 1_763_780_400 * 10**9 + i * FRAME_PERIOD_NS
             header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9), 'camera_link')
-            for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
+            for topic in (UV_IMAGE, GREEN_IMAGE):
                 pixels = (scene + rng.normal(0, 300, scene.shape)).clip(0, 65535).astype(np.uint16)
                 image = T['sensor_msgs/msg/Image'](
                     header, HEIGHT, WIDTH, 'mono16', 0, 2 * WIDTH, pixels.view(np.uint8).ravel()
@@ -69,11 +70,11 @@ def bare_publisher_rate(blobs: list[bytes]) -> float:
     node = Node('bare_publisher', context=context)
     publisher = node.create_publisher(
         message_class('sensor_msgs/msg/Image'),
-        '/camera/uv/image_raw',
+        UV_IMAGE,
         QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE),
     )
     with tempfile.TemporaryDirectory() as tmp:
-        recorder = start_skynav('record', f'{tmp}/bare.mcap', '/camera/uv/image_raw')
+        recorder = start_skynav('record', f'{tmp}/bare.mcap', UV_IMAGE)
         wait_text(recorder, 'recording')
         deadline = time.monotonic() + 30
         while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
@@ -104,7 +105,7 @@ def main() -> int:
         source, copy = Path(tmp, 'pairs.mcap'), Path(tmp, 'copy.mcap')
         blobs = write_pairs(source, args.pairs)
         megabytes = sum(map(len, blobs)) / 1e6
-        recorder = start_skynav('record', str(copy), '/camera/uv/image_raw', '/camera/green/image_raw')
+        recorder = start_skynav('record', str(copy), UV_IMAGE, GREEN_IMAGE)
         wait_text(recorder, 'recording')
         replay = subprocess.run(
             [

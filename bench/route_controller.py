@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import os
 
+from skynav_core.names import CMD_VEL, COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
+
 for _variable in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS', 'NUMEXPR_NUM_THREADS'):
     os.environ[_variable] = '1'  # before numpy loads its BLAS
 
@@ -106,10 +108,10 @@ def bench_node(frames: int) -> None:
                 vector.direction.x = 1.0
                 view = ShCoefficients(max_degree=16, coefficients=coefficients, fill='zero', field_of_view=3.5)
                 messages = [
-                    ('/localization/match', match),
-                    ('/compass/orientation', compass),
-                    ('/homing/home_vector', vector),
-                    ('/skyline/sh', view),
+                    (LOCALIZATION_MATCH, match),
+                    (COMPASS_ORIENTATION, compass),
+                    (HOME_VECTOR, vector),
+                    (SKYLINE_SH, view),
                 ]
                 for _, message in messages:
                     message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
@@ -118,7 +120,7 @@ def bench_node(frames: int) -> None:
                 for topic, message in messages:
                     graph.publish(topic, message)
                 times.append(time.perf_counter() - start)
-            assert node.published['/cmd_vel'] == frames, 'one command per frame'
+            assert node.published[CMD_VEL] == frames, 'one command per frame'
             node.active = None
     print(f'route node, a whole frame (4 inputs, one command): {percentiles(times)} per frame ({frames} frames)')
 

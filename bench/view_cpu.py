@@ -33,6 +33,7 @@ from pathlib import Path
 import websockets
 
 from skynav_bringup.cli.view import layout_file
+from skynav_core.names import HOME_VECTOR
 from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 SUBPROTOCOL = 'foxglove.sdk.v1'
@@ -183,7 +184,7 @@ def main() -> int:
             url = next(line for line in view_lines if 'server on ws://' in line).split(' on ')[1].split()[0]
             pids['view'] = view.pid
             client = Client(url, topics)
-            wait_for(lambda: client.subscribed >= topics - {'/homing/home_vector'}, 60, 'the layout topics')
+            wait_for(lambda: client.subscribed >= topics - {HOME_VECTOR}, 60, 'the layout topics')
             replay = subprocess.Popen(
                 skynav_command('replay', str(args.drive), '--loop', '--rate', '1'),
                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

@@ -17,10 +17,11 @@ from skynav_compass.evaluation import relative_tilt
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
+from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
 from skynav_core.rotations import as_quaternion, relative_rotation
 from skynav_core.views import recorded_frames
 
-IMAGE_TOPICS = {'uv': '/camera/uv/image_raw', 'green': '/camera/green/image_raw', 'mask': '/ground_truth/mask'}
+IMAGE_TOPICS = {'uv': UV_IMAGE, 'green': GREEN_IMAGE, 'mask': GROUND_TRUTH_MASK}
 
 
 def true_rotation(snapshot_orientation: np.ndarray, current_orientations: np.ndarray) -> np.ndarray:

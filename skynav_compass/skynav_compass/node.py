@@ -26,6 +26,7 @@ from std_srvs.srv import Trigger
 
 from skynav_compass.errors import CompassError
 from skynav_core.images import stamp_ns
+from skynav_core.names import COMPASS_NODE, COMPASS_ORIENTATION, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
@@ -38,28 +39,24 @@ from .cost import PreparedSnapshot
 from .parameters import PARAMETERS, REFERENCES
 from .views import FILL_MODES, CompassView
 
-SH_TOPIC = '/skyline/sh'
-MATCH_TOPIC = '/localization/match'
-COMPASS_TOPIC = '/compass/orientation'
-
 
 class CompassNode(SkynavNode):
     """Estimates the rotation of every view against its reference."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC)
+    INPUT_TOPICS = (SKYLINE_SH, LOCALIZATION_MATCH)
 
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('compass', **kwargs)
+        super().__init__(COMPASS_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
         self.latest: CompassView | None = None
         self.live: CompassView | None = None
-        self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
-        self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
-        self.output(COMPASS_TOPIC, CompassEstimate)
+        self.input(SKYLINE_SH, ShCoefficients, self.on_coefficients)
+        self.input(LOCALIZATION_MATCH, PlaceMatch, self.snapshots.on_match)
+        self.output(COMPASS_ORIENTATION, CompassEstimate)
         if self.router is None:
             self.create_service(Trigger, '~/store_reference', self.store_reference)
         self.start()
@@ -149,7 +146,7 @@ class CompassNode(SkynavNode):
             (result.rotation.x, result.rotation.y, result.rotation.z, result.rotation.w) = (
                 float(v) for v in estimate.quaternion
             )
-        self.emit(COMPASS_TOPIC, result)
+        self.emit(COMPASS_ORIENTATION, result)
 
 
 def sky_share(view: CompassView) -> float:

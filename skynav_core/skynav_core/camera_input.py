@@ -20,8 +20,8 @@ import numpy as np
 
 from .camera import EquidistantCamera
 from .errors import SkynavError
+from .names import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO, UV_IMAGE
 from .parameters import Parameter
-from .topics import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO, UV_IMAGE
 
 if TYPE_CHECKING:
     from sensor_msgs.msg import CameraInfo

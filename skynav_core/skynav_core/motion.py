@@ -9,12 +9,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .names import BASE_FRAME
 from .rotations import wrap_angle
 
 if TYPE_CHECKING:
     from geometry_msgs.msg import Twist, TwistStamped
-
-BASE_FRAME = 'base_link'  # the robot's body frame: velocity commands are given in it
 
 
 def arc(x: float, y: float, heading: float, distance: float, turn: float) -> tuple[float, float, float]:

@@ -23,10 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from .names import BASE_FRAME, CAMERA_FRAME
 from .rotations import as_matrix, rpy_angles, rpy_matrix
 
-BASE_FRAME = 'base_link'
-CAMERA_FRAME = 'camera_link'
 # tf2 refuses a transform whose quaternion's squared norm is further than this from 1 (BufferCore::setTransform)
 QUATERNION_TOLERANCE = 0.01
 

@@ -18,9 +18,10 @@ from pathlib import Path
 import yaml
 
 from .errors import SkynavError
+from .names import CLOCK, TF_STATIC
 
 #: Topics of the graph that ROS names absolutely but each namespaced graph has its own of.
-GRAPH_GLOBALS = ('/clock', '/tf_static')
+GRAPH_GLOBALS = (CLOCK, TF_STATIC)
 # A ROS name's tokens: letters, digits and underscores, not starting with a digit; separated by single slashes.
 _TOKEN = r'[A-Za-z_][A-Za-z0-9_]*'
 _NAMESPACE = re.compile(rf'^/?{_TOKEN}(/{_TOKEN})*/?$')

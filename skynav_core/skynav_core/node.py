@@ -54,6 +54,7 @@ from tf2_msgs.msg import TFMessage
 
 from .elapsed import ElapsedTime
 from .mount import StaticTransforms, describe, mount_from_rpy_deg
+from .names import DIAGNOSTICS, TF_STATIC
 from .namespaces import relative
 from .parameters import COMMON_PARAMETERS, ParameterTable
 
@@ -68,7 +69,6 @@ TF_STATIC_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-TF_STATIC_TOPIC = '/tf_static'
 MOUNT_PARAMETER = 'camera_mount_rpy_deg'
 DIAGNOSTICS_PERIOD = 1.0  # s
 # s of the node's clock between readings of elapsed_ns() when no input comes (each input reads it too): under
@@ -144,7 +144,7 @@ class SkynavNode(Node):
         self.parameter_mount = self._declare_mount()  # camera_link in base_link by camera_mount_rpy_deg
         self.static_mount: np.ndarray | None = None  # ...by /tf_static, once heard (listen_for_mount)
         self.static_transforms = StaticTransforms()
-        self.output('/diagnostics', DiagnosticArray)
+        self.output(DIAGNOSTICS, DiagnosticArray)
         if router is None:
             self.create_timer(DIAGNOSTICS_PERIOD, self.publish_diagnostics)
             self.create_timer(TIME_READ_PERIOD, self.elapsed_ns)
@@ -171,7 +171,7 @@ class SkynavNode(Node):
 
     def listen_for_mount(self) -> None:
         """Take base_link -> camera_link from /tf_static too (the nodes that turn camera_link into base_link)."""
-        self.input(TF_STATIC_TOPIC, TFMessage, self.on_static_transforms, TF_STATIC_QOS)
+        self.input(TF_STATIC, TFMessage, self.on_static_transforms, TF_STATIC_QOS)
 
     def on_static_transforms(self, message: Any) -> None:
         """Keep a /tf_static message's transforms; once they link base_link and camera_link, that is the mount."""
@@ -186,7 +186,7 @@ class SkynavNode(Node):
             return
         self.static_mount = mount
         overridden = '' if np.allclose(mount, self.parameter_mount, atol=1e-9) else f' (over {MOUNT_PARAMETER})'
-        self.get_logger().info(f'camera mount from {TF_STATIC_TOPIC}: {describe(mount)}{overridden}')
+        self.get_logger().info(f'camera mount from {TF_STATIC}: {describe(mount)}{overridden}')
 
     # --- parameters -------------------------------------------------------------------------
 
@@ -323,7 +323,7 @@ class SkynavNode(Node):
             self.router.publish(topic, message)
         else:
             self._output_publishers[topic].publish(message)
-        if topic != '/diagnostics':
+        if topic != DIAGNOSTICS:
             self.published[topic] += 1
             if self.router is None and self._received_ns is not None:
                 self._ages.append((time.time_ns() - self._received_ns) / 1e9)
@@ -451,4 +451,4 @@ class SkynavNode(Node):
             expire(elapsed)
         array = DiagnosticArray(status=[self.diagnostic_status()])
         array.header.stamp.sec, array.header.stamp.nanosec = divmod(now, 1_000_000_000)
-        self.emit('/diagnostics', array)
+        self.emit(DIAGNOSTICS, array)

@@ -13,9 +13,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 
+from .names import COMPASS_NODE, LOCALIZE_NODE, SH_NODE, SKYLINE_NODE, WARPING_NODE
+
 ENTRY_POINT_GROUP = 'skynav.nodes'
 # The data flow of docs/interfaces.md: nodes start in this order; others follow by name.
-GRAPH_ORDER = ('skyline', 'sh', 'localize', 'compass', 'warping')
+GRAPH_ORDER = (SKYLINE_NODE, SH_NODE, LOCALIZE_NODE, COMPASS_NODE, WARPING_NODE)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,18 @@ import yaml
 from skynav_core.camera import EquidistantCamera
 
 from .bag import BagWriter, open_bag
+from .names import (
+    CAMERA_FRAME,
+    COMPASS_ORIENTATION,
+    GREEN_IMAGE,
+    GROUND_TRUTH_MASK,
+    GROUND_TRUTH_POSE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_SH,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from .rotations import as_matrix
 from .typestore import ensure_type, typestore
 
@@ -178,9 +190,9 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
     for i in range(frames):
         t = start + i * 100_000_000
         stamp = T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9)
-        header = T['std_msgs/msg/Header'](stamp, 'camera_link')
+        header = T['std_msgs/msg/Header'](stamp, CAMERA_FRAME)
         quaternion = T['geometry_msgs/msg/Quaternion'](*(lambda q: q / np.linalg.norm(q))(rng.normal(size=4)))
-        for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
+        for topic in (UV_IMAGE, GREEN_IMAGE):
             pixels = rng.integers(0, 65535, (height, width), dtype=np.uint16)
             out.append(
                 (
@@ -196,7 +208,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         k = np.array([20.0, 0, width / 2 - 0.5, 0, 20.0, height / 2 - 0.5, 0, 0, 1])
         out.append(
             (
-                '/camera/uv/camera_info',
+                UV_CAMERA_INFO,
                 'sensor_msgs/msg/CameraInfo',
                 t,
                 T['sensor_msgs/msg/CameraInfo'](
@@ -218,7 +230,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         map_header = T['std_msgs/msg/Header'](stamp, 'map')
         out.append(
             (
-                '/ground_truth/pose',
+                GROUND_TRUTH_POSE,
                 'geometry_msgs/msg/PoseStamped',
                 t,
                 T['geometry_msgs/msg/PoseStamped'](map_header, pose),
@@ -226,7 +238,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         )
         out.append(
             (
-                '/skyline/sh',
+                SKYLINE_SH,
                 'skynav_msgs/msg/ShCoefficients',
                 t,
                 T['skynav_msgs/msg/ShCoefficients'](header, 4, rng.normal(size=25), 'zero', np.float32(3.4906585)),
@@ -234,7 +246,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         )
         out.append(
             (
-                '/localization/match',
+                LOCALIZATION_MATCH,
                 'skynav_msgs/msg/PlaceMatch',
                 t,
                 T['skynav_msgs/msg/PlaceMatch'](
@@ -251,7 +263,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         )
         out.append(
             (
-                '/compass/orientation',
+                COMPASS_ORIENTATION,
                 'skynav_msgs/msg/CompassEstimate',
                 t,
                 T['skynav_msgs/msg/CompassEstimate'](header, i, quaternion, 0.01 * i, 0.9, True),
@@ -260,7 +272,7 @@ def sample_messages(frames: int = 5, width: int = 64, height: int = 48) -> list[
         direction = T['geometry_msgs/msg/Vector3'](*(lambda v: v / np.linalg.norm(v))(rng.normal(size=3)))
         out.append(
             (
-                '/homing/home_vector',
+                HOME_VECTOR,
                 'skynav_msgs/msg/HomeVector',
                 t,
                 T['skynav_msgs/msg/HomeVector'](header, i, direction, quaternion, 0.02 * i),
@@ -288,7 +300,7 @@ def write_first_frames(source: str | Path, path: str | os.PathLike, frames: int)
     """
 
     with open_bag(source) as bag:
-        exposures = [raw.log_time for raw in bag.messages(['/camera/uv/image_raw'])]
+        exposures = [raw.log_time for raw in bag.messages([UV_IMAGE])]
         end = exposures[frames] if frames < len(exposures) else bag.end_time + 1  # log time (ns), not kept
         with BagWriter(path) as writer:
             for key, value in bag.custom_data.items():
@@ -349,11 +361,11 @@ def write_featureless_recording(
         messages: list[tuple[str, str, int, Any]] = [
             (raw.topic, raw.msgtype, raw.log_time, bag.deserialize(raw)) for raw in bag.messages()
         ]
-    info = next(message for topic, _, _, message in messages if topic == '/camera/uv/camera_info')
+    info = next(message for topic, _, _, message in messages if topic == UV_CAMERA_INFO)
     camera = EquidistantCamera.from_camera_info(info)
     directions, circle = camera.pixel_directions(), camera.image_circle()
     for topic, _, _, message in messages:
-        if topic == '/ground_truth/pose':
+        if topic == GROUND_TRUTH_POSE:
             q = message.pose.orientation
             poses[message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec] = (q.x, q.y, q.z, q.w)
     with BagWriter(path) as writer:
@@ -364,13 +376,13 @@ def write_featureless_recording(
                 if len(kept) == frames:
                     continue
                 kept.append(stamp)
-            if topic in ('/camera/uv/image_raw', '/camera/green/image_raw', '/ground_truth/mask'):
+            if topic in (UV_IMAGE, GREEN_IMAGE, GROUND_TRUTH_MASK):
                 if kind == 'open-field':
                     up = directions.reshape(-1, 3) @ as_matrix(poses[stamp])[2]  # z in map of every pixel's ray
                     sky = up.reshape(circle.shape) > np.sin(np.radians(OPEN_FIELD_HORIZON))
                 else:
                     sky = np.full(circle.shape, kind == 'sky')
-                channel = {'/camera/uv/image_raw': 0, '/camera/green/image_raw': 1}.get(topic)
+                channel = {UV_IMAGE: 0, GREEN_IMAGE: 1}.get(topic)
                 pixels = (
                     sky * np.uint8(255)
                     if channel is None

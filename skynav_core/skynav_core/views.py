@@ -24,9 +24,16 @@ from .camera import EquidistantCamera
 from .camera_input import CAMERA_INFO_TOPICS, recorded_source
 from .colour import decode_compressed, decode_image
 from .images import DTYPES, image_to_array, stamp_ns
-from .topics import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
-
-POSE_TOPIC = '/ground_truth/pose'
+from .names import (
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    GROUND_TRUTH_POSE,
+    SH_NODE,
+    SKYLINE_MASK,
+    SKYLINE_NODE,
+    SKYLINE_SH,
+    UV_IMAGE,
+)
 
 
 @dataclass
@@ -98,7 +105,7 @@ def recorded_frames(
     )
     source = recorded_source(bag.topics)
     info_topic = source.info if source else next((t for t in CAMERA_INFO_TOPICS if t in bag.topics), None)
-    wanted = [t for t in (info_topic, POSE_TOPIC, *image_topics) if t in bag.topics]
+    wanted = [t for t in (info_topic, GROUND_TRUTH_POSE, *image_topics) if t in bag.topics]
     decoders = {COLOUR_IMAGE: decode_image, COLOUR_COMPRESSED: decode_compressed}
     for raw in bag.messages(wanted):
         message = bag.deserialize(raw)
@@ -106,7 +113,7 @@ def recorded_frames(
         if raw.topic == info_topic:  # one per exposure: the frame order of the recording
             frames.camera = frames.camera or EquidistantCamera.from_camera_info(message)
             frames.stamps.append(stamp)
-        elif raw.topic == POSE_TOPIC:
+        elif raw.topic == GROUND_TRUTH_POSE:
             p, q = message.pose.position, message.pose.orientation
             frames.poses[stamp] = np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
         elif raw.topic in decoders:
@@ -126,7 +133,7 @@ def recording_views(
     from skynav_core.graph import in_process  # noqa: PLC0415 (the graph loads rclpy; callers that only read views need no ROS)
     from skynav_core.nodes import installed_nodes  # noqa: PLC0415 (node discovery reads the ament index; only a run of the graph needs it)
 
-    specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
+    specs = [s for s in installed_nodes() if s.name in (SKYLINE_NODE, SH_NODE)]
     if len(specs) != 2:
         raise RuntimeError('the skyline and sh nodes are not installed')
     path = Path(path)
@@ -141,9 +148,9 @@ def recording_views(
             graph.keep_outputs = True
             graph.run(bag, progress=progress)
             for output in graph.outputs:
-                if masks and output.topic == '/skyline/mask':
+                if masks and output.topic == SKYLINE_MASK:
                     node_masks[stamp_ns(output.message.header)] = image_to_array(output.message)
-                if output.topic == '/skyline/sh':
+                if output.topic == SKYLINE_SH:
                     message = output.message
                     coefficients[stamp_ns(message.header)] = (
                         np.asarray(message.coefficients, np.float64),

@@ -10,11 +10,12 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_SOURCES, CameraInput, CameraSourceError, recorded_source
 from skynav_core.camera_yaml import write_camera_yaml
 from skynav_core.errors import SkynavError
-from skynav_core.topics import (
+from skynav_core.names import (
     COLOUR_CAMERA_INFO,
     COLOUR_COMPRESSED,
     COLOUR_IMAGE,
     GREEN_IMAGE,
+    ODOM,
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
@@ -96,5 +97,5 @@ def test_unusable_settings_are_refused_in_one_line(tmp_path):
 def test_a_recordings_source_is_the_camera_whose_frames_it_holds():
     assert recorded_source([UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO]) is CAMERA_SOURCES['uv-green']
     assert recorded_source([COLOUR_COMPRESSED, COLOUR_CAMERA_INFO]) is CAMERA_SOURCES['colour-compressed']
-    assert recorded_source([COLOUR_IMAGE, COLOUR_CAMERA_INFO, '/odom']) is CAMERA_SOURCES['colour']
+    assert recorded_source([COLOUR_IMAGE, COLOUR_CAMERA_INFO, ODOM]) is CAMERA_SOURCES['colour']
     assert recorded_source([UV_IMAGE, UV_CAMERA_INFO]) is None  # the pair without its green

@@ -30,6 +30,7 @@ from nav_msgs.msg import Odometry
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore, map_for_parameter
+from skynav_core.names import CMD_VEL, LOCALIZATION_MATCH, LOCALIZE_NODE, ODOM, SKYLINE_SH
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.sh_input import usable_coefficients
@@ -38,11 +39,9 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 from .localizer import METHODS, OUR_METHODS, Localizer
 from .matching import SequenceParams
 from .parameters import PARAMETERS
-from .teach_server import COMMAND_QOS, COMMAND_TOPIC, ODOM_QOS, ODOM_TOPIC, TeachServer, odometry_pose
+from .teach_server import COMMAND_QOS, ODOM_QOS, TeachServer, odometry_pose
 from .teaching import OdometryTrack
 
-SH_TOPIC = '/skyline/sh'
-MATCH_TOPIC = '/localization/match'
 SEQUENCE_GAP_NS = 2_000_000_000  # views further apart than this do not form a sequence: history is forgotten
 
 
@@ -50,24 +49,24 @@ class LocalizeNode(SkynavNode):
     """Matches every view's SH coefficients against the snapshots of a map."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (SH_TOPIC, ODOM_TOPIC, COMMAND_TOPIC)
+    INPUT_TOPICS = (SKYLINE_SH, ODOM, CMD_VEL)
 
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('localize', **kwargs)
+        super().__init__(LOCALIZE_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.store: MapStore | None = None
         self.localizer: Localizer | None = None
-        self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
-        self.output(MATCH_TOPIC, PlaceMatch)
+        self.input(SKYLINE_SH, ShCoefficients, self.on_coefficients)
+        self.output(LOCALIZATION_MATCH, PlaceMatch)
         self.teach = TeachServer(self)
         self.odometry = OdometryTrack()  # the drive's path length, for tracking's window
-        self.input(ODOM_TOPIC, Odometry, self.on_odometry, ODOM_QOS)
+        self.input(ODOM, Odometry, self.on_odometry, ODOM_QOS)
         if self.get_parameter('cmd_vel_stamped').value:  # the type of /cmd_vel is fixed for the node's life
-            self.input(COMMAND_TOPIC, TwistStamped, self.teach.on_command, COMMAND_QOS)
+            self.input(CMD_VEL, TwistStamped, self.teach.on_command, COMMAND_QOS)
         else:
-            self.input(COMMAND_TOPIC, Twist, self.teach.on_twist, COMMAND_QOS)
+            self.input(CMD_VEL, Twist, self.teach.on_twist, COMMAND_QOS)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -179,7 +178,7 @@ class LocalizeNode(SkynavNode):
                     result.snapshot_stamp.sec, result.snapshot_stamp.nanosec = sec, nanosec
                 result.candidate_indices = [int(i) for i in match.candidate_indices]
                 result.candidate_distances = [float(d) for d in match.candidate_distances]
-        self.emit(MATCH_TOPIC, result)
+        self.emit(LOCALIZATION_MATCH, result)
         self.teach.on_view(stamp, coefficients)
 
     def destroy_node(self) -> None:

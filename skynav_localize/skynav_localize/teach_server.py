@@ -36,17 +36,15 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from skynav_core.images import stamp_ns
+from skynav_core.names import TEACH_ACTION
 from skynav_core.namespaces import relative
 from skynav_core.node import SkynavNode
 from skynav_msgs.action import Teach
 
 from .teaching import NoInput, RouteTeacher, TeachError
 
-TEACH_ACTION = '/skynav/teach'
-ODOM_TOPIC = '/odom'
 # Best effort matches any odometry publisher; a deep queue, as odometry comes at up to 100 Hz in bursts.
 ODOM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
-COMMAND_TOPIC = '/cmd_vel'
 COMMAND_QOS = ODOM_QOS  # best effort takes any teleoperation's commands, reliable or not
 INPUT_CHECK_PERIOD = 0.25  # s between checks for missing views
 SWITCH_TIMEOUT = 5.0  # s a node gets to take the new map

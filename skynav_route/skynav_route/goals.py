@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from skynav_core.names import COMPASS_NODE, LOCALIZE_NODE, WARPING_NODE
 from skynav_msgs.action import FollowRoute, Home
 
 from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step, TaughtRoute
@@ -180,9 +181,9 @@ def home_refusal(request: Home.Goal, count: int) -> Refusal | None:
 def peer_settings(node_map: str, goal_map: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
     """Return {node: {parameter: value}} for compass and warping, and every map user when the goal's map is not
     the route node's."""
-    peers = {'compass': dict(compass), 'warping': dict(warping)}
+    peers = {COMPASS_NODE: dict(compass), WARPING_NODE: dict(warping)}
     if goal_map != node_map:
-        peers['localize'] = {'map': goal_map}
+        peers[LOCALIZE_NODE] = {'map': goal_map}
         for values in peers.values():
             values['map'] = goal_map
     return peers
@@ -192,7 +193,7 @@ def follow_peers(node_map: str, goal_map: str, lookahead: int, start_index: int)
     """Return the other nodes' settings while following: the compass against the match, warping `lookahead`
     snapshots ahead, localize tracking along the route (from `start_index` when the goal names one)."""
     peers = peer_settings(node_map, goal_map, {'reference': 'match'}, {'target': 'next', 'lookahead': lookahead})
-    peers.setdefault('localize', {}).update(tracking=True, tracking_start=start_index)
+    peers.setdefault(LOCALIZE_NODE, {}).update(tracking=True, tracking_start=start_index)
     return peers
 
 
@@ -204,7 +205,7 @@ def home_peers(node_map: str, goal_map: str, index: int) -> dict[str, dict[str, 
 
 
 #: localize's settings once a follow goal has ended: off the route, the place is sought on the whole route again
-UNTRACKED = {'localize': {'tracking': False, 'tracking_start': -1}}
+UNTRACKED = {LOCALIZE_NODE: {'tracking': False, 'tracking_start': -1}}
 
 
 def first_feedback(kind: Any) -> Any:

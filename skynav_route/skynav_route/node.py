@@ -66,10 +66,27 @@ from std_msgs.msg import Bool
 
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
-from skynav_core.motion import BASE_FRAME, fill_twist, fill_velocity_command
+from skynav_core.motion import fill_twist, fill_velocity_command
 from skynav_core.mount import frame_name
+from skynav_core.names import (
+    BASE_FRAME,
+    BUMPER,
+    CLOCK,
+    CMD_VEL,
+    COMPASS_ORIENTATION,
+    EMERGENCY_STOP,
+    FOLLOW_ROUTE_ACTION,
+    HOME_ACTION,
+    HOME_VECTOR,
+    IMU,
+    LOCALIZATION_MATCH,
+    ODOM,
+    ROUTE_NODE,
+    SKYLINE_SH,
+    TF_STATIC,
+)
 from skynav_core.namespaces import relative
-from skynav_core.node import TF_STATIC_TOPIC, SkynavNode
+from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
@@ -80,13 +97,7 @@ from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, Act
 from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
 
-CMD_TOPIC = '/cmd_vel'
-HOME_TOPIC = '/homing/home_vector'
-EMERGENCY_STOP_TOPIC = '/emergency_stop'
-IMU_TOPIC = '/camera/imu'  # the contract's optional IMU (docs/interfaces.md, Topics)
 INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
-# the contract's action names, served relative to the node's namespace
-FOLLOW_ACTION, HOME_ACTION = '/skynav/follow_route', '/skynav/home'
 WATCHDOG_PERIOD = 0.1  # s of the node's clock
 KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
 LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledged before the publisher goes
@@ -105,15 +116,15 @@ class RouteNode(SkynavNode):
 
     PARAMETERS = PARAMETERS
     INPUT_TOPICS = (
-        '/skyline/sh',
-        '/localization/match',
-        '/compass/orientation',
-        HOME_TOPIC,
-        '/odom',
-        '/bumper',
-        EMERGENCY_STOP_TOPIC,
-        IMU_TOPIC,
-        TF_STATIC_TOPIC,
+        SKYLINE_SH,
+        LOCALIZATION_MATCH,
+        COMPASS_ORIENTATION,
+        HOME_VECTOR,
+        ODOM,
+        BUMPER,
+        EMERGENCY_STOP,
+        IMU,
+        TF_STATIC,
     )
     #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
     stops_on_signal = True
@@ -121,7 +132,7 @@ class RouteNode(SkynavNode):
     stamped: bool  # /cmd_vel is a TwistStamped (cmd_vel_stamped, read at start-up)
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('route', **kwargs)
+        super().__init__(ROUTE_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.active: ActiveGoal | None = None
         self.matches: dict[int, PlaceMatch] = {}
@@ -137,31 +148,29 @@ class RouteNode(SkynavNode):
         self.newest: dict[str, int] = {}  # per frame input topic, its newest stamp (ns) since the time restarted
         self.peer_clients: dict[str, AsyncParameterClient] = {}
         self.steady_clock = RosClock(clock_type=ClockType.STEADY_TIME)  # for waits on other nodes
-        self.input('/skyline/sh', ShCoefficients, self.on_view)
-        self.input('/localization/match', PlaceMatch, lambda m: self._keep('/localization/match', self.matches, m))
-        self.input(
-            '/compass/orientation', CompassEstimate, lambda m: self._keep('/compass/orientation', self.compass, m)
-        )
-        self.input(HOME_TOPIC, HomeVector, self.on_home_vector)
-        self.input('/odom', Odometry, self.on_odom)
-        self.input('/bumper', Bool, self.on_bumper)
-        self.input(EMERGENCY_STOP_TOPIC, Bool, self.on_emergency_stop)
-        self.input(IMU_TOPIC, Imu, self.on_imu)
+        self.input(SKYLINE_SH, ShCoefficients, self.on_view)
+        self.input(LOCALIZATION_MATCH, PlaceMatch, lambda m: self._keep(LOCALIZATION_MATCH, self.matches, m))
+        self.input(COMPASS_ORIENTATION, CompassEstimate, lambda m: self._keep(COMPASS_ORIENTATION, self.compass, m))
+        self.input(HOME_VECTOR, HomeVector, self.on_home_vector)
+        self.input(ODOM, Odometry, self.on_odom)
+        self.input(BUMPER, Bool, self.on_bumper)
+        self.input(EMERGENCY_STOP, Bool, self.on_emergency_stop)
+        self.input(IMU, Imu, self.on_imu)
         self.listen_for_mount()
         self.servers = [
             ActionServer(self, kind, relative(name), execute_callback=execute, cancel_callback=self.on_cancel)
             for kind, name, execute in (
-                (FollowRoute, FOLLOW_ACTION, self.execute_follow),
+                (FollowRoute, FOLLOW_ROUTE_ACTION, self.execute_follow),
                 (Home, HOME_ACTION, self.execute_home),
             )
         ]
         if self.router is None:
             self.create_timer(WATCHDOG_PERIOD, self.watchdog)
         else:
-            self.input('/clock', Clock, lambda _: self.watchdog())
+            self.input(CLOCK, Clock, lambda _: self.watchdog())
         self.start()
         self.stamped = bool(self.values['cmd_vel_stamped'])  # the message type is the publisher's, fixed at start
-        self.output(CMD_TOPIC, TwistStamped if self.stamped else Twist)
+        self.output(CMD_VEL, TwistStamped if self.stamped else Twist)
 
     def configure(self, values: dict) -> None:
         """Take the limits and thresholds (ValueError if unusable)."""
@@ -252,7 +261,7 @@ class RouteNode(SkynavNode):
             rotation = None
         tilt = imu_tilt(message, np.eye(3) if rotation is None else rotation)
         if tilt is None:
-            self.reject('non_finite', f'an {IMU_TOPIC} message has no usable orientation nor acceleration')
+            self.reject('non_finite', f'an {IMU} message has no usable orientation nor acceleration')
             return
         stamp, degrees = stamp_ns(message.header), math.degrees(tilt)
         if degrees <= limit:
@@ -266,7 +275,7 @@ class RouteNode(SkynavNode):
 
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
-        self._keep(HOME_TOPIC, self.homes, message)
+        self._keep(HOME_VECTOR, self.homes, message)
         stamp = stamp_ns(message.header)
         if stamp <= self.last_frame:
             self.reject('late', 'a home vector came after its frame was answered without it')
@@ -276,7 +285,7 @@ class RouteNode(SkynavNode):
     def on_view(self, message: ShCoefficients) -> None:
         """Process the frames before this view that got no home vector (in-process: this one too)."""
         stamp = stamp_ns(message.header)
-        self.frame_input('/skyline/sh', stamp)
+        self.frame_input(SKYLINE_SH, stamp)
         wait = 0 if self.router is not None else int(self.values['frame_wait'] * 1e9)
         waiting = [
             s for s in set(self.matches) | set(self.compass) if self.last_frame < s <= stamp - wait and s < stamp
@@ -304,9 +313,9 @@ class RouteNode(SkynavNode):
         graph): a frame without one then had its vector refused by the warping node (the views do not determine a
         direction), which the Homer takes as unsure, not as missing."""
         if self.router is None:
-            return self.count_publishers(self.live_name(HOME_TOPIC)) > 0
+            return self.count_publishers(self.live_name(HOME_VECTOR)) > 0
         nodes = getattr(self.router, 'nodes', ())
-        return any(node is not self and node.publishes(HOME_TOPIC) for node in nodes)
+        return any(node is not self and node.publishes(HOME_VECTOR) for node in nodes)
 
     def process(self, stamp: int) -> None:
         """Answer one camera frame with one command while a goal is active; nothing while idle."""
@@ -335,14 +344,14 @@ class RouteNode(SkynavNode):
             elif previous >= 0:
                 goal.driven += abs(step.command.linear) * min((stamp - previous) / 1e9, 1.0)
             goal.reached_index = max(goal.reached_index, step.matched_index)
-        self.emit(CMD_TOPIC, twist(stamp, step.command, self.stamped))
+        self.emit(CMD_VEL, twist(stamp, step.command, self.stamped))
         goal.handle.publish_feedback(goals.step_feedback(goal, step))
         if step.outcome:
             self.finish(step.outcome, stopped=True)
 
     def stop(self, stamp: int | None = None) -> None:
         """Publish a zero command (stamped with the node's time unless a frame's stamp is given)."""
-        self.emit(CMD_TOPIC, twist(self.now_ns() if stamp is None else stamp, Command(), self.stamped))
+        self.emit(CMD_VEL, twist(self.now_ns() if stamp is None else stamp, Command(), self.stamped))
 
     def stop_blocked(self, stamp: int | None = None) -> None:
         """Stop the robot on bumper contact and end the goal with BLOCKED (the zero command stamped as stop's)."""
@@ -403,7 +412,7 @@ class RouteNode(SkynavNode):
             try:
                 self.finish(SHUTDOWN)
                 # a sample still unacknowledged when its publisher is destroyed may never arrive
-                if not self.flush(CMD_TOPIC, LAST_WORD_WAIT):
+                if not self.flush(CMD_VEL, LAST_WORD_WAIT):
                     self.get_logger().warning(f'the last zero command was not acknowledged within {LAST_WORD_WAIT} s')
             except Exception:  # the context may be gone already: nothing more can be sent
                 pass

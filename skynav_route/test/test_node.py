@@ -18,13 +18,26 @@ from rclpy.action import ActionClient
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from skynav_route.node import IMU_TOPIC
 from std_msgs.msg import Bool
 
 from skynav_core.actions import error_name
 from skynav_core.graph import in_process
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
+from skynav_core.names import (
+    BUMPER,
+    CLOCK,
+    CMD_VEL,
+    COMPASS_ORIENTATION,
+    EMERGENCY_STOP,
+    FOLLOW_ROUTE_ACTION,
+    HOME_ACTION,
+    HOME_VECTOR,
+    IMU,
+    LOCALIZATION_MATCH,
+    SKYLINE_SH,
+    TF_STATIC,
+)
 from skynav_core.namespaces import relative
 from skynav_core.nodes import installed_nodes
 from skynav_core.testing import CanceledGoalHandle, run_without_waiting
@@ -58,7 +71,7 @@ class Driver:
         self.executor.add_node(self.node)
         self.executor.add_node(self.client_node)
         self.commands = []
-        graph.subscribe('/cmd_vel', self.commands.append)
+        graph.subscribe(CMD_VEL, self.commands.append)
         self.feedback = []
         self.frame = 0
 
@@ -90,7 +103,7 @@ class Driver:
         self.graph.advance(stamp)
         clock = Clock()
         clock.clock.sec, clock.clock.nanosec = divmod(stamp, 1_000_000_000)
-        self.graph.publish('/clock', clock)
+        self.graph.publish(CLOCK, clock)
         match = PlaceMatch(map_name='line', index=index, accepted=accepted, distance=0.1)
         compass = CompassEstimate(snapshot_index=index, residual=0.1, confidence=0.9, confident=True)
         compass.rotation.z, compass.rotation.w = math.sin(0.1), math.cos(0.1)  # the route runs 0.2 rad to the right
@@ -98,10 +111,10 @@ class Driver:
         vector.direction.x, vector.direction.y = 1.0, 0.0
         vector.rotation.w = 1.0
         view = ShCoefficients(max_degree=4, coefficients=[0.0] * 25, fill='zero', field_of_view=3.5)
-        messages = [('/localization/match', match), ('/compass/orientation', compass)]
+        messages = [(LOCALIZATION_MATCH, match), (COMPASS_ORIENTATION, compass)]
         if home:
-            messages.append(('/homing/home_vector', vector))
-        messages.append(('/skyline/sh', view))
+            messages.append((HOME_VECTOR, vector))
+        messages.append((SKYLINE_SH, view))
         commands, heard = len(self.commands), len(self.feedback)
         for topic, message in messages:
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
@@ -141,7 +154,7 @@ def publish_clock(graph, now):
     clock = Clock()
     graph.advance(now)
     clock.clock.sec, clock.clock.nanosec = divmod(now, 1_000_000_000)
-    graph.publish('/clock', clock)
+    graph.publish(CLOCK, clock)
 
 
 def test_one_stamped_command_per_frame_while_active_and_a_zero_command_on_cancel(route_map):
@@ -152,7 +165,7 @@ def test_one_stamped_command_per_frame_while_active_and_a_zero_command_on_cancel
                 driver.publish_frame()
             assert driver.commands == []  # nothing while no goal is active
             handle, result = driver.send(
-                FollowRoute, '/skynav/follow_route', FollowRoute.Goal(start_index=-1, end_index=-1, max_speed=0.3)
+                FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(start_index=-1, end_index=-1, max_speed=0.3)
             )
             stamps = [driver.publish_frame(index=3 + k // 3) for k in range(10)]
             assert [stamp_ns(c.header) for c in driver.commands] == stamps  # exactly one per frame, its stamp
@@ -199,7 +212,7 @@ def test_stale_inputs_stop_the_robot_and_abort(route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            handle, result = driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
             for _ in range(5):
                 driver.publish_frame()
             assert not is_zero(driver.commands[-1])
@@ -209,7 +222,7 @@ def test_stale_inputs_stop_the_robot_and_abort(route_map):
                 now = driver.stamp() + k * FRAME
                 graph.advance(now)
                 clock.clock.sec, clock.clock.nanosec = divmod(now, 1_000_000_000)
-                graph.publish('/clock', clock)
+                graph.publish(CLOCK, clock)
             assert driver.spin_until(result.done)
             assert error_name(result.result().result) == 'STALE_INPUT'
             assert len(driver.commands) == 6 and is_zero(driver.commands[-1])
@@ -223,7 +236,7 @@ def test_a_robot_never_placed_on_the_route_is_lost_where_it_stands(route_map, st
         driver = Driver(graph)
         try:
             handle, result = driver.send(
-                FollowRoute, '/skynav/follow_route', FollowRoute.Goal(start_index=start, end_index=-1)
+                FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(start_index=start, end_index=-1)
             )
             for _ in range(4):
                 driver.publish_frame(accepted=False)
@@ -247,7 +260,7 @@ def test_home_arrives_on_frames_whose_home_vector_the_warping_node_refused(route
             driver = Driver(graph)
             try:
                 assert driver.node.home_vectors_come() == bool(others)
-                handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+                handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=4))
                 for _ in range(5):
                     if not result.done():
                         driver.publish_frame(index=matched, home=False)
@@ -263,7 +276,7 @@ def test_lost_stops_the_robot_and_aborts(route_map):
     with route_graph(route_map, 'lost_frames:=3') as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            handle, result = driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
             for _ in range(4):
                 driver.publish_frame()
             stamps = [driver.publish_frame(accepted=False, home=False) for _ in range(4)]
@@ -282,12 +295,12 @@ def test_bumper_contact_stops_the_robot_and_aborts_blocked(route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            graph.publish('/bumper', Bool(data=False))
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            graph.publish(BUMPER, Bool(data=False))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=4))
             for _ in range(3):
                 driver.publish_frame(home_index=4)
             assert not is_zero(driver.commands[-1])
-            graph.publish('/bumper', Bool(data=True))
+            graph.publish(BUMPER, Bool(data=True))
             assert driver.spin_until(result.done)
             outcome = result.result().result
             assert error_name(outcome) == 'BLOCKED' and 'bumper' in outcome.error_msg
@@ -295,15 +308,15 @@ def test_bumper_contact_stops_the_robot_and_aborts_blocked(route_map):
             driver.publish_frame(home_index=4)
             assert len(driver.commands) == 4  # idle again: nothing
             # still pressed when the next goal begins: its first frame is answered with a stop, stamped alike
-            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            handle, result = driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
             stamp = driver.publish_frame()
             assert driver.spin_until(result.done)
             assert error_name(result.result().result) == 'BLOCKED'
             assert len(driver.commands) == 5 and is_zero(driver.commands[-1])
             assert stamp_ns(driver.commands[-1].header) == stamp
             # released: a goal drives again
-            graph.publish('/bumper', Bool(data=False))
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            graph.publish(BUMPER, Bool(data=False))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=4))
             for _ in range(3):
                 driver.publish_frame(home_index=4)
             assert len(driver.commands) == 8 and not is_zero(driver.commands[-1])
@@ -317,8 +330,8 @@ def test_shutdown_stops_the_robot(route_map):
     commands = []
     with route_graph(route_map) as graph:
         driver = Driver(graph)
-        graph.subscribe('/cmd_vel', commands.append)
-        driver.send(Home, '/skynav/home', Home.Goal(index=4))
+        graph.subscribe(CMD_VEL, commands.append)
+        driver.send(Home, HOME_ACTION, Home.Goal(index=4))
         for _ in range(5):
             driver.publish_frame(home_index=4)
         assert not is_zero(commands[-1])
@@ -330,7 +343,7 @@ def test_home_to_an_index_the_map_lacks_aborts_with_a_clear_error(route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            client = ActionClient(driver.client_node, Home, relative('/skynav/home'))
+            client = ActionClient(driver.client_node, Home, relative(HOME_ACTION))
             assert driver.spin_until(client.server_is_ready)
             sent = client.send_goal_async(Home.Goal(index=SNAPSHOTS))
             assert driver.spin_until(sent.done)
@@ -349,7 +362,7 @@ def test_a_goal_without_a_map_aborts_no_map(tmp_path, route_map):
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            client = ActionClient(driver.client_node, FollowRoute, relative('/skynav/follow_route'))
+            client = ActionClient(driver.client_node, FollowRoute, relative(FOLLOW_ROUTE_ACTION))
             assert driver.spin_until(client.server_is_ready)
             sent = client.send_goal_async(FollowRoute.Goal(map_path=str(tmp_path / 'missing.db')))
             assert driver.spin_until(sent.done)
@@ -379,8 +392,8 @@ def home_turn(driver, static=None):
     """Send a Home goal, answer 3 frames whose home vector is the camera's +x (and publish `static` on /tf_static
     first); return the last command's turn rate (rad/s)."""
     if static is not None:
-        driver.graph.publish('/tf_static', static)
-    driver.send(Home, '/skynav/home', Home.Goal(index=9))
+        driver.graph.publish(TF_STATIC, static)
+    driver.send(Home, HOME_ACTION, Home.Goal(index=9))
     for _ in range(3):
         driver.publish_frame(home_index=9)
     return driver.commands[-1].twist.angular.z
@@ -449,7 +462,7 @@ def test_a_latched_tf_static_published_before_the_node_started_reaches_it(ros_co
 
     robot = Node('robot_state_publisher', context=ros_context)
     qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    robot.create_publisher(TFMessage, '/tf_static', qos).publish(mount_transform([0.0, 4.0, 90.0]))
+    robot.create_publisher(TFMessage, TF_STATIC, qos).publish(mount_transform([0.0, 4.0, 90.0]))
     node = RouteNode(context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
@@ -468,7 +481,7 @@ def test_a_goal_sent_while_the_clock_reads_zero_drives_once_it_starts(route_map)
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            handle, result = driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
             for _ in range(3):
                 publish_clock(graph, 0)  # the watchdog looks while the clock stands at zero
             stamps = [driver.publish_frame(index=3 + k // 3) for k in range(10)]  # 2 s at START (1.75e9 s)
@@ -489,7 +502,7 @@ def test_a_clock_that_jumps_back_fires_no_timeout_and_the_frames_are_answered(ro
     with route_graph(route_map, 'goal_timeout:=1.0', 'goal_time_factor:=0.0') as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=4))
             before = [driver.publish_frame(home_index=4) for _ in range(4)]  # 0.6 s of the 1 s limit
             driver.frame -= 3600 * 5  # an hour back (5 frames a second)
             after = [driver.publish_frame(home_index=4) for _ in range(2)]  # the jump counts as nothing: 0.8 s
@@ -517,7 +530,7 @@ def test_home_vectors_that_lag_the_views_restart_no_time(route_map):
     with route_graph(route_map, 'lost_frames:=100') as graph:  # frames without a home vector: recovering, not LOST
         driver = Driver(graph)
         try:
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=4))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=4))
             stamps = []
             for k in range(12):
                 stamps.append(driver.publish_frame(home=False))
@@ -525,7 +538,7 @@ def test_home_vectors_that_lag_the_views_restart_no_time(route_map):
                     vector = HomeVector(snapshot_index=4, residual=0.3)
                     vector.direction.x, vector.rotation.w = 1.0, 1.0
                     vector.header.stamp.sec, vector.header.stamp.nanosec = divmod(stamps[k - 8], 1_000_000_000)
-                    graph.publish('/homing/home_vector', vector)
+                    graph.publish(HOME_VECTOR, vector)
             assert [stamp_ns(c.header) for c in driver.commands] == stamps  # each frame answered once, in order
             assert driver.node.time_resets == 0 and driver.node.rejected == {'late': 4}
             handle.cancel_goal_async()
@@ -539,7 +552,7 @@ def test_a_follow_goal_that_runs_past_its_limit_aborts_timeout_saying_how_the_li
     with route_graph(route_map, 'goal_timeout:=0.2', 'goal_time_factor:=0.1', 'max_speed:=9.5') as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
+            handle, result = driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
             publish_clock(graph, 0)  # the clock starts after the goal
             for _ in range(3):  # 0.4 s: 0.2 s + 0.1 x 19 m / 9.5 m/s
                 driver.publish_frame()
@@ -558,19 +571,19 @@ def test_a_follow_goal_that_runs_past_its_limit_aborts_timeout_saying_how_the_li
 def test_an_emergency_stop_stops_the_robot_at_once_aborts_and_nothing_moves_until_a_new_goal(route_map, kind):
     def send():
         if kind == 'follow':
-            return driver.send(FollowRoute, '/skynav/follow_route', FollowRoute.Goal(end_index=-1))
-        return driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            return driver.send(FollowRoute, FOLLOW_ROUTE_ACTION, FollowRoute.Goal(end_index=-1))
+        return driver.send(Home, HOME_ACTION, Home.Goal(index=9))
 
     with route_graph(route_map) as graph:
         driver = Driver(graph)
         node = driver.node
         try:
-            graph.publish('/emergency_stop', Bool(data=False))
+            graph.publish(EMERGENCY_STOP, Bool(data=False))
             handle, result = send()
             for _ in range(3):
                 driver.publish_frame(home_index=9)
             assert len(driver.commands) == 3 and not is_zero(driver.commands[-1])
-            graph.publish('/emergency_stop', Bool(data=True))
+            graph.publish(EMERGENCY_STOP, Bool(data=True))
             assert len(driver.commands) == 4 and is_zero(driver.commands[-1])  # at once, before the next frame
             assert driver.spin_until(result.done)
             outcome = result.result().result
@@ -586,10 +599,10 @@ def test_an_emergency_stop_stops_the_robot_at_once_aborts_and_nothing_moves_unti
             assert driver.spin_until(result.done)
             assert error_name(result.result().result) == 'EMERGENCY_STOP'
             driver.publish_frame(home_index=9)
-            graph.publish('/emergency_stop', Bool(data=True))  # still engaged: no second stop, no command
+            graph.publish(EMERGENCY_STOP, Bool(data=True))  # still engaged: no second stop, no command
             assert len(driver.commands) == 4 and node.emergency_stops == 1
             # released: still nothing until a new goal
-            graph.publish('/emergency_stop', Bool(data=False))
+            graph.publish(EMERGENCY_STOP, Bool(data=False))
             for _ in range(2):
                 driver.publish_frame(home_index=9)
             assert len(driver.commands) == 4
@@ -609,7 +622,7 @@ def test_cmd_vel_stamped_false_publishes_a_bare_twist_for_every_command(route_ma
     with route_graph(route_map, 'cmd_vel_stamped:=false') as graph:
         driver = Driver(graph)
         try:
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=9))
             for _ in range(3):
                 driver.publish_frame(home_index=9)
             handle.cancel_goal_async()
@@ -654,7 +667,7 @@ def test_the_live_node_publishes_the_velocity_type_cmd_vel_stamped_asks_for(rout
         wait_until(lambda: executor.spin_once(timeout_sec=0.05) or commands, 'the command')
         topics = dict(listener.get_topic_names_and_types())
         assert topics['/base/cmd_vel'] == [f'geometry_msgs/msg/{kind.__name__}']  # remapped, of that type alone
-        assert '/cmd_vel' not in topics
+        assert CMD_VEL not in topics
         assert type(commands[0]) is kind and is_zero(commands[0])
         if stamped:
             assert stamp_ns(commands[0].header) == START and commands[0].header.frame_id == 'base_link'
@@ -720,19 +733,19 @@ def test_an_imu_that_shows_the_robot_tipping_stops_it_like_the_emergency_stop(ro
         driver = Driver(graph)
         node = driver.node
         try:
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=9))
             for _ in range(2):
                 stamp = driver.publish_frame(home_index=9)
-                graph.publish(IMU_TOPIC, imu_at(stamp, 20.0))  # a slope: it drives on
-            graph.publish(IMU_TOPIC, imu_at(stamp + 10_000_000, 50.0))  # a jolt, not lasting
-            graph.publish(IMU_TOPIC, imu_at(stamp + 20_000_000, 10.0))
+                graph.publish(IMU, imu_at(stamp, 20.0))  # a slope: it drives on
+            graph.publish(IMU, imu_at(stamp + 10_000_000, 50.0))  # a jolt, not lasting
+            graph.publish(IMU, imu_at(stamp + 20_000_000, 10.0))
             driver.publish_frame(home_index=9)
             assert not result.done() and len(driver.commands) == 3 and not is_zero(driver.commands[-1])
             start = driver.stamp()
-            graph.publish(IMU_TOPIC, imu_at(start, 45.0))
-            graph.publish(IMU_TOPIC, imu_at(start + 100_000_000, 45.0))  # 0.1 s over: not yet
+            graph.publish(IMU, imu_at(start, 45.0))
+            graph.publish(IMU, imu_at(start + 100_000_000, 45.0))  # 0.1 s over: not yet
             assert len(driver.commands) == 3
-            graph.publish(IMU_TOPIC, imu_at(start + 200_000_000, 45.0))  # 0.2 s: stop at once
+            graph.publish(IMU, imu_at(start + 200_000_000, 45.0))  # 0.2 s: stop at once
             assert len(driver.commands) == 4 and is_zero(driver.commands[-1])
             assert driver.spin_until(result.done)
             outcome = result.result().result
@@ -741,10 +754,10 @@ def test_an_imu_that_shows_the_robot_tipping_stops_it_like_the_emergency_stop(ro
                 'emergency stop: the robot leans 45 deg from the vertical, over max_tilt_deg 35; the robot stopped'
             )
             assert node.emergency_stops == 1
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))  # still tipped: refused
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=9))  # still tipped: refused
             assert driver.spin_until(result.done) and error_name(result.result().result) == 'EMERGENCY_STOP'
-            graph.publish(IMU_TOPIC, imu_at(start + 300_000_000, 5.0))  # level again: a new goal drives
-            handle, result = driver.send(Home, '/skynav/home', Home.Goal(index=9))
+            graph.publish(IMU, imu_at(start + 300_000_000, 5.0))  # level again: a new goal drives
+            handle, result = driver.send(Home, HOME_ACTION, Home.Goal(index=9))
             for _ in range(2):
                 driver.publish_frame(home_index=9)
             assert len(driver.commands) == 6 and not is_zero(driver.commands[-1])

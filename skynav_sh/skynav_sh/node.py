@@ -16,6 +16,7 @@ from sensor_msgs.msg import CameraInfo, Image
 
 from skynav_core.camera_input import CAMERA_INFO_TOPICS, CameraInput
 from skynav_core.images import ImageError, image_to_array, stamp_ns
+from skynav_core.names import CAMERA_FRAME, SH_NODE, SKYLINE_MASK, SKYLINE_SH
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.ros import run_node
 from skynav_msgs.msg import ShCoefficients
@@ -24,8 +25,6 @@ from skynav_sh.errors import ShError
 from .fisheye import FILLS, FisheyeTransform
 from .parameters import PARAMETERS
 
-MASK_TOPIC = '/skyline/mask'
-SH_TOPIC = '/skyline/sh'
 MAX_DEGREE_LIMIT = 128
 
 
@@ -33,18 +32,18 @@ class ShNode(SkynavNode):
     """Transforms each skyline mask into SH coefficients."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (MASK_TOPIC, *CAMERA_INFO_TOPICS)
+    INPUT_TOPICS = (SKYLINE_MASK, *CAMERA_INFO_TOPICS)
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('sh', **kwargs)
+        super().__init__(SH_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.camera_input = CameraInput(self.reject, self.drop)
         self.expire_with_time(self.camera_input.expire)
         self.transform: FisheyeTransform | None = None
-        self.input(MASK_TOPIC, Image, self.on_mask)
+        self.input(SKYLINE_MASK, Image, self.on_mask)
         for topic in CAMERA_INFO_TOPICS:
             self.input(topic, CameraInfo, partial(self.on_camera_info, topic), SENSOR_QOS)
-        self.output(SH_TOPIC, ShCoefficients)
+        self.output(SKYLINE_SH, ShCoefficients)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -100,8 +99,8 @@ class ShNode(SkynavNode):
                 field_of_view=float(camera.field_of_view),
             )
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-            message.header.frame_id = 'camera_link'
-        self.emit(SH_TOPIC, message)
+            message.header.frame_id = CAMERA_FRAME
+        self.emit(SKYLINE_SH, message)
 
 
 def main(args=None) -> int:

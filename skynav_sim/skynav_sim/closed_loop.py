@@ -38,18 +38,43 @@ from skynav_core.graph import InProcessGraph, in_process
 from skynav_core.images import fill_image, stamp_ns
 from skynav_core.maps import MapStore, Snapshot
 from skynav_core.motion import fill_velocity_command
-from skynav_core.mount import BASE_FRAME, mount_from_rpy_deg
+from skynav_core.mount import mount_from_rpy_deg
+from skynav_core.names import (
+    BASE_FRAME,
+    BUMPER,
+    CAMERA_FRAME,
+    CLOCK,
+    CMD_VEL,
+    COLOUR_CAMERA_INFO,
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    COMPASS_NODE,
+    FOLLOW_ROUTE_ACTION,
+    GREEN_IMAGE,
+    HOME_ACTION,
+    LOCALIZE_NODE,
+    ODOM,
+    ODOM_FRAME,
+    ROUTE_NODE,
+    SH_NODE,
+    SKYLINE_NODE,
+    SKYLINE_SH,
+    TEACH_ACTION,
+    TF_STATIC,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+    WARPING_NODE,
+)
 from skynav_core.namespaces import relative, remap_arguments
-from skynav_core.node import TF_STATIC_QOS, TF_STATIC_TOPIC, SkynavNode
+from skynav_core.node import TF_STATIC_QOS, SkynavNode
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_core.rotations import as_quaternion
-from skynav_core.topics import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home, Teach
 
 from .drive_eval import cross_track, path_length
 from .mower import Mower, Pose2D
-from .recording import CAMERA_FRAME, CameraOutput, Exposure, expose, start_stamp
+from .recording import CameraOutput, Exposure, expose, start_stamp
 from .render import CameraPose, Renderer
 from .robot import CAMERA_HEIGHT, base_positions, bump, camera_pose
 from .scenarios import route as planned_route
@@ -64,7 +89,7 @@ COMMAND_TIMEOUT = 0.5  # s: the mower's base stops when no command came for this
 GOAL_WAIT = 60.0  # s of wall time for the action server to appear and take the goal
 RESULT_WAIT = 10.0  # s of wall time for a goal's result once the robot stands still
 ROUTE_LOOKAHEAD = 6  # snapshots ahead of the matched one the warping node homes to (the route node's default)
-GRAPH_NODES = ('skyline', 'sh', 'localize', 'compass', 'warping', 'route')
+GRAPH_NODES = (SKYLINE_NODE, SH_NODE, LOCALIZE_NODE, COMPASS_NODE, WARPING_NODE, ROUTE_NODE)
 
 
 @dataclass
@@ -109,18 +134,18 @@ class SimMowerNode(SkynavNode):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('sim_mower', **kwargs)
-        for topic in ('/camera/uv/image_raw', '/camera/green/image_raw'):
+        for topic in (UV_IMAGE, GREEN_IMAGE):
             self.output(topic, Image)
-        self.output('/camera/uv/camera_info', CameraInfo)
+        self.output(UV_CAMERA_INFO, CameraInfo)
         self.output(COLOUR_IMAGE, Image)  # a colour camera, when the simulation has one
         self.output(COLOUR_COMPRESSED, CompressedImage)
         self.output(COLOUR_CAMERA_INFO, CameraInfo)
-        self.output('/odom', Odometry)
-        self.output('/bumper', Bool)
-        self.output('/clock', Clock)
-        self.output(TF_STATIC_TOPIC, TFMessage, TF_STATIC_QOS)
+        self.output(ODOM, Odometry)
+        self.output(BUMPER, Bool)
+        self.output(CLOCK, Clock)
+        self.output(TF_STATIC, TFMessage, TF_STATIC_QOS)
         self.commands: list[tuple[int, float, float]] = []  # (stamp ns, forward m/s, turn rad/s) of each command
-        self.input('/cmd_vel', TwistStamped, self.on_command)
+        self.input(CMD_VEL, TwistStamped, self.on_command)
 
     def on_command(self, message: TwistStamped | Twist) -> None:
         """Take a velocity command: a TwistStamped, or a Twist (the route node's cmd_vel_stamped false) at the graph's
@@ -132,17 +157,17 @@ class SimMowerNode(SkynavNode):
         """Publish the sim time (ns)."""
         message = Clock()
         message.clock.sec, message.clock.nanosec = divmod(stamp, 1_000_000_000)
-        self.emit('/clock', message)
+        self.emit(CLOCK, message)
 
     def publish_odometry(self, stamp: int, pose: Pose2D) -> None:
         """Publish the wheel odometry: base_link's pose in frame odom."""
         message = Odometry()
         message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-        message.header.frame_id, message.child_frame_id = 'odom', 'base_link'
+        message.header.frame_id, message.child_frame_id = ODOM_FRAME, BASE_FRAME
         message.pose.pose.position.x, message.pose.pose.position.y = pose.x, pose.y
         message.pose.pose.orientation.z = float(np.sin(pose.heading / 2))
         message.pose.pose.orientation.w = float(np.cos(pose.heading / 2))
-        self.emit('/odom', message)
+        self.emit(ODOM, message)
 
     def publish_mount(self, stamp: int, mount: np.ndarray) -> None:
         """Publish base_link -> camera_link (the camera CAMERA_HEIGHT above the base, turned by `mount` (3, 3)) on
@@ -153,11 +178,11 @@ class SimMowerNode(SkynavNode):
         transform.transform.translation.z = CAMERA_HEIGHT
         q = transform.transform.rotation
         q.x, q.y, q.z, q.w = (float(v) for v in as_quaternion(mount))
-        self.emit(TF_STATIC_TOPIC, TFMessage(transforms=[transform]))
+        self.emit(TF_STATIC, TFMessage(transforms=[transform]))
 
     def publish_bumper(self, contact: bool) -> None:
         """Publish whether the mower's bumper touches an object."""
-        self.emit('/bumper', Bool(data=bool(contact)))
+        self.emit(BUMPER, Bool(data=bool(contact)))
 
     def publish_frame(self, stamp: int, exposure: Exposure, output: CameraOutput, camera: EquidistantCamera) -> None:
         """Publish one exposure of the camera `output` as its topics carry it."""
@@ -404,13 +429,13 @@ def home_runs(
             base.slip,
             base.odometry_noise,
         )
-        with in_process(graph_specs(tuple(n for n in GRAPH_NODES if n != 'localize')), arguments) as graph:
+        with in_process(graph_specs(tuple(n for n in GRAPH_NODES if n != LOCALIZE_NODE)), arguments) as graph:
             goal_message = Home.Goal(map_path='', index=0, max_speed=SPEED)
             run = drive_goal(
                 graph,
                 simulation,
                 mower,
-                (Home, '/skynav/home'),
+                (Home, HOME_ACTION),
                 goal_message,
                 goal,
                 max_frames,
@@ -440,7 +465,7 @@ def snapshot_map(
     """Render the view at `place` (the camera turned on the robot by `mount`, 3x3; the camera `output`, None: the
     UV/green pair), run it through the skyline and SH nodes, and store it as a one-snapshot map."""
     simulation = Simulation(world, camera, hours, seed, output=output, bump_tilt=bump_tilt, mount=mount)
-    specs = [s for s in installed_nodes() if s.name in ('skyline', 'sh')]
+    specs = [s for s in installed_nodes() if s.name in (SKYLINE_NODE, SH_NODE)]
     specs.append(NodeSpec('sim_mower', 'skynav_sim', 'skynav_sim.closed_loop:SimMowerNode'))
     with in_process(specs, ros_args) as graph:
         graph.keep_outputs = True
@@ -449,7 +474,7 @@ def snapshot_map(
         exposure, pose = simulation.capture(float(place[0]), float(place[1]), heading)
         stamp = simulation.stamp()
         robot.publish_frame(stamp, exposure, simulation.output, camera)
-        sh = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
+        sh = [o.message for o in graph.outputs if o.topic == SKYLINE_SH]
     if not sh:
         raise RuntimeError('the skyline and SH nodes gave no coefficients for the snapshot view')
     message = sh[0]
@@ -530,7 +555,7 @@ def follow_route(
             graph,
             simulation,
             mower,
-            (FollowRoute, '/skynav/follow_route'),
+            (FollowRoute, FOLLOW_ROUTE_ACTION),
             goal,
             route[-1],
             max_frames,
@@ -613,14 +638,14 @@ def teach_route(
     simulation = Simulation(world, camera, hours, seed, output=base.camera, mount=base.mount)
     teaching = Teaching()
     arguments = [*base.ros_arguments(), *(ros_args or [])]
-    with in_process(graph_specs(('skyline', 'sh', 'localize')), arguments) as graph:
+    with in_process(graph_specs((SKYLINE_NODE, SH_NODE, LOCALIZE_NODE)), arguments) as graph:
         robot = graph.nodes[-1]
         assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
         executor = SingleThreadedExecutor(context=robot.context)
         client_node = Node('sim_teach_client', context=robot.context)
         for node in [*graph.nodes, client_node]:
             executor.add_node(node)
-        client = ActionClient(client_node, Teach, relative('/skynav/teach'))  # in the graph's namespace
+        client = ActionClient(client_node, Teach, relative(TEACH_ACTION))  # in the graph's namespace
         try:
             graph.advance(simulation.stamp())  # the goal starts at the first frame's time (sim time)
             if base.published_mount is not None:
@@ -651,7 +676,7 @@ def teach_route(
                 executor.spin_once(timeout_sec=0)
                 linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
                 joystick = fill_velocity_command(TwistStamped(), stamp, linear, angular)
-                graph.publish('/cmd_vel', joystick)
+                graph.publish(CMD_VEL, joystick)
                 mower.drive(*robot.command(stamp), FRAME_PERIOD)
                 if progress is not None:
                     progress()

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from skynav_core.images import fill_image
+from skynav_core.names import CAMERA_FRAME, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, MAP_FRAME
 from skynav_core.namespaces import relative
 from skynav_core.ros import message_class, run_node
 
@@ -93,21 +94,21 @@ class SimCameraNode(Node):
         info.width, info.height = fields['width'], fields['height']
         info.distortion_model = fields['distortion_model']
         info.d, info.k, info.r, info.p = fields['d'], fields['k'], fields['r'], fields['p']
-        info.header.frame_id = recording.CAMERA_FRAME
+        info.header.frame_id = CAMERA_FRAME
         return info
 
     def _image(self, pixels: np.ndarray, encoding: str, stamp) -> object:
         """Return a sensor_msgs/Image of camera_link pixels ((H, W) or (H, W, channels)) stamped `stamp`."""
         message = fill_image(IMAGE(), pixels, encoding)
         message.header.stamp = stamp
-        message.header.frame_id = recording.CAMERA_FRAME
+        message.header.frame_id = CAMERA_FRAME
         return message
 
     def _compressed(self, format_text: str, data: bytes, stamp) -> object:
         """Return a sensor_msgs/CompressedImage of camera_link stamped `stamp`."""
         message = COMPRESSED_IMAGE()
         message.header.stamp = stamp
-        message.header.frame_id = recording.CAMERA_FRAME
+        message.header.frame_id = CAMERA_FRAME
         message.format = format_text
         message.data = data
         return message
@@ -119,7 +120,7 @@ class SimCameraNode(Node):
         self.info.header.stamp = stamp
         pose = POSE()
         pose.header.stamp = stamp
-        pose.header.frame_id = recording.MAP_FRAME
+        pose.header.frame_id = MAP_FRAME
         (pose.pose.position.x, pose.pose.position.y, pose.pose.position.z) = (
             float(v) for v in capture.frame.pose.position
         )
@@ -131,9 +132,9 @@ class SimCameraNode(Node):
         for topic, (format_text, data) in capture.exposure.compressed.items():
             self.outputs[topic].publish(self._compressed(format_text, data, stamp))
         self.outputs[self.output.info_topic].publish(self.info)
-        self.outputs['/ground_truth/pose'].publish(pose)
+        self.outputs[GROUND_TRUTH_POSE].publish(pose)
         mask = capture.view.sky.astype(np.uint8) * 255
-        self.outputs['/ground_truth/mask'].publish(self._image(mask, 'mono8', stamp))
+        self.outputs[GROUND_TRUTH_MASK].publish(self._image(mask, 'mono8', stamp))
 
 
 def _looping_captures(world, camera, frames, output, seed):

@@ -19,10 +19,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from skynav_core import topics
+from skynav_core import names
 from skynav_core.bag import BagWriter
 from skynav_core.camera import EquidistantCamera
 from skynav_core.colour import CODECS, COLOUR_ENCODINGS
+from skynav_core.names import CAMERA_FRAME, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, MAP_FRAME
 from skynav_core.typestore import typestore
 
 from .colour_sensor import DEFAULT_JPEG_QUALITY, ColourSensor, bits, compressed, encode
@@ -35,18 +36,16 @@ from .world import World
 
 SIMULATED_DATE = datetime.datetime(2026, 6, 21, tzinfo=datetime.UTC)  # the sun model's day (172)
 GROUND_TRUTH_TOPICS = {
-    '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
-    '/ground_truth/mask': 'sensor_msgs/msg/Image',
+    GROUND_TRUTH_POSE: 'geometry_msgs/msg/PoseStamped',
+    GROUND_TRUTH_MASK: 'sensor_msgs/msg/Image',
 }
 #: The topics of a recording of the UV/green pair.
 TOPICS = {
-    topics.UV_IMAGE: 'sensor_msgs/msg/Image',
-    topics.GREEN_IMAGE: 'sensor_msgs/msg/Image',
-    topics.UV_CAMERA_INFO: 'sensor_msgs/msg/CameraInfo',
+    names.UV_IMAGE: 'sensor_msgs/msg/Image',
+    names.GREEN_IMAGE: 'sensor_msgs/msg/Image',
+    names.UV_CAMERA_INFO: 'sensor_msgs/msg/CameraInfo',
     **GROUND_TRUTH_TOPICS,
 }
-CAMERA_FRAME = 'camera_link'
-MAP_FRAME = 'map'
 #: What the simulated camera can be (docs/interfaces.md, "Cameras as robots have them").
 CAMERAS = ('uv-green', 'colour', 'colour-compressed')
 #: The encodings of a colour-compressed camera: what it compresses (JPEG: 8-bit sRGB; PNG: that or 16-bit linear).
@@ -90,11 +89,11 @@ class CameraOutput:
         if self.kind == 'uv-green':
             return {k: v for k, v in TOPICS.items() if k not in GROUND_TRUTH_TOPICS}
         image = (
-            (topics.COLOUR_IMAGE, 'sensor_msgs/msg/Image')
+            (names.COLOUR_IMAGE, 'sensor_msgs/msg/Image')
             if self.kind == 'colour'
-            else (topics.COLOUR_COMPRESSED, 'sensor_msgs/msg/CompressedImage')
+            else (names.COLOUR_COMPRESSED, 'sensor_msgs/msg/CompressedImage')
         )
-        return dict([image, (topics.COLOUR_CAMERA_INFO, 'sensor_msgs/msg/CameraInfo')])
+        return dict([image, (names.COLOUR_CAMERA_INFO, 'sensor_msgs/msg/CameraInfo')])
 
     @property
     def topics(self) -> dict[str, str]:
@@ -104,7 +103,7 @@ class CameraOutput:
     @property
     def info_topic(self) -> str:
         """Return the camera-info topic."""
-        return topics.UV_CAMERA_INFO if self.kind == 'uv-green' else topics.COLOUR_CAMERA_INFO
+        return names.UV_CAMERA_INFO if self.kind == 'uv-green' else names.COLOUR_CAMERA_INFO
 
     def description(self) -> dict:
         """Return what a recording's metadata says about the camera (synthetic, which kind, which encoding)."""
@@ -140,12 +139,12 @@ def expose(
         sensor = sensor or Sensor()
         uv = sensor.capture(view.uv, view.inside, output.encoding, rng)
         green = sensor.capture(view.green, view.inside, output.encoding, rng)
-        return Exposure({topics.UV_IMAGE: uv, topics.GREEN_IMAGE: green}, {})
+        return Exposure({names.UV_IMAGE: uv, names.GREEN_IMAGE: green}, {})
     signal = (colour_sensor or ColourSensor()).capture(view.rgb(), view.inside, rng)
     if output.kind == 'colour':
-        return Exposure({topics.COLOUR_IMAGE: encode(signal, output.encoding)}, {}, signal)
+        return Exposure({names.COLOUR_IMAGE: encode(signal, output.encoding)}, {}, signal)
     packed = compressed(signal, output.codec, output.quality, bits(output.encoding))
-    return Exposure({}, {topics.COLOUR_COMPRESSED: packed}, signal)
+    return Exposure({}, {names.COLOUR_COMPRESSED: packed}, signal)
 
 
 @dataclass
@@ -160,12 +159,12 @@ class Capture:
     @property
     def uv(self) -> np.ndarray:
         """Return the UV image of a UV/green camera in its encoding."""
-        return self.exposure.images[topics.UV_IMAGE]
+        return self.exposure.images[names.UV_IMAGE]
 
     @property
     def green(self) -> np.ndarray:
         """Return the green image of a UV/green camera in its encoding."""
-        return self.exposure.images[topics.GREEN_IMAGE]
+        return self.exposure.images[names.GREEN_IMAGE]
 
 
 def start_stamp(hours: float) -> int:
@@ -246,8 +245,8 @@ def write(
                     for topic, packed in capture.exposure.compressed.items()
                 },
                 output.info_topic: camera_info_message(T, header, info_fields),
-                '/ground_truth/pose': pose_message(T, T['std_msgs/msg/Header'](time, MAP_FRAME), capture.frame),
-                '/ground_truth/mask': image_message(T, header, capture.view.sky.astype(np.uint8) * 255, 'mono8'),
+                GROUND_TRUTH_POSE: pose_message(T, T['std_msgs/msg/Header'](time, MAP_FRAME), capture.frame),
+                GROUND_TRUTH_MASK: image_message(T, header, capture.view.sky.astype(np.uint8) * 255, 'mono8'),
             }
             for topic, message in messages.items():
                 writer.write(topic, capture.stamp, store.serialize_cdr(message, output.topics[topic]))

@@ -21,9 +21,8 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import recorded_source
 from skynav_core.colour import decode_compressed, decode_image
 from skynav_core.images import image_to_array, stamp_ns
-from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_IMAGE
+from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
 
-TRUTH = '/ground_truth/mask'
 #: How each camera topic's messages become pixels: colour frames as linear RGB, the rest as they are.
 _DECODERS = {COLOUR_IMAGE: decode_image, COLOUR_COMPRESSED: decode_compressed}
 #: Encoding of a decoded colour frame's planes (skynav_core.colour: uint16 linear).
@@ -49,7 +48,7 @@ def count_frames(path: str | Path) -> int:
     """Return how many labelled exposures a recording holds (its ground-truth masks)."""
 
     with open_bag(path) as bag:
-        return bag.topics[TRUTH].count if TRUTH in bag.topics else 0
+        return bag.topics[GROUND_TRUTH_MASK].count if GROUND_TRUTH_MASK in bag.topics else 0
 
 
 def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
@@ -57,10 +56,10 @@ def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
 
     with open_bag(path) as bag:
         source = recorded_source(bag.topics)
-        if source is None or source.info not in bag.topics or TRUTH not in bag.topics:
+        if source is None or source.info not in bag.topics or GROUND_TRUTH_MASK not in bag.topics:
             raise BagError(
-                f'{path}: no camera frames with camera info and {TRUTH}; training and evaluation need labelled '
-                'recordings'
+                f'{path}: no camera frames with camera info and {GROUND_TRUTH_MASK}; training and evaluation need '
+                'labelled recordings'
             )
         info = yaml.safe_load(bag.custom_data.get('skynav_sim') or '{}') or {}
         world = info.get('world', Path(path).stem)
@@ -68,7 +67,7 @@ def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
         parts: dict[int, dict] = {}
         camera = None
         index = 0
-        wanted = (*source.images, TRUTH)
+        wanted = (*source.images, GROUND_TRUTH_MASK)
         for raw in bag.messages([*wanted, source.info]):
             message = bag.deserialize(raw)
             stamp = stamp_ns(message.header)
@@ -90,7 +89,7 @@ def labelled_frames(path: str | Path) -> Iterator[LabelledFrame]:
 
 def _labelled(stamp: int, frame: dict, camera: EquidistantCamera, world: str, time: str) -> LabelledFrame:
     """Return the labelled frame of one exposure's decoded topics (UV/green pair or colour frame, and truth)."""
-    truth = frame.pop(TRUTH)[0]
+    truth = frame.pop(GROUND_TRUTH_MASK)[0]
     if UV_IMAGE in frame:
         (uv, uv_encoding), (green, green_encoding) = frame[UV_IMAGE], frame[GREEN_IMAGE]
         return LabelledFrame(stamp, uv, green, (uv_encoding, green_encoding), truth, camera, world, time)

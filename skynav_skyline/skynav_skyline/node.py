@@ -22,19 +22,24 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from skynav_core.camera_input import CAMERA_INFO_TOPICS, CameraInput
 from skynav_core.colour import decode_compressed, decode_image
 from skynav_core.images import ImageError, fill_image, image_to_array, stamp_ns
+from skynav_core.names import (
+    CAMERA_FRAME,
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    GREEN_IMAGE,
+    SKYLINE_MASK,
+    SKYLINE_NODE,
+    UV_IMAGE,
+)
 from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
-from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, UV_IMAGE
 from skynav_skyline.errors import SkylineError
 from skynav_skyline.exposure import ExposureError
 
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, colour_params, skyline_params
 from .segment import SkylineSegmenter
-
-MASK_TOPIC = '/skyline/mask'
-CAMERA_FRAME = 'camera_link'
 
 
 class SkylineNode(SkynavNode):
@@ -44,7 +49,7 @@ class SkylineNode(SkynavNode):
     INPUT_TOPICS = (UV_IMAGE, GREEN_IMAGE, COLOUR_IMAGE, COLOUR_COMPRESSED, *CAMERA_INFO_TOPICS)
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('skyline', **kwargs)
+        super().__init__(SKYLINE_NODE, **kwargs)
         self.declare_table(NODE_PARAMETERS)
         self.camera_input = CameraInput(self.reject, self.drop)
         self.expire_with_time(self.camera_input.expire)
@@ -61,7 +66,7 @@ class SkylineNode(SkynavNode):
         )
         for topic in CAMERA_INFO_TOPICS:
             self.input(topic, CameraInfo, partial(self.on_camera_info, topic), SENSOR_QOS)
-        self.output(MASK_TOPIC, Image)
+        self.output(SKYLINE_MASK, Image)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -177,7 +182,7 @@ class SkylineNode(SkynavNode):
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
             message.header.frame_id = CAMERA_FRAME
         self.last_stamp = max(self.last_stamp, stamp)
-        self.emit(MASK_TOPIC, message)
+        self.emit(SKYLINE_MASK, message)
 
 
 def main(args=None) -> int:

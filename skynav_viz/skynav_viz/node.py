@@ -37,23 +37,31 @@ from skynav_core.camera_input import CAMERA_INFO_TOPICS
 from skynav_core.colour import COLOUR_ENCODINGS, decode_compressed, decode_image
 from skynav_core.images import ImageError, image_to_array, stamp_ns
 from skynav_core.maps import MapStore, map_for_parameter
-from skynav_core.node import SENSOR_QOS, TF_STATIC_TOPIC, SkynavNode
+from skynav_core.names import (
+    CAMERA_FRAME,
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_MASK,
+    TF_STATIC,
+    UV_IMAGE,
+    VIZ_CONFIDENCE,
+    VIZ_MARKERS,
+    VIZ_NODE,
+    VIZ_OVERLAY,
+    VIZ_STATE,
+)
+from skynav_core.node import SENSOR_QOS, SkynavNode
 from skynav_core.ros import run_node
 from skynav_core.rotations import as_matrix
-from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
 from skynav_msgs.msg import HomeVector, PlaceMatch
 
 from . import overlay, scene
 from .parameters import PARAMETERS
 
-MASK_TOPIC = '/skyline/mask'
 IMAGE_TOPICS = (UV_IMAGE, COLOUR_IMAGE, COLOUR_COMPRESSED)  # the image drawn under the overlay, of either camera
-MATCH_TOPIC, HOME_TOPIC = '/localization/match', '/homing/home_vector'
-MARKERS_TOPIC = '/skynav/viz/markers'
-OVERLAY_TOPIC = '/skynav/viz/overlay/compressed'
-CONFIDENCE_TOPIC, STATE_TOPIC = '/skynav/viz/confidence', '/skynav/viz/state'
 KEPT_FRAMES = 8  # frames waiting for their parts; older ones are dropped beyond this
-CAMERA_FRAME = 'camera_link'
 COLOURS = {  # RGBA
     'route': (0.6, 0.6, 0.6, 1.0),
     'snapshots': (0.2, 0.4, 1.0, 1.0),
@@ -91,10 +99,10 @@ class VizNode(SkynavNode):
     """Publishes the markers, the overlay image, confidence and state of every camera frame."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (*IMAGE_TOPICS, *CAMERA_INFO_TOPICS, MASK_TOPIC, MATCH_TOPIC, HOME_TOPIC, TF_STATIC_TOPIC)
+    INPUT_TOPICS = (*IMAGE_TOPICS, *CAMERA_INFO_TOPICS, SKYLINE_MASK, LOCALIZATION_MATCH, HOME_VECTOR, TF_STATIC)
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('viz', **kwargs)
+        super().__init__(VIZ_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.store: MapStore | None = None
         self.route: scene.Route | None = None
@@ -105,14 +113,14 @@ class VizNode(SkynavNode):
             self.input(topic, message_type, lambda m: self.take(m, 'uv'), SENSOR_QOS)
         for topic in CAMERA_INFO_TOPICS:
             self.input(topic, CameraInfo, self.on_camera_info, SENSOR_QOS)
-        self.input(MASK_TOPIC, Image, lambda m: self.take(m, 'mask'))
-        self.input(MATCH_TOPIC, PlaceMatch, lambda m: self.take(m, 'match'))
-        self.input(HOME_TOPIC, HomeVector, lambda m: self.take(m, 'home'))
+        self.input(SKYLINE_MASK, Image, lambda m: self.take(m, 'mask'))
+        self.input(LOCALIZATION_MATCH, PlaceMatch, lambda m: self.take(m, 'match'))
+        self.input(HOME_VECTOR, HomeVector, lambda m: self.take(m, 'home'))
         self.listen_for_mount()
-        self.output(MARKERS_TOPIC, MarkerArray)
-        self.output(OVERLAY_TOPIC, CompressedImage)
-        self.output(CONFIDENCE_TOPIC, Float64)
-        self.output(STATE_TOPIC, Int32)
+        self.output(VIZ_MARKERS, MarkerArray)
+        self.output(VIZ_OVERLAY, CompressedImage)
+        self.output(VIZ_CONFIDENCE, Float64)
+        self.output(VIZ_STATE, Int32)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -186,18 +194,18 @@ class VizNode(SkynavNode):
                 float(frame.home.residual) if frame.home is not None and home is not None else None
             )
             image = None  # the overlay and the markers are drawn only while something takes them (watched)
-            if frame.uv is not None and frame.mask is not None and self.watched(OVERLAY_TOPIC):
+            if frame.uv is not None and frame.mask is not None and self.watched(VIZ_OVERLAY):
                 image = self.overlay_image(stamp, frame, home, confidence)
             markers = None
-            if frame.match is not None and self.watched(MARKERS_TOPIC):
+            if frame.match is not None and self.watched(VIZ_MARKERS):
                 markers = self.markers(stamp, frame.match, home)
         if image is not None:
-            self.emit(OVERLAY_TOPIC, image)
+            self.emit(VIZ_OVERLAY, image)
         if frame.match is not None:
             if markers is not None:
-                self.emit(MARKERS_TOPIC, markers)
-            self.emit(CONFIDENCE_TOPIC, Float64(data=confidence))
-            self.emit(STATE_TOPIC, Int32(data=scene.state(int(frame.match.index), bool(frame.match.accepted))))
+                self.emit(VIZ_MARKERS, markers)
+            self.emit(VIZ_CONFIDENCE, Float64(data=confidence))
+            self.emit(VIZ_STATE, Int32(data=scene.state(int(frame.match.index), bool(frame.match.accepted))))
 
     def home_of(self, message: HomeVector | None) -> tuple[int, np.ndarray, np.ndarray] | None:
         """Return a home vector's (target index, unit direction in camera_link, rotation (3, 3)); None if unusable."""

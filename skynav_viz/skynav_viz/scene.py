@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from skynav_core.maps import MapStore
+from skynav_core.names import MAP_FRAME, ODOM_FRAME
 from skynav_core.rotations import as_matrix
 
-ODOM_FRAME, MAP_FRAME = 'odom', 'map'
 IDENTITY = np.eye(3)  # the mount of a camera on the robot's axes
 # state of a frame, as a plottable number (/skynav/viz/state)
 NO_MAP, LOCALIZING, LOCALIZED = 0, 1, 2

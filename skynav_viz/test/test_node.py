@@ -10,15 +10,25 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process
 from skynav_core.images import fill_image
 from skynav_core.maps import MapStore
+from skynav_core.names import (
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_MASK,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+    VIZ_CONFIDENCE,
+    VIZ_MARKERS,
+    VIZ_OVERLAY,
+    VIZ_STATE,
+)
 from skynav_core.nodes import NodeSpec
-from skynav_core.topics import UV_CAMERA_INFO, UV_IMAGE
 from skynav_msgs.msg import HomeVector, PlaceMatch
 from skynav_viz import node as viz
 
 CAMERA = EquidistantCamera.for_field_of_view(64, 48, np.deg2rad(180.0))
 SPEC = NodeSpec('viz', 'skynav_viz', 'skynav_viz.node:VizNode')
 SECOND = 1_000_000_000
-VIZ_TOPICS = (viz.MARKERS_TOPIC, viz.OVERLAY_TOPIC, viz.CONFIDENCE_TOPIC, viz.STATE_TOPIC)
+VIZ_TOPICS = (VIZ_MARKERS, VIZ_OVERLAY, VIZ_CONFIDENCE, VIZ_STATE)
 
 
 def stamped(message, stamp: int):
@@ -69,43 +79,43 @@ def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
     sky[:24] = 255
     uv = np.full((48, 64), 100, np.uint8)
     # skynav run's order: the match and home vector come before the frame's mask (depth first, sh reads it first)
-    feed(graph, (UV_IMAGE, image(SECOND, uv)), (viz.MATCH_TOPIC, match(SECOND, 1)))
-    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.25)))
+    feed(graph, (UV_IMAGE, image(SECOND, uv)), (LOCALIZATION_MATCH, match(SECOND, 1)))
+    feed(graph, (HOME_VECTOR, home(SECOND, 2, 0.25)))
     assert not any(published(graph).values())  # the mask is still to come
-    feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
+    feed(graph, (SKYLINE_MASK, image(SECOND, sky)))
     first = published(graph)
     assert {t: len(v) for t, v in first.items()} == dict.fromkeys(VIZ_TOPICS, 1)
-    assert first[viz.CONFIDENCE_TOPIC][0] == Float64(data=0.75)
-    assert first[viz.STATE_TOPIC][0] == Int32(data=2)
-    markers = {m.ns: m for m in first[viz.MARKERS_TOPIC][0].markers}
+    assert first[VIZ_CONFIDENCE][0] == Float64(data=0.75)
+    assert first[VIZ_STATE][0] == Int32(data=2)
+    markers = {m.ns: m for m in first[VIZ_MARKERS][0].markers}
     assert markers['matched'].points[0].x == 1.0 and markers['target'].points[0].x == 2.0
     assert markers['snapshots'].header.frame_id == 'map' and len(markers['snapshots'].points) == 4
     home_arrow = markers['home_vector'].points
     assert (home_arrow[0].x, home_arrow[1].x) == (1.0, 2.0)  # from the match, along +x of snapshot 2 (1 m)
-    assert first[viz.OVERLAY_TOPIC][0].format == 'jpeg' and first[viz.OVERLAY_TOPIC][0].header.stamp.sec == 1
+    assert first[VIZ_OVERLAY][0].format == 'jpeg' and first[VIZ_OVERLAY][0].header.stamp.sec == 1
 
     # a live order: the last part completes the frame
-    feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)), (viz.HOME_TOPIC, home(2 * SECOND, 3, 0.5)))
+    feed(graph, (SKYLINE_MASK, image(2 * SECOND, sky)), (HOME_VECTOR, home(2 * SECOND, 3, 0.5)))
     feed(graph, (UV_IMAGE, image(2 * SECOND, uv)))
     assert not any(published(graph).values())
-    feed(graph, (viz.MATCH_TOPIC, match(2 * SECOND, 2, accepted=False)))
+    feed(graph, (LOCALIZATION_MATCH, match(2 * SECOND, 2, accepted=False)))
     second = published(graph)
-    assert second[viz.STATE_TOPIC] == [Int32(data=1)] and second[viz.CONFIDENCE_TOPIC] == [Float64(data=0.5)]
-    assert len(second[viz.OVERLAY_TOPIC]) == 1
+    assert second[VIZ_STATE] == [Int32(data=1)] and second[VIZ_CONFIDENCE] == [Float64(data=0.5)]
+    assert len(second[VIZ_OVERLAY]) == 1
 
 
 def test_a_frame_without_a_home_vector_goes_out_when_a_newer_mask_comes_and_late_parts_are_dropped(graph):
     sky = np.zeros((48, 64), np.uint8)
     sky[:24] = 255
-    feed(graph, (UV_IMAGE, image(SECOND, sky)), (viz.MATCH_TOPIC, match(SECOND, -1, accepted=False)))
-    feed(graph, (viz.MASK_TOPIC, image(SECOND, sky)))
+    feed(graph, (UV_IMAGE, image(SECOND, sky)), (LOCALIZATION_MATCH, match(SECOND, -1, accepted=False)))
+    feed(graph, (SKYLINE_MASK, image(SECOND, sky)))
     assert not any(published(graph).values())
-    feed(graph, (viz.MASK_TOPIC, image(2 * SECOND, sky)))
+    feed(graph, (SKYLINE_MASK, image(2 * SECOND, sky)))
     outputs = published(graph)
-    assert outputs[viz.STATE_TOPIC] == [Int32(data=0)] and outputs[viz.CONFIDENCE_TOPIC] == [Float64(data=0.0)]
-    deleted = {m.ns for m in outputs[viz.MARKERS_TOPIC][0].markers if m.action == m.DELETE}
+    assert outputs[VIZ_STATE] == [Int32(data=0)] and outputs[VIZ_CONFIDENCE] == [Float64(data=0.0)]
+    deleted = {m.ns for m in outputs[VIZ_MARKERS][0].markers if m.action == m.DELETE}
     assert deleted == {'matched', 'target', 'home_vector', 'route_direction'}
-    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.1)))
+    feed(graph, (HOME_VECTOR, home(SECOND, 2, 0.1)))
     assert not any(published(graph).values())
     assert graph.nodes[0].dropped['late'] == 1
 
@@ -114,7 +124,7 @@ def test_a_colour_cameras_frame_is_drawn_in_colour_with_its_own_camera(graph):
     from sensor_msgs.msg import CompressedImage
 
     from skynav_core.colour import compress
-    from skynav_core.topics import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED
+    from skynav_core.names import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED
 
     colour_camera = EquidistantCamera.for_field_of_view(80, 60, np.deg2rad(200.0))  # another size than the UV pair
     graph.publish(COLOUR_CAMERA_INFO, stamped(CameraInfo(**colour_camera.camera_info_fields()), 0))
@@ -123,9 +133,9 @@ def test_a_colour_cameras_frame_is_drawn_in_colour_with_its_own_camera(graph):
     frame = CompressedImage()
     frame.format, frame.data = compress(rgb, 'jpeg')
     sky = np.full((60, 80), 255, np.uint8)
-    feed(graph, (COLOUR_COMPRESSED, stamped(frame, SECOND)), (viz.MATCH_TOPIC, match(SECOND, 1)))
-    feed(graph, (viz.HOME_TOPIC, home(SECOND, 2, 0.25)), (viz.MASK_TOPIC, image(SECOND, sky)))
-    (drawn,) = published(graph)[viz.OVERLAY_TOPIC]
+    feed(graph, (COLOUR_COMPRESSED, stamped(frame, SECOND)), (LOCALIZATION_MATCH, match(SECOND, 1)))
+    feed(graph, (HOME_VECTOR, home(SECOND, 2, 0.25)), (SKYLINE_MASK, image(SECOND, sky)))
+    (drawn,) = published(graph)[VIZ_OVERLAY]
     import cv2
 
     bgr = cv2.imdecode(np.frombuffer(bytes(drawn.data), np.uint8), cv2.IMREAD_COLOR)

@@ -6,6 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_core.maps import ODOM_POSE, MapStore
+from skynav_core.names import MAP_FRAME, ODOM_FRAME
 from skynav_core.rotations import home_direction, relative_rotation
 from skynav_viz import scene
 
@@ -34,7 +35,7 @@ def test_a_map_taught_live_is_drawn_from_its_odometry_in_odom(tmp_path):
     odometry[2] = np.full(7, np.nan)  # a view without /odom
     with write_map(tmp_path / 'taught.db', truth=STRAIGHT, odometry=odometry) as store:
         route = scene.route_of(store)
-    assert route is not None and route.frame_id == scene.ODOM_FRAME
+    assert route is not None and route.frame_id == ODOM_FRAME
     np.testing.assert_allclose(route.drawn, [[0, 0, 0], [0, 1, 0], [0, 3, 0]])
     assert not route.known(2) and route.known(3) and not route.known(4) and not route.known(-1)
 
@@ -42,7 +43,7 @@ def test_a_map_taught_live_is_drawn_from_its_odometry_in_odom(tmp_path):
 def test_a_map_built_from_a_recording_is_drawn_from_its_ground_truth_in_map(tmp_path):
     with write_map(tmp_path / 'built.db', truth=STRAIGHT) as store:
         route = scene.route_of(store)
-    assert route is not None and route.frame_id == scene.MAP_FRAME
+    assert route is not None and route.frame_id == MAP_FRAME
     np.testing.assert_allclose(route.positions, [p[:3] for p in STRAIGHT])
 
 
@@ -92,7 +93,7 @@ def test_on_odometry_poses_a_mounted_cameras_home_vector_is_turned_by_the_mount(
     places = [pose(0, 0, 70.0), pose(1, 1, 0), pose(2, 1, 0), pose(3, 4, -40.0)]
     with write_map(tmp_path / 'mounted.db', odometry=places) as store:
         route = scene.route_of(store)
-    assert route is not None and route.frame_id == scene.ODOM_FRAME
+    assert route is not None and route.frame_id == ODOM_FRAME
     current, target = (Rotation.from_quat(places[k][3:]) * mount for k in (0, 3))  # the cameras' orientations
     rotation = relative_rotation(target, current)
     direction = home_direction(places[3][:3], places[0][:3], current)

@@ -39,6 +39,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
 from skynav_core.images import stamp_ns
+from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH, WARPING_NODE
 from skynav_core.node import SkynavNode
 from skynav_core.pairing import StampPairer
 from skynav_core.ros import run_node
@@ -53,10 +54,6 @@ from .parameters import PARAMETERS, TARGETS
 from .views import view_from_coefficients
 from .warping3d import WarpingSettings
 
-SH_TOPIC = '/skyline/sh'
-MATCH_TOPIC = '/localization/match'
-COMPASS_TOPIC = '/compass/orientation'
-HOME_TOPIC = '/homing/home_vector'
 WARPING_FILLS = ('zero',)  # the masked comparison needs the seen part alone
 LOG_PERIOD = 10.0  # s: at most one log line this often about views whose home vector was refused
 
@@ -65,21 +62,21 @@ class WarpingNode(SkynavNode):
     """Estimates the home vector of every view towards the target snapshot."""
 
     PARAMETERS = PARAMETERS
-    INPUT_TOPICS = (SH_TOPIC, MATCH_TOPIC, COMPASS_TOPIC)
+    INPUT_TOPICS = (SKYLINE_SH, LOCALIZATION_MATCH, COMPASS_ORIENTATION)
 
     needs_map = True
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('warping', **kwargs)
+        super().__init__(WARPING_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.snapshots = SnapshotChoice(self.reject, self.snapshot_view)
         self.compass_not_confident = 0  # views whose compass estimate was not confident: aligned without it
         self.undetermined = 0  # views whose home direction the views do not determine: no home vector published
         self.pairer = StampPairer(('sh', 'compass'), tolerance_ns=0, on_drop=self.drop_unpaired)
-        self.input(SH_TOPIC, ShCoefficients, self.on_coefficients)
-        self.input(MATCH_TOPIC, PlaceMatch, self.snapshots.on_match)
-        self.input(COMPASS_TOPIC, CompassEstimate, self.on_compass)
-        self.output(HOME_TOPIC, HomeVector)
+        self.input(SKYLINE_SH, ShCoefficients, self.on_coefficients)
+        self.input(LOCALIZATION_MATCH, PlaceMatch, self.snapshots.on_match)
+        self.input(COMPASS_ORIENTATION, CompassEstimate, self.on_compass)
+        self.output(HOME_VECTOR, HomeVector)
         self.start()
 
     def configure(self, values: dict) -> None:
@@ -174,7 +171,7 @@ class WarpingNode(SkynavNode):
                 float(v) for v in estimate.quaternion
             )
             result.residual = float(1.0 - estimate.confidence)
-        self.emit(HOME_TOPIC, result)
+        self.emit(HOME_VECTOR, result)
 
     def refuse(self, stamp: int, index: int, estimate: HomeEstimate) -> None:
         """Count (and log, rate-limited) a view whose home direction the views do not determine: no home vector."""

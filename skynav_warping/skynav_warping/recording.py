@@ -14,12 +14,9 @@ import numpy as np
 
 from skynav_core.bag import open_bag
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
+from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
 from skynav_core.views import recorded_frames
 from skynav_warping.errors import WarpingError
-
-MASK = '/ground_truth/mask'
-UV = '/camera/uv/image_raw'
-GREEN = '/camera/green/image_raw'
 
 
 @dataclass(frozen=True)
@@ -40,10 +37,10 @@ def load_homing_grid(path: str) -> HomingGrid:
     """Return the frames of a homing recording (needs /ground_truth/pose, /ground_truth/mask, camera info)."""
 
     with open_bag(path) as bag:
-        recorded = recorded_frames(bag, [MASK, UV, GREEN])
+        recorded = recorded_frames(bag, [GROUND_TRUTH_MASK, UV_IMAGE, GREEN_IMAGE])
     if recorded.camera is None:
         raise WarpingError(f'{path}: no {CAMERA_INFO_TOPIC} messages')
-    stamps = sorted(s for s in recorded.poses if s in recorded.images[MASK])
+    stamps = sorted(s for s in recorded.poses if s in recorded.images[GROUND_TRUTH_MASK])
     if len(stamps) < 2:
         raise WarpingError(f'{path}: fewer than two frames with ground-truth pose and mask')
     poses = np.stack([recorded.poses[s] for s in stamps])
@@ -52,15 +49,15 @@ def load_homing_grid(path: str) -> HomingGrid:
         images = recorded.images[topic]
         return np.stack([images[s] for s in stamps]) if all(s in images for s in stamps) else None
 
-    masks = stack(MASK)
+    masks = stack(GROUND_TRUTH_MASK)
     assert masks is not None  # every stamp kept has a mask
     return HomingGrid(
         camera=recorded.camera,
         positions=poses[:, :3],
         quaternions=poses[:, 3:],
         masks=masks,
-        uv=stack(UV),
-        green=stack(GREEN),
+        uv=stack(UV_IMAGE),
+        green=stack(GREEN_IMAGE),
         labels=tuple(recorded.labels()[: len(stamps)]),
         synthetic=recorded.synthetic,
     )

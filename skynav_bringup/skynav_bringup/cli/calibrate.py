@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -30,7 +32,7 @@ if TYPE_CHECKING:
 
 HELP = 'calibrate a fish-eye camera from checkerboard views; write its camera YAML'
 # Image topics a recording's views are taken from, in the order the default prefers them.
-DEFAULT_TOPICS = ('/camera/image_raw', '/camera/image_raw/compressed', '/camera/uv/image_raw')
+DEFAULT_TOPICS = (COLOUR_IMAGE, COLOUR_COMPRESSED, UV_IMAGE)
 IMAGE_TYPES = ('sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage')
 # Frames of a recording examined by default (evenly spaced): a minute of video holds far more than a fit needs.
 DEFAULT_MAX_FRAMES = 100

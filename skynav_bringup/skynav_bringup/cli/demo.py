@@ -27,6 +27,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+from skynav_core.names import (
+    COMPASS_ORIENTATION,
+    GROUND_TRUTH_POSE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_MASK,
+    SKYLINE_SH,
+)
+
 HELP = 'run the chain over bundled synthetic recordings and summarise'
 DEFAULT_TEACH = Path('bags/synthetic_garden_teach.mcap')
 DEFAULT_REPEAT = Path('bags/synthetic_garden_repeat.mcap')
@@ -140,7 +149,7 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned
     frames = list(labelled_frames(recording))
     masks = {}
     with open_bag(run_bag) as bag:
-        for raw in bag.messages(['/skyline/mask']):
+        for raw in bag.messages([SKYLINE_MASK]):
             message = bag.deserialize(raw)
             masks[stamp_ns(message.header)] = image_to_array(message)
     camera = frames[0].camera  # the synthetic recordings carry camera info
@@ -211,7 +220,7 @@ def draw_sheet(path: Path, frames: list, circle) -> None:
         )
         panels = [
             *inputs,
-            (mask if mask is not None else np.zeros_like(truth), '/skyline/mask'),
+            (mask if mask is not None else np.zeros_like(truth), SKYLINE_MASK),
             (error, f'vs ground truth: {100 * rate:.1f} % right\nred: false sky, blue: false ground'),
         ]
         for column, (image, title) in enumerate(panels):
@@ -234,7 +243,7 @@ def ground_truth_poses(recording: Path) -> dict:
 
     poses = {}
     with open_bag(recording) as bag:
-        for raw in bag.messages(['/ground_truth/pose']):
+        for raw in bag.messages([GROUND_TRUTH_POSE]):
             message = bag.deserialize(raw)
             p, q = message.pose.position, message.pose.orientation
             poses[stamp_ns(message.header)] = (np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]))
@@ -251,7 +260,7 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     from skynav_localize.evaluation import correct_matches, plot_matches_along_route
 
     with open_bag(run_bag) as bag:
-        matches = [bag.deserialize(raw) for raw in bag.messages(['/localization/match'])]
+        matches = [bag.deserialize(raw) for raw in bag.messages([LOCALIZATION_MATCH])]
     store = MapStore.open(map_file)
     snapshots = store.positions()
     stamps = [stamp_ns(m.header) for m in matches]
@@ -300,9 +309,9 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     from skynav_core.rotations import home_direction, relative_rotation, rotation_angle
 
     with open_bag(run_bag) as bag:
-        compass = [bag.deserialize(raw) for raw in bag.messages(['/compass/orientation'])]
-        homing = [bag.deserialize(raw) for raw in bag.messages(['/homing/home_vector'])]
-        views = sum(1 for _ in bag.messages(['/skyline/sh']))
+        compass = [bag.deserialize(raw) for raw in bag.messages([COMPASS_ORIENTATION])]
+        homing = [bag.deserialize(raw) for raw in bag.messages([HOME_VECTOR])]
+        views = sum(1 for _ in bag.messages([SKYLINE_SH]))
     with MapStore.open(map_file) as store:
         snapshots = store.poses()
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
+from skynav_core.names import GROUND_TRUTH_POSE
 
 HELP = 'precision-recall of localization methods against ground truth'
 
@@ -106,7 +107,7 @@ def positions_at(bag: Path, stamps):
 
     truth = {}
     with open_bag(bag) as recording:
-        for raw in recording.messages(['/ground_truth/pose']):
+        for raw in recording.messages([GROUND_TRUTH_POSE]):
             message = recording.deserialize(raw)
             p = message.pose.position
             truth[stamp_ns(message.header)] = (p.x, p.y, p.z)

@@ -50,10 +50,9 @@ def run(args: argparse.Namespace) -> int:
 
     from skynav_core.cli import CliError, open_map
     from skynav_core.goals import RESULT_AFTER_CANCEL, ProgressLine, goal_result, send_goal
+    from skynav_core.names import TEACH_ACTION
     from skynav_core.namespaces import namespaced
     from skynav_msgs.action import Teach
-
-    from ..teach_server import TEACH_ACTION
 
     for option, value in (('--spacing', args.spacing), ('--max-length', args.max_length)):
         if not math.isfinite(value):

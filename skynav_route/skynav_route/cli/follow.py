@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 from skynav_core.cli import add_namespace
+from skynav_core.names import FOLLOW_ROUTE_ACTION
 
 HELP = 'drive along a taught route (FollowRoute goal to the running graph)'
 
@@ -63,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        outcome = send_goal(FollowRoute, namespaced('/skynav/follow_route', args.namespace), goal, show, args.wait)
+        outcome = send_goal(FollowRoute, namespaced(FOLLOW_ROUTE_ACTION, args.namespace), goal, show, args.wait)
     finally:
         line.end()
     result = goal_result(outcome)

@@ -13,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from skynav_core.cli import add_namespace
+from skynav_core.names import HOME_ACTION
 
 HELP = 'drive to the place of one snapshot (Home goal to the running graph)'
 
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         line.show(f'homing to snapshot {args.index}: {feedback.steps} frames  confidence {feedback.confidence:.2f}')
 
     try:
-        outcome = send_goal(Home, namespaced('/skynav/home', args.namespace), goal, show, args.wait)
+        outcome = send_goal(Home, namespaced(HOME_ACTION, args.namespace), goal, show, args.wait)
     finally:
         line.end()
     result = goal_result(outcome)

@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from skynav_core.names import COLOUR_CAMERA_INFO, UV_CAMERA_INFO
+
 HELP = 'closed-loop route following of a simulated robot along a taught (synthetic) route'
 END_RADIUS = 1.0  # m: stopping this close to the last snapshot reaches the end (a correct place match's tolerance)
 
@@ -92,7 +94,7 @@ def teach_world(teach: Path):
             with open_bag(teach) as bag:
                 description = yaml.safe_load(bag.custom_data.get('skynav_sim', '')) or {}
                 # the UV/green pair's camera info, or a colour camera's
-                infos = bag.messages([t for t in ('/camera/uv/camera_info', '/camera/camera_info') if t in bag.topics])
+                infos = bag.messages([t for t in (UV_CAMERA_INFO, COLOUR_CAMERA_INFO) if t in bag.topics])
                 info = next((bag.deserialize(raw) for raw in infos), None)
     except BagError as exc:
         raise CliError(str(exc)) from None

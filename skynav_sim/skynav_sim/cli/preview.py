@@ -14,6 +14,15 @@ from __future__ import annotations
 import argparse
 import sys
 
+from skynav_core.names import (
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    GREEN_IMAGE,
+    GROUND_TRUTH_MASK,
+    GROUND_TRUTH_POSE,
+    UV_IMAGE,
+)
+
 HELP = 'draw a contact sheet of a synthetic scenario or bag'
 
 
@@ -56,9 +65,9 @@ def run(args: argparse.Namespace) -> int:
 
 #: The image topics of each camera a recording may hold, in the order a preview looks for them.
 CAMERA_TOPICS = (
-    ('/camera/uv/image_raw', '/camera/green/image_raw'),
-    ('/camera/image_raw',),
-    ('/camera/image_raw/compressed',),
+    (UV_IMAGE, GREEN_IMAGE),
+    (COLOUR_IMAGE,),
+    (COLOUR_COMPRESSED,),
 )
 
 
@@ -124,12 +133,12 @@ def _from_bag(args):
 
     with open_bag(args.bag) as bag:
         cameras = [names for names in CAMERA_TOPICS if all(topic in bag.topics for topic in names)]
-        for topic in (cameras[0] if cameras else CAMERA_TOPICS[0]) + ('/ground_truth/mask', '/ground_truth/pose'):
+        for topic in (cameras[0] if cameras else CAMERA_TOPICS[0]) + (GROUND_TRUTH_MASK, GROUND_TRUTH_POSE):
             if topic not in bag.topics:
                 from skynav_core.cli import CliError
 
                 raise CliError(f'{args.bag} has no {topic}; a preview needs images, masks and poses')
-        wanted = [*cameras[0], '/ground_truth/mask', '/ground_truth/pose']
+        wanted = [*cameras[0], GROUND_TRUTH_MASK, GROUND_TRUTH_POSE]
         by_stamp: dict[int, dict] = {}
         for message in bag.messages(wanted):
             data = bag.deserialize(message)
@@ -142,7 +151,7 @@ def _from_bag(args):
     sheet = []
     for index in chosen:
         parts = complete[index]
-        pose = parts['/ground_truth/pose'].pose
+        pose = parts[GROUND_TRUTH_POSE].pose
         label = labels[index] if index < len(labels) else {}
         caption = (
             f'{label.get("label", "")}, {label.get("hours", "?")} h, clouds {label.get("cloud_cover", "?")}'
@@ -153,9 +162,9 @@ def _from_bag(args):
         sheet.append(
             SheetFrame(
                 index,
-                _pixels(parts['/camera/uv/image_raw']) if colour is None else colour[..., 2],
-                _pixels(parts['/camera/green/image_raw']) if colour is None else colour[..., 1],
-                _pixels(parts['/ground_truth/mask']),
+                _pixels(parts[UV_IMAGE]) if colour is None else colour[..., 2],
+                _pixels(parts[GREEN_IMAGE]) if colour is None else colour[..., 1],
+                _pixels(parts[GROUND_TRUTH_MASK]),
                 np.array([pose.position.x, pose.position.y, pose.position.z]),
                 np.array([pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w]),
                 caption,
@@ -163,7 +172,7 @@ def _from_bag(args):
             )
         )
     positions = np.array(
-        [[p['/ground_truth/pose'].pose.position.x, p['/ground_truth/pose'].pose.position.y] for p in complete]
+        [[p[GROUND_TRUTH_POSE].pose.position.x, p[GROUND_TRUTH_POSE].pose.position.y] for p in complete]
     ).reshape(-1, 2)
     world = generate(info['world'], int(info['world_seed'])) if 'world' in info else None
     kind = 'SYNTHETIC ' if info.get('synthetic') else ''
@@ -180,7 +189,6 @@ def _linear_rgb(parts: dict):
     """Return the linear RGB (H, W, 3, uint16) of a colour camera's frame among a stamp's messages (None: no such
     frame), decoded as the nodes decode it."""
     from skynav_core.colour import decode_compressed, decode_image
-    from skynav_core.topics import COLOUR_COMPRESSED, COLOUR_IMAGE
 
     if COLOUR_IMAGE in parts:
         return decode_image(parts[COLOUR_IMAGE])
