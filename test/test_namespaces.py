@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 from skynav_core.bag import open_bag
+from skynav_core.names import SKYLINE_SH
 from skynav_core.testing import running, start_skynav, wait_text, write_first_frames
 
 BAGS = Path(__file__).parents[1] / 'bags'
@@ -31,7 +32,7 @@ def coefficients(path: Path) -> dict[int, object]:
 
     store = typestore()
     with open_bag(path) as bag:
-        messages = [store.deserialize_cdr(raw.data, raw.msgtype) for raw in bag.messages(['/skyline/sh'])]
+        messages = [store.deserialize_cdr(raw.data, raw.msgtype) for raw in bag.messages([SKYLINE_SH])]
     return {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec: m for m in messages}
 
 
@@ -89,7 +90,7 @@ def test_two_namespaced_graphs_on_one_domain_each_give_exactly_their_own_run(
     launches = {ns: start_skynav('launch', '--namespace', ns, '--nodes', *NODES) for ns in drives}
     with running(launches['robot1']) as first, running(launches['robot2']) as second:
         recorders = {
-            ns: start_skynav('record', '--namespace', ns, str(tmp_path / f'{ns}_live.mcap'), '/skyline/sh')
+            ns: start_skynav('record', '--namespace', ns, str(tmp_path / f'{ns}_live.mcap'), SKYLINE_SH)
             for ns in drives
         }
         everything = start_skynav('record', '--all', str(tmp_path / 'everything.mcap'))

@@ -13,6 +13,7 @@ import pytest
 from skynav_bringup.cli import main
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_yaml import camera_from_url
+from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, ODOM, UV_IMAGE
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.checkerboard import BoardRenderer, Checkerboard, calibration_poses, synthetic_fisheye
 
@@ -56,14 +57,14 @@ def _write_recording(path: Path, images: list[np.ndarray]) -> Path:
     store = typestore()
     T = store.types
     with BagWriter(path) as writer:
-        writer.add_topic('/camera/image_raw', 'sensor_msgs/msg/Image')
-        writer.add_topic('/odom', 'nav_msgs/msg/Odometry')  # another topic, not images: left alone
+        writer.add_topic(COLOUR_IMAGE, 'sensor_msgs/msg/Image')
+        writer.add_topic(ODOM, 'nav_msgs/msg/Odometry')  # another topic, not images: left alone
         for index, image in enumerate(images):
             stamp = 1_700_000_000 * 10**9 + index * 500_000_000
             header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](*divmod(stamp, 10**9)), 'camera_link')
             height, width, _ = image.shape
             message = T['sensor_msgs/msg/Image'](header, height, width, 'rgb8', 0, width * 3, image.ravel())
-            writer.write('/camera/image_raw', stamp, store.serialize_cdr(message, 'sensor_msgs/msg/Image'))
+            writer.write(COLOUR_IMAGE, stamp, store.serialize_cdr(message, 'sensor_msgs/msg/Image'))
     return path
 
 
@@ -105,7 +106,7 @@ def test_a_recording_calibrates_to_a_yaml_that_reads_back(views, tmp_path, capsy
         code = main(['calibrate', str(bag), *BOARD_ARGS, '--out', str(tmp_path / 'other.yaml'), *args])
         return code, capsys.readouterr().err
 
-    code, stderr = in_process('--topic', '/odom')
+    code, stderr = in_process('--topic', ODOM)
     assert code == 1 and one_line_error(stderr) and '/odom carries nav_msgs/msg/Odometry, not images' in stderr
     code, stderr = in_process('--topic', '/camera/left')
     assert code == 1 and one_line_error(stderr) and 'no topic /camera/left' in stderr
@@ -160,7 +161,7 @@ def test_a_compressed_frame_is_decoded_for_the_detector(views):
     format_text, data = compress(images[0], 'jpeg', 95)
     message = SimpleNamespace(format=format_text, data=np.frombuffer(data, np.uint8))
     bag = SimpleNamespace(deserialize=lambda raw: message)
-    raw = RawMessage('/camera/image_raw/compressed', 'sensor_msgs/msg/CompressedImage', 0, b'')
+    raw = RawMessage(COLOUR_COMPRESSED, 'sensor_msgs/msg/CompressedImage', 0, b'')
     frame = _message_frame(bag, raw, 'jpeg')
     assert frame.grey is not None and frame.grey.shape == (480, 640)
     assert find_corners(frame.grey, Board(9, 6, 0.025)) is not None
@@ -182,7 +183,7 @@ def test_a_mono_frame_is_taken_as_linear(views):
     linear = SRGB8_TO_LINEAR16[grey]  # mono16, linear as the contract has it
     fields = {'encoding': 'mono16', 'height': 480, 'width': 640, 'step': 1280, 'is_bigendian': 0}
     message = SimpleNamespace(**fields, data=linear.tobytes())
-    raw = RawMessage('/camera/uv/image_raw', 'sensor_msgs/msg/Image', 0, b'')
+    raw = RawMessage(UV_IMAGE, 'sensor_msgs/msg/Image', 0, b'')
     frame = _message_frame(SimpleNamespace(deserialize=lambda raw: message), raw, 'mono16')
     assert frame.grey is not None and frame.grey.dtype == np.uint8
     assert np.corrcoef(frame.grey.ravel(), grey.ravel())[0, 1] > 0.99  # back on an sRGB-like curve, not linear

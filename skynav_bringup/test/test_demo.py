@@ -16,10 +16,11 @@ from collections import Counter
 from pathlib import Path
 
 from skynav_core.bag import open_bag
+from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_MASK, SKYLINE_SH
 from skynav_core.testing import run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
-OUTPUT_TOPICS = ('/skyline/mask', '/skyline/sh', '/localization/match', '/compass/orientation', '/homing/home_vector')
+OUTPUT_TOPICS = (SKYLINE_MASK, SKYLINE_SH, LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR)
 
 
 def figure(pattern: str, text: str) -> tuple[float, ...]:
@@ -68,7 +69,7 @@ def test_demo_runs_the_chain_and_reports_what_it_did(tmp_path):
     # `skynav run` recorded one output of every kind per exposure of the repeat drive, a home vector where it had one
     with open_bag(tmp_path / 'repeat_run.mcap') as bag:
         counts = Counter(raw.topic for raw in bag.messages(OUTPUT_TOPICS))
-    assert counts == {**dict.fromkeys(OUTPUT_TOPICS, 89), '/homing/home_vector': published}
+    assert counts == {**dict.fromkeys(OUTPUT_TOPICS, 89), HOME_VECTOR: published}
     names = (
         'localization_matches.png',
         'route_following.png',

@@ -26,6 +26,7 @@ from skynav_bringup.ros_launch import (
     split_remap_arguments,
 )
 from skynav_core.graph import node_class
+from skynav_core.names import CLOCK, TF_STATIC
 from skynav_core.namespaces import NamespaceError
 from skynav_core.nodes import installed_nodes
 from skynav_core.parameters import ParameterFileError, load_parameter_file
@@ -132,7 +133,7 @@ def test_a_namespace_moves_the_graph_its_clock_and_static_transforms_and_rewrite
     nodes = graph_launch(namespace='robot1', params_file=str(params), scratch=scratch)
     for node in nodes:
         assert node.namespace == '/robot1'
-        assert node.remappings == [('/clock', '/robot1/clock'), ('/tf_static', '/robot1/tf_static')]
+        assert node.remappings == [(CLOCK, '/robot1/clock'), (TF_STATIC, '/robot1/tf_static')]
         assert [Path(p).parent for p in node.parameters] == [scratch, scratch]
     shipped, mine = (load_parameter_file(p) for p in nodes[0].parameters)
     assert mine == {
@@ -193,7 +194,7 @@ def test_the_users_parameter_file_comes_after_the_shipped_one_and_must_be_one(tm
 
 
 def test_remap_arguments_split_into_namespace_and_rules():
-    assert split_remap_arguments(['-r', '__ns:=/a', '-r', '/clock:=/a/clock']) == ('/a', [('/clock', '/a/clock')])
+    assert split_remap_arguments(['-r', '__ns:=/a', '-r', '/clock:=/a/clock']) == ('/a', [(CLOCK, '/a/clock')])
     assert split_remap_arguments([]) == ('', [])
     with pytest.raises(ValueError, match='not a remapping rule'):
         split_remap_arguments(['-p', 'x:=1'])

@@ -25,6 +25,7 @@ from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
+from skynav_core.names import COMPASS_ORIENTATION, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.views import recording_views
 from skynav_localize.mapping import build_map
@@ -32,7 +33,6 @@ from skynav_msgs.msg import PlaceMatch, ShCoefficients
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_garden_compass.mcap'
 SPEC = NodeSpec('compass', 'skynav_compass', 'skynav_compass.node:CompassNode')
-COMPASS_TOPIC = '/compass/orientation'
 
 
 @pytest.fixture(scope='module')
@@ -70,7 +70,7 @@ def sh_message(view, field_of_view, stamp=None, coefficients=None, max_degree=No
     return message
 
 
-def deliver(graph, topic, message, outputs=COMPASS_TOPIC):
+def deliver(graph, topic, message, outputs=COMPASS_ORIENTATION):
     """Feed one message to the graph as a recording would; return what it caused on `outputs`."""
     before = len(graph.outputs)
     log_time = stamp_ns(message.header)
@@ -80,7 +80,7 @@ def deliver(graph, topic, message, outputs=COMPASS_TOPIC):
 
 def feed(graph, message):
     """Feed one view on /skyline/sh; return the compass estimates it caused."""
-    return deliver(graph, '/skyline/sh', message)
+    return deliver(graph, SKYLINE_SH, message)
 
 
 def quaternion(estimate):
@@ -236,7 +236,7 @@ def test_a_match_selects_the_snapshot_of_a_larger_map(recording, tmp_path):
     def match(index, accepted, view):
         message = PlaceMatch(map_name='three', index=index, accepted=accepted)
         message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp - 1, 10**9)
-        deliver(graph, '/localization/match', message)
+        deliver(graph, LOCALIZATION_MATCH, message)
 
     with in_process([SPEC], ['-p', f'map:={path}']) as graph:
         graph.keep_outputs = True
@@ -287,7 +287,7 @@ def test_a_match_beyond_the_map_is_rejected(recording, tmp_path):
         # e.g. the localize node runs with a larger map than this node
         match = PlaceMatch(map_name='other', index=7, accepted=True)
         match.header.stamp.sec, match.header.stamp.nanosec = divmod(current.stamp - 1, 10**9)
-        deliver(graph, '/localization/match', match)
+        deliver(graph, LOCALIZATION_MATCH, match)
         assert feed(graph, sh_message(current, recording.camera.field_of_view)) == []
         assert node.errors == 0 and node.rejected == {'match_beyond_map': 1}
 

@@ -9,6 +9,7 @@ from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import BagError, BagWriter, open_bag
 from skynav_core.environment import share_directory
+from skynav_core.names import SKYLINE_SH, UV_IMAGE
 from skynav_core.testing import messages_equal, write_sample_bag
 from skynav_core.typestore import typestore
 
@@ -36,7 +37,7 @@ def test_round_trip_keeps_every_message_in_time_order(sample_bag):
 def test_topic_filter(sample_bag):
     path, _ = sample_bag
     with open_bag(path) as bag:
-        assert {m.topic for m in bag.messages(['/skyline/sh'])} == {'/skyline/sh'}
+        assert {m.topic for m in bag.messages([SKYLINE_SH])} == {SKYLINE_SH}
         with pytest.raises(BagError, match='no topic /nope'):
             list(bag.messages(['/nope']))
 
@@ -69,7 +70,7 @@ def test_type_hashes_match_rosidl(sample_bag, tmp_path):
 def test_custom_data_round_trip(tmp_path, name):
     with BagWriter(tmp_path / name) as writer:
         writer.set_custom_data('skynav_sim', 'scenario: teach\nseed: 3\n')
-        writer.add_topic('/skyline/sh', 'skynav_msgs/msg/ShCoefficients')
+        writer.add_topic(SKYLINE_SH, 'skynav_msgs/msg/ShCoefficients')
     with open_bag(tmp_path / name) as bag:
         assert bag.custom_data == {'skynav_sim': 'scenario: teach\nseed: 3\n'}
         assert bag.ros_distro == 'rosbags'
@@ -86,7 +87,7 @@ def test_directory_bag_round_trip(tmp_path):
 def test_writes_are_atomic(tmp_path):
     path = tmp_path / 'out.mcap'
     writer = BagWriter(path)
-    writer.add_topic('/skyline/sh', 'skynav_msgs/msg/ShCoefficients')
+    writer.add_topic(SKYLINE_SH, 'skynav_msgs/msg/ShCoefficients')
     assert not path.exists() and writer.partial.is_dir()
     writer.close()
     assert path.is_file() and not writer.partial.exists()
@@ -109,7 +110,7 @@ def test_closes_with_data_even_after_an_error(tmp_path):
     path = tmp_path / 'out.mcap'
     sh = typestore().types
     with pytest.raises(RuntimeError), BagWriter(path) as writer:
-        writer.add_topic('/camera/uv/image_raw', 'sensor_msgs/msg/Image')
+        writer.add_topic(UV_IMAGE, 'sensor_msgs/msg/Image')
         image = sh['sensor_msgs/msg/Image'](
             sh['std_msgs/msg/Header'](sh['builtin_interfaces/msg/Time'](1, 0), 'camera_link'),
             1,
@@ -119,7 +120,7 @@ def test_closes_with_data_even_after_an_error(tmp_path):
             1,
             __import__('numpy').zeros(1, 'uint8'),
         )
-        writer.write('/camera/uv/image_raw', 10**9, typestore().serialize_cdr(image, 'sensor_msgs/msg/Image'))
+        writer.write(UV_IMAGE, 10**9, typestore().serialize_cdr(image, 'sensor_msgs/msg/Image'))
         raise RuntimeError('processing failed')
     with open_bag(path) as bag:
         assert bag.message_count == 1
@@ -162,7 +163,7 @@ def test_corrupt_chunk_is_reported_when_reached(sample_bag, tmp_path):
         with open_bag(broken) as bag:
             list(bag.messages())
     assert '\n' not in str(info.value)
-    assert '/skyline/sh' in str(info.value) and 'logged 0.000-0.300 s into the recording' in str(info.value)
+    assert SKYLINE_SH in str(info.value) and 'logged 0.000-0.300 s into the recording' in str(info.value)
 
 
 @pytest.mark.parametrize(

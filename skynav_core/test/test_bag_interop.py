@@ -21,6 +21,7 @@ from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import BagWriter
 from skynav_core.cdr import rosbags_cdr
+from skynav_core.names import LOCALIZATION_MATCH, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.ros import message_class
 from skynav_core.testing import messages_equal, sample_messages
 from skynav_core.typestore import ensure_type, typestore
@@ -39,19 +40,19 @@ def empty_array_cases() -> list[tuple[str, str, int, object]]:
         never = T['builtin_interfaces/msg/Time'](0, 0)
         cases += [
             (  # what the localize node publishes with an empty map
-                '/localization/match',
+                LOCALIZATION_MATCH,
                 'skynav_msgs/msg/PlaceMatch',
                 t,
                 T['skynav_msgs/msg/PlaceMatch'](header, '', -1, never, float('inf'), False, empty_i4, empty_f8),
             ),
             (
-                '/skyline/sh',
+                SKYLINE_SH,
                 'skynav_msgs/msg/ShCoefficients',
                 t,
                 T['skynav_msgs/msg/ShCoefficients'](header, 0, empty_f8, 'zero', np.float32(3.0)),
             ),
             (
-                '/camera/uv/camera_info',
+                UV_CAMERA_INFO,
                 'sensor_msgs/msg/CameraInfo',
                 t,
                 T['sensor_msgs/msg/CameraInfo'](
@@ -69,7 +70,7 @@ def empty_array_cases() -> list[tuple[str, str, int, object]]:
                 ),
             ),
             (
-                '/camera/uv/image_raw',
+                UV_IMAGE,
                 'sensor_msgs/msg/Image',
                 t,
                 T['sensor_msgs/msg/Image'](header, 0, 0, 'mono8', 0, 0, np.zeros(0, np.uint8)),

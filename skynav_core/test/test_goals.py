@@ -18,10 +18,10 @@ from rclpy.node import Node
 
 from skynav_core import goals
 from skynav_core.cli import CliError
+from skynav_core.names import TEACH_ACTION
 from skynav_core.testing import wait_until
 from skynav_msgs.action import Teach
 
-ACTION = '/skynav/teach'
 TIMEOUT = 30.0  # s for discovery and answers under load
 
 
@@ -72,7 +72,7 @@ class Server:
         self.server = LosingServer(
             self.node,
             Teach,
-            ACTION,
+            TEACH_ACTION,
             execute_callback=self.execute,
             cancel_callback=lambda handle: CancelResponse.ACCEPT,
             callback_group=ReentrantCallbackGroup(),
@@ -120,7 +120,7 @@ def command(ros_context, monkeypatch):
         monkeypatch.setattr(LosingClient, 'lose', set(lose))
         shown = []
         goal = Teach.Goal(map_path='/tmp/never-written.db')
-        outcome = goals.run_goal(node, executor, Teach, ACTION, goal, stop or Stop(), shown.append, timeout)
+        outcome = goals.run_goal(node, executor, Teach, TEACH_ACTION, goal, stop or Stop(), shown.append, timeout)
         return outcome, shown
 
     yield run
@@ -175,9 +175,9 @@ def test_a_stop_while_the_answer_is_lost_cancels_the_goal(ros_context, command):
 def test_a_server_that_never_answers_fails_in_one_line(ros_context, command):
     # a server that is seen but never spins (a node stuck in a callback)
     silent = Node('goal_test_silent_server', context=ros_context)
-    server = ActionServer(silent, Teach, ACTION, execute_callback=lambda handle: Teach.Result())
+    server = ActionServer(silent, Teach, TEACH_ACTION, execute_callback=lambda handle: Teach.Result())
     try:
-        with pytest.raises(CliError, match=f'the {ACTION} server did not answer the goal within 3 s'):
+        with pytest.raises(CliError, match=f'the {TEACH_ACTION} server did not answer the goal within 3 s'):
             command(timeout=3.0)
     finally:
         server.destroy()

@@ -10,6 +10,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 
 from skynav_core.bag import BagError, BagReader, BagWriter, open_bag
 from skynav_core.mcapfile import CHUNK_PERIOD, Salvage, SalvagedChannel, SalvagedMessage
+from skynav_core.names import SKYLINE_SH
 from skynav_core.testing import sample_messages, write_sample_bag
 from skynav_core.typestore import typestore
 
@@ -69,7 +70,7 @@ def test_a_damaged_chunk_is_named_with_its_topics_and_time_range(bag, tmp_path):
     end = (middle.message_end_time - chunks[0].message_start_time) / 1e9
     text = str(info.value)
     assert '\n' not in text and '1 damaged chunk (checksum mismatch)' in text and '--skip-damaged' in text
-    assert f'logged {start:.3f}-{end:.3f} s into the recording' in text and '/skyline/sh' in text
+    assert f'logged {start:.3f}-{end:.3f} s into the recording' in text and SKYLINE_SH in text
 
 
 def test_skip_damaged_reads_the_rest_and_counts_what_it_left_out(bag, tmp_path):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
+from skynav_core.names import CMD_VEL, SKYLINE_SH
 from skynav_core.namespaces import (
     NamespaceError,
     check_namespace,
@@ -30,11 +31,11 @@ def test_a_namespace_ros_cannot_take_is_refused(bad):
 
 
 def test_contract_names_move_into_a_namespace_and_back():
-    assert namespaced('/skyline/sh', 'robot1') == '/robot1/skyline/sh'
-    assert without_namespace('/robot1/skyline/sh', '/robot1') == '/skyline/sh'
+    assert namespaced(SKYLINE_SH, 'robot1') == '/robot1/skyline/sh'
+    assert without_namespace('/robot1/skyline/sh', '/robot1') == SKYLINE_SH
     assert without_namespace('/robot2/skyline/sh', '/robot1') is None
     assert without_namespace('/robot10/skyline/sh', '/robot1') is None  # a prefix of a name is not its namespace
-    assert without_namespace('/skyline/sh', '') == '/skyline/sh'
+    assert without_namespace(SKYLINE_SH, '') == SKYLINE_SH
 
 
 def test_a_graph_in_a_namespace_has_its_own_clock_and_static_transforms():
@@ -52,7 +53,7 @@ def test_a_graph_in_a_namespace_has_its_own_clock_and_static_transforms():
 def test_a_remapping_names_the_contracts_topic_within_the_namespace():
     assert remap_arguments('', ['/cmd_vel:=/base/cmd_vel']) == ['-r', 'cmd_vel:=/base/cmd_vel']
     assert remap_arguments('r1', ['/cmd_vel:=wheels'])[-2:] == ['-r', 'cmd_vel:=wheels']
-    for bad in ('/cmd_vel', '/cmd_vel:=', ':=/x', '/cmd vel:=/x'):
+    for bad in (CMD_VEL, '/cmd_vel:=', ':=/x', '/cmd vel:=/x'):
         with pytest.raises(NamespaceError):
             remap_arguments('', [bad])
 

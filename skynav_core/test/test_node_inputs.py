@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapStore
+from skynav_core.names import VIZ_CONFIDENCE
 from skynav_core.sh_input import SH_REJECTIONS, usable_coefficients
 from skynav_core.snapshots import SNAPSHOT_REJECTIONS, SnapshotChoice
 
@@ -120,13 +121,13 @@ def test_an_output_is_watched_only_while_something_takes_it(ros_context):
     from skynav_core.node import SkynavNode
 
     node = SkynavNode('watched_test', context=ros_context)
-    node.output('/skynav/viz/confidence', Float64)
-    assert not node.watched('/skynav/viz/confidence')
+    node.output(VIZ_CONFIDENCE, Float64)
+    assert not node.watched(VIZ_CONFIDENCE)
     viewer = Node('viewer', context=ros_context)
-    viewer.create_subscription(Float64, '/skynav/viz/confidence', lambda _: None, 10)
+    viewer.create_subscription(Float64, VIZ_CONFIDENCE, lambda _: None, 10)
     deadline = time.monotonic() + 10
-    while not node.watched('/skynav/viz/confidence') and time.monotonic() < deadline:
+    while not node.watched(VIZ_CONFIDENCE) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert node.watched('/skynav/viz/confidence')
+    assert node.watched(VIZ_CONFIDENCE)
     viewer.destroy_node()
     node.destroy_node()

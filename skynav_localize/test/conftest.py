@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from skynav_core.names import GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, UV_CAMERA_INFO, UV_IMAGE
 from skynav_sh.basis import degree_order, n_coefficients
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
@@ -55,19 +56,17 @@ def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
 
     masks, uv, poses, info = {}, {}, {}, None
     with open_bag(BAGS / name) as bag:
-        for raw in bag.messages(
-            ['/ground_truth/mask', '/camera/uv/image_raw', '/ground_truth/pose', '/camera/uv/camera_info']
-        ):
+        for raw in bag.messages([GROUND_TRUTH_MASK, UV_IMAGE, GROUND_TRUTH_POSE, UV_CAMERA_INFO]):
             msg = bag.deserialize(raw)
             stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-            if raw.topic == '/camera/uv/camera_info':
+            if raw.topic == UV_CAMERA_INFO:
                 info = msg
-            elif raw.topic == '/ground_truth/pose':
+            elif raw.topic == GROUND_TRUTH_POSE:
                 p, q = msg.pose.position, msg.pose.orientation
                 poses[stamp] = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
             else:
                 image = np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.width)
-                (masks if raw.topic == '/ground_truth/mask' else uv)[stamp] = image
+                (masks if raw.topic == GROUND_TRUTH_MASK else uv)[stamp] = image
     camera = EquidistantCamera.from_camera_info(info)
     transform = FisheyeTransform(camera, degree, fill='zero')
     stamps = np.array(sorted(masks), dtype=np.int64)

@@ -12,6 +12,7 @@ from rclpy.serialization import serialize_message
 from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.maps import MapStore
+from skynav_core.names import LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.testing import run_skynav
 from skynav_core.views import recording_views
@@ -31,8 +32,8 @@ def feed(graph, views, start=0):
         message = ShCoefficients(max_degree=view.max_degree, coefficients=view.coefficients.tolist(), fill='zero')
         stamp = start + k * 10**8
         message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
-        graph.feed(RawMessage('/skyline/sh', type_name(message), stamp, serialize_message(message)))
-    return [o.message for o in graph.outputs[before:] if o.topic == '/localization/match']
+        graph.feed(RawMessage(SKYLINE_SH, type_name(message), stamp, serialize_message(message)))
+    return [o.message for o in graph.outputs[before:] if o.topic == LOCALIZATION_MATCH]
 
 
 def test_on_route_views_are_accepted_and_off_route_views_are_not(garden_map):

@@ -15,12 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.maps import MapStore
+from skynav_core.names import GREEN_IMAGE, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.testing import claim_domain_id, one_line_error, run_skynav, running, start_skynav, wait_text
 from skynav_localize.cli.eval import positions_at
 
 BAGS = Path(__file__).parents[2] / 'bags'
 TEACH = BAGS / 'synthetic_garden_teach.mcap'
-CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)
 
 
 def replay(bag, rate):

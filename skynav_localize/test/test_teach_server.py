@@ -20,6 +20,7 @@ from rclpy.parameter import Parameter
 from skynav_core.actions import error_name
 from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
+from skynav_core.names import CLOCK, CMD_VEL, LOCALIZATION_MATCH, ODOM, SKYLINE_SH, TEACH_ACTION
 from skynav_core.testing import CanceledGoalHandle, on_executor_thread, run_without_waiting, wait_until
 
 TIMEOUT = 30.0  # s for discovery and results under load
@@ -51,11 +52,11 @@ class Operator:
 
         self.node = Node('operator', context=context)
         self.views = self.node.create_publisher(
-            ShCoefficients, '/skyline/sh', QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+            ShCoefficients, SKYLINE_SH, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         )
-        self.odometry = self.node.create_publisher(Odometry, '/odom', 100)
-        self.commands = self.node.create_publisher(TwistStamped, '/cmd_vel', 100)
-        self.client = ActionClient(self.node, Teach, '/skynav/teach')
+        self.odometry = self.node.create_publisher(Odometry, ODOM, 100)
+        self.commands = self.node.create_publisher(TwistStamped, CMD_VEL, 100)
+        self.client = ActionClient(self.node, Teach, TEACH_ACTION)
         self.feedback = []
         self.executor, self.thread = spin_in_thread(self.node, context)
         assert self.client.wait_for_server(timeout_sec=TIMEOUT)
@@ -155,7 +156,7 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     handle = operator.send(map_path=str(path), spacing=0.3)
     operator.drive(drive, range(len(drive.stamps)))
     wait_until(lambda: nodes['localize'].last_stamp == drive.stamps[-1], 'the last view taken')
-    assert nodes['localize'].received['/skyline/sh'] == len(drive.stamps)
+    assert nodes['localize'].received[SKYLINE_SH] == len(drive.stamps)
     status, result = operator.cancel(handle)
     assert status == GoalStatus.STATUS_CANCELED and error_name(result) == 'NONE'
     travelled = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(drive.poses[:, :3], axis=0), axis=1))])
@@ -177,8 +178,8 @@ def test_a_canceled_teach_leaves_a_map_every_node_uses_at_once(graph, garden, tm
     assert all(len(nodes[name].snapshots.store) == result.snapshots for name in ('compass', 'warping'))
     # localization runs on the new map from the next view on
     matches = []
-    operator.node.create_subscription(PlaceMatch, '/localization/match', matches.append, 10)
-    wait_until(lambda: operator.node.count_publishers('/localization/match') >= 1, 'the match publisher')
+    operator.node.create_subscription(PlaceMatch, LOCALIZATION_MATCH, matches.append, 10)
+    wait_until(lambda: operator.node.count_publishers(LOCALIZATION_MATCH) >= 1, 'the match publisher')
     time.sleep(0.5)  # the new subscription is matched on both sides
     operator.drive(drive, [40], odometry=False, shift=10**10)  # on a second drive, 10 s later
     wait_until(lambda: matches, 'a match')
@@ -320,7 +321,7 @@ def test_a_goal_sent_before_the_first_clock_teaches_and_jumps_fire_no_timeout(ro
     node.set_parameters([Parameter('use_sim_time', value=True), Parameter('teach_input_timeout', value=1.0)])
     executor, thread = spin_in_thread(node, ros_context)
     operator = Operator(ros_context)
-    clock = operator.node.create_publisher(Clock, '/clock', 10)
+    clock = operator.node.create_publisher(Clock, CLOCK, 10)
 
     def tick(stamp: int) -> None:
         message = Clock()

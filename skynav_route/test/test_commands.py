@@ -15,6 +15,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from skynav_core.maps import Snapshot
+from skynav_core.names import CMD_VEL
 from skynav_core.testing import one_line_error, run_skynav, start_skynav
 from skynav_localize.mapping import build_map
 
@@ -48,7 +49,7 @@ def listener(ros_context):
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     commands = []
-    node.create_subscription(TwistStamped, '/cmd_vel', commands.append, 10)
+    node.create_subscription(TwistStamped, CMD_VEL, commands.append, 10)
     yield node, executor, commands
     executor.shutdown()
     node.destroy_node()
@@ -81,7 +82,7 @@ def test_follow_without_camera_frames_is_stopped_by_the_watchdog(route_map, list
     node, executor, commands = listener
     route = start_route_node(route_map, 'input_timeout:=1.0')
     try:
-        spin_while(executor, lambda: node.count_publishers('/cmd_vel') == 0, 60)
+        spin_while(executor, lambda: node.count_publishers(CMD_VEL) == 0, 60)
         follow = start_skynav('follow', '--wait', '60')
         spin_while(executor, lambda: follow.poll() is None, 90)
         out, err = follow.communicate(timeout=30)
@@ -99,7 +100,7 @@ def test_ctrl_c_cancels_and_the_robot_stops_and_shutdown_stops_it_too(route_map,
     node, executor, commands = listener
     route = start_route_node(route_map, 'input_timeout:=1000.0')
     try:
-        spin_while(executor, lambda: node.count_publishers('/cmd_vel') == 0, 60)
+        spin_while(executor, lambda: node.count_publishers(CMD_VEL) == 0, 60)
         follow = start_skynav('follow', '--wait', '60')
         deadline = time.monotonic() + 60
         line = ''

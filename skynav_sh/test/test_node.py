@@ -10,6 +10,7 @@ from skynav_core.bag import RawMessage
 from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import fill_image
+from skynav_core.names import COLOUR_CAMERA_INFO, SKYLINE_MASK, SKYLINE_SH, UV_CAMERA_INFO
 from skynav_core.nodes import NodeSpec
 from skynav_sh.fisheye import FisheyeTransform
 
@@ -43,9 +44,9 @@ def test_mask_in_library_coefficients_out():
     mask = np.where((u > 30) | (v > 50), 255, 0).astype(np.uint8) * CAMERA.image_circle()
     with in_process([SPEC], ['-p', 'max_degree:=8', '-p', 'fill:=mean']) as graph:
         graph.keep_outputs = True
-        graph.feed(raw('/skyline/mask', mask_message(mask), T0))  # waits for the camera
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        outputs = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
+        graph.feed(raw(SKYLINE_MASK, mask_message(mask), T0))  # waits for the camera
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        outputs = [o.message for o in graph.outputs if o.topic == SKYLINE_SH]
     assert len(outputs) == 1
     message = outputs[0]
     expected = FisheyeTransform(CAMERA, 8, 'mean').coefficients(mask)
@@ -60,10 +61,10 @@ def test_bad_masks_are_rejected_and_counted():
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        graph.feed(raw('/skyline/mask', mask_message(np.zeros((72, 96), np.uint16), 'mono16'), T0))
-        graph.feed(raw('/skyline/mask', mask_message(np.zeros((36, 48), np.uint8)), T0 + 1))
-        assert not [o for o in graph.outputs if o.topic == '/skyline/sh']
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(SKYLINE_MASK, mask_message(np.zeros((72, 96), np.uint16), 'mono16'), T0))
+        graph.feed(raw(SKYLINE_MASK, mask_message(np.zeros((36, 48), np.uint8)), T0 + 1))
+        assert not [o for o in graph.outputs if o.topic == SKYLINE_SH]
         assert node.rejected == {'encoding': 1, 'camera_info_mismatch': 1} and node.errors == 0
 
 
@@ -76,10 +77,10 @@ def test_the_colour_cameras_masks_take_its_own_geometry():
     with in_process([SPEC], ['-p', 'max_degree:=6']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))  # the UV/green pair's, another size
-        graph.feed(raw('/camera/camera_info', CameraInfo(**colour.camera_info_fields()), T0))
-        graph.feed(raw('/skyline/mask', mask_message(mask), T0))
-        (message,) = [o.message for o in graph.outputs if o.topic == '/skyline/sh']
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))  # the UV/green pair's, another size
+        graph.feed(raw(COLOUR_CAMERA_INFO, CameraInfo(**colour.camera_info_fields()), T0))
+        graph.feed(raw(SKYLINE_MASK, mask_message(mask), T0))
+        (message,) = [o.message for o in graph.outputs if o.topic == SKYLINE_SH]
     expected = FisheyeTransform(colour, 6, 'zero').coefficients(mask)
     assert np.allclose(message.coefficients, expected, rtol=0, atol=1e-12)
     assert message.field_of_view == np.float32(colour.field_of_view) and sum(node.rejected.values()) == 0

@@ -19,6 +19,7 @@ from skynav_core.colour import (
     decode_image,
     linear_to_srgb,
 )
+from skynav_core.names import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE
 from skynav_core.testing import run_skynav
 from skynav_core.typestore import typestore
 from skynav_sim import recording
@@ -230,10 +231,10 @@ def test_a_compressed_colour_recording_has_the_contract_topics_and_says_what_cam
     path = _colour_bag(tmp_path, 'colour.mcap', '--camera', 'colour-compressed', '--jpeg-quality', '80')
     with open_bag(path) as bag:
         assert {t: bag.topics[t].msgtype for t in bag.topics} == {
-            '/camera/image_raw/compressed': 'sensor_msgs/msg/CompressedImage',
-            '/camera/camera_info': 'sensor_msgs/msg/CameraInfo',
-            '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
-            '/ground_truth/mask': 'sensor_msgs/msg/Image',
+            COLOUR_COMPRESSED: 'sensor_msgs/msg/CompressedImage',
+            COLOUR_CAMERA_INFO: 'sensor_msgs/msg/CameraInfo',
+            GROUND_TRUTH_POSE: 'geometry_msgs/msg/PoseStamped',
+            GROUND_TRUTH_MASK: 'sensor_msgs/msg/Image',
         }
         described = yaml.safe_load(bag.custom_data['skynav_sim'])
         messages: dict[str, list] = {}
@@ -249,8 +250,8 @@ def test_a_compressed_colour_recording_has_the_contract_topics_and_says_what_cam
         'jpeg_quality': 80,
     }
     stamps = {t: [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in ms] for t, ms in messages.items()}
-    assert all(s == stamps['/camera/camera_info'] for s in stamps.values()) and len(stamps['/camera/camera_info']) == 10
-    frame, info = messages['/camera/image_raw/compressed'][0], messages['/camera/camera_info'][0]
+    assert all(s == stamps[COLOUR_CAMERA_INFO] for s in stamps.values()) and len(stamps[COLOUR_CAMERA_INFO]) == 10
+    frame, info = messages[COLOUR_COMPRESSED][0], messages[COLOUR_CAMERA_INFO][0]
     assert frame.format == 'rgb8; jpeg compressed bgr8' and frame.header.frame_id == 'camera_link'
     assert decode_compressed(frame).shape == (info.height, info.width, 3) == (72, 96, 3)
 
@@ -259,13 +260,13 @@ def test_a_raw_colour_recording_carries_its_encoding(tmp_path):
     path = _colour_bag(tmp_path, 'bayer.mcap', '--camera', 'colour', '--encoding', 'bayer_gbrg16')
     with open_bag(path) as bag:
         assert set(bag.topics) == {
-            '/camera/image_raw',
-            '/camera/camera_info',
-            '/ground_truth/pose',
-            '/ground_truth/mask',
+            COLOUR_IMAGE,
+            COLOUR_CAMERA_INFO,
+            GROUND_TRUTH_POSE,
+            GROUND_TRUTH_MASK,
         }
         described = yaml.safe_load(bag.custom_data['skynav_sim'])['camera']
-        frame = bag.deserialize(next(bag.messages(['/camera/image_raw'])))
+        frame = bag.deserialize(next(bag.messages([COLOUR_IMAGE])))
     assert (described['kind'], described['encoding']) == ('colour', 'bayer_gbrg16')
     assert (frame.encoding, frame.width, frame.height, frame.step) == ('bayer_gbrg16', 96, 72, 192)
     assert decode_image(frame).shape == (72, 96, 3)
@@ -332,8 +333,8 @@ def test_the_uv_green_camera_is_unchanged():
 
 def test_camera_outputs_name_their_topics():
     assert set(CameraOutput().topics) == set(recording.TOPICS)
-    assert set(CameraOutput('colour', 'bgr8').image_topics) == {'/camera/image_raw', '/camera/camera_info'}
-    assert CameraOutput('colour-compressed', 'rgb16', 'png').info_topic == '/camera/camera_info'
+    assert set(CameraOutput('colour', 'bgr8').image_topics) == {COLOUR_IMAGE, COLOUR_CAMERA_INFO}
+    assert CameraOutput('colour-compressed', 'rgb16', 'png').info_topic == COLOUR_CAMERA_INFO
 
 
 def test_the_simulated_mower_feeds_its_colour_camera_to_the_graph(tmp_path):

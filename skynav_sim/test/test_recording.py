@@ -9,6 +9,7 @@ from scipy.ndimage import binary_erosion
 
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera, angles_from_directions
+from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE
 from skynav_sim.render import Renderer
@@ -45,11 +46,11 @@ def test_recording_has_the_contract_topics(tmp_path):
     path = _bag(tmp_path, 'contract.mcap', '--encoding', 'mono8')
     with open_bag(path) as bag:
         assert set(bag.topics) == {
-            '/camera/uv/image_raw',
-            '/camera/green/image_raw',
-            '/camera/uv/camera_info',
-            '/ground_truth/pose',
-            '/ground_truth/mask',
+            UV_IMAGE,
+            GREEN_IMAGE,
+            UV_CAMERA_INFO,
+            GROUND_TRUTH_POSE,
+            GROUND_TRUTH_MASK,
         }
         per_topic: dict[str, list] = {}
         for message in bag.messages():
@@ -57,17 +58,17 @@ def test_recording_has_the_contract_topics(tmp_path):
             per_topic.setdefault(message.topic, []).append(data)
         assert bag.custom_data['skynav_sim'].count('label: route') == 10
     stamps = {t: [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in ms] for t, ms in per_topic.items()}
-    reference = stamps['/camera/uv/image_raw']
+    reference = stamps[UV_IMAGE]
     assert len(reference) == 10 and np.all(np.diff(reference) == 100_000_000)  # 10 Hz, strictly increasing
     assert all(s == reference for s in stamps.values())
     uv, mask, info = (
-        per_topic['/camera/uv/image_raw'][0],
-        per_topic['/ground_truth/mask'][0],
-        per_topic['/camera/uv/camera_info'][0],
+        per_topic[UV_IMAGE][0],
+        per_topic[GROUND_TRUTH_MASK][0],
+        per_topic[UV_CAMERA_INFO][0],
     )
     assert (uv.encoding, uv.width, uv.height, uv.step) == ('mono8', 96, 72, 96)
     assert mask.encoding == 'mono8' and set(np.unique(mask.data)) <= {0, 255}
-    assert uv.header.frame_id == 'camera_link' and per_topic['/ground_truth/pose'][0].header.frame_id == 'map'
+    assert uv.header.frame_id == 'camera_link' and per_topic[GROUND_TRUTH_POSE][0].header.frame_id == 'map'
     camera = EquidistantCamera.from_camera_info(info)
     assert camera.field_of_view == pytest.approx(np.radians(200), abs=1e-9)
 

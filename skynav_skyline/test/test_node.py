@@ -11,6 +11,7 @@ from skynav_core.bag import RawMessage
 from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process
 from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.names import GREEN_IMAGE, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.nodes import NodeSpec
 
 SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
@@ -52,7 +53,7 @@ def scene():
 
 
 def masks_of(graph):
-    return [o for o in graph.outputs if o.topic == '/skyline/mask']
+    return [o for o in graph.outputs if o.topic == SKYLINE_MASK]
 
 
 def test_frames_wait_for_camera_info_and_pair_by_stamp(scene):
@@ -61,12 +62,12 @@ def test_frames_wait_for_camera_info_and_pair_by_stamp(scene):
         graph.keep_outputs = True
         node = graph.nodes[0]
         # Two exposures before any camera info, the green of the second first; then the camera info.
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8))
+        graph.feed(raw(UV_IMAGE, image(uv), T0))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0 + 10**8))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 + 10**8))
         assert masks_of(graph) == []
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0 + 10**8))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0 + 10**8))
         stamps = [stamp_ns(o.message.header) for o in masks_of(graph)]
         assert stamps == [T0, T0 + 10**8]
         mask = image_to_array(masks_of(graph)[0].message)
@@ -80,14 +81,14 @@ def test_out_of_order_and_mismatched_inputs_are_rejected(scene):
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 - 10**8))  # older than the last mask
-        graph.feed(raw('/camera/uv/image_raw', image(uv[:, :32]), T0 + 10**8))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))  # differs in size from its UV
-        graph.feed(raw('/camera/uv/image_raw', image(uv[:24]), T0 + 2 * 10**8))
-        graph.feed(raw('/camera/green/image_raw', image(green[:24]), T0 + 2 * 10**8))  # not the camera's size
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(UV_IMAGE, image(uv), T0))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 - 10**8))  # older than the last mask
+        graph.feed(raw(UV_IMAGE, image(uv[:, :32]), T0 + 10**8))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0 + 10**8))  # differs in size from its UV
+        graph.feed(raw(UV_IMAGE, image(uv[:24]), T0 + 2 * 10**8))
+        graph.feed(raw(GREEN_IMAGE, image(green[:24]), T0 + 2 * 10**8))  # not the camera's size
         assert len(masks_of(graph)) == 1
         assert node.rejected == {'out_of_order': 1, 'size_mismatch': 1, 'camera_info_mismatch': 1}
 
@@ -95,8 +96,8 @@ def test_out_of_order_and_mismatched_inputs_are_rejected(scene):
 def exposure(graph, uv, green, stamp):
     """Feed the UV and green frames of one exposure stamped `stamp` (ns); return the masks it gave."""
     before = len(masks_of(graph))
-    graph.feed(raw('/camera/uv/image_raw', image(uv), stamp))
-    graph.feed(raw('/camera/green/image_raw', image(green), stamp))
+    graph.feed(raw(UV_IMAGE, image(uv), stamp))
+    graph.feed(raw(GREEN_IMAGE, image(green), stamp))
     return masks_of(graph)[before:]
 
 
@@ -106,7 +107,7 @@ def test_one_exposure_stamped_a_day_ahead_poisons_no_later_one(scene):
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
         stamps = [T0, T0 + 10**8, T0 + 2 * 10**8 + day, T0 + 3 * 10**8, T0 + 4 * 10**8]
         got = [stamp_ns(m.message.header) for t in stamps for m in exposure(graph, uv, green, t)]
         assert got == stamps  # the stray exposure is taken, and so is every one after it
@@ -125,7 +126,7 @@ def test_a_recording_played_again_gives_its_masks_again(scene):
         graph.keep_outputs = True
         node = graph.nodes[0]
         for _ in range(3):
-            graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+            graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
             for stamp in stamps:
                 exposure(graph, uv, green, stamp)
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == stamps * 3
@@ -137,7 +138,7 @@ def test_a_small_jump_parameter_restarts_time_on_a_reordering(scene):
     with in_process([SPEC], ['-p', 'max_stamp_jump_s:=0.05']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
         exposure(graph, uv, green, T0)
         assert len(exposure(graph, uv, green, T0 - 10**8)) == 1
         assert node.time_resets == 1 and sum(node.rejected.values()) == 0
@@ -158,9 +159,9 @@ def test_frames_lost_waiting_are_counted_as_dropped(scene):
         graph.keep_outputs = True
         node = graph.nodes[0]
         # a UV frame whose green never comes, then a frame far later: the waiting UV frame is dropped
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
         exposure(graph, uv, green, T0)
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 + 10**8))
         exposure(graph, uv, green, T0 + 100 * 10**8)
         assert node.dropped == {'unpaired': 1} and node.time_resets == 1
     with in_process([SPEC]) as graph:
@@ -168,7 +169,7 @@ def test_frames_lost_waiting_are_counted_as_dropped(scene):
         # exposures with no camera info: held, then dropped when they have waited too long
         for k in range(3):
             exposure(graph, uv, green, T0 + k * 10**8)
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10 * 10**9))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 + 10 * 10**9))
         graph.publish_diagnostics()
         assert node.dropped == {'no_camera_info': 3}
         values = {kv.key: kv.value for kv in node.diagnostic_status().values}
@@ -179,8 +180,8 @@ def test_uv_only_does_not_wait_for_green(scene):
     uv, _ = scene
     with in_process([SPEC], ['-p', 'channels:=uv']) as graph:
         graph.keep_outputs = True
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(UV_IMAGE, image(uv), T0))
         assert len(masks_of(graph)) == 1
 
 
@@ -217,14 +218,14 @@ def test_frames_of_one_exposure_pair_within_the_tolerance_of_their_stamps(scene)
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0 + ms // 2))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 10**8))
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 10**8 + 19 * ms // 10))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(UV_IMAGE, image(uv), T0))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0 + ms // 2))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0 + 10**8))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 + 10**8 + 19 * ms // 10))
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0, T0 + 10**8]
-        graph.feed(raw('/camera/uv/image_raw', image(uv), T0 + 2 * 10**8))
-        graph.feed(raw('/camera/green/image_raw', image(green), T0 + 2 * 10**8 + 5 * ms // 2))
+        graph.feed(raw(UV_IMAGE, image(uv), T0 + 2 * 10**8))
+        graph.feed(raw(GREEN_IMAGE, image(green), T0 + 2 * 10**8 + 5 * ms // 2))
         assert len(masks_of(graph)) == 2
         assert sum(node.rejected.values()) == 0 and node.errors == 0
 
@@ -250,8 +251,8 @@ def test_an_overexposed_or_underexposed_frame_gets_no_mask_and_is_counted():
         """Feed the frame with its raw values times `gain`, clipped to the encoding's range; return its masks."""
         before = len(masks_of(graph))
         for topic, pixels, encoding in (
-            ('/camera/uv/image_raw', frame.uv, frame.encoding[0]),
-            ('/camera/green/image_raw', frame.green, frame.encoding[1]),
+            (UV_IMAGE, frame.uv, frame.encoding[0]),
+            (GREEN_IMAGE, frame.green, frame.encoding[1]),
         ):
             scaled = np.clip(np.rint(pixels.astype(float) * gain), 0, full[encoding]).astype(pixels.dtype)
             graph.feed(raw(topic, image(scaled, encoding), stamp))
@@ -260,7 +261,7 @@ def test_an_overexposed_or_underexposed_frame_gets_no_mask_and_is_counted():
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', info, T0))
+        graph.feed(raw(UV_CAMERA_INFO, info, T0))
         assert len(exposure(1.0, T0)) == 1
         assert exposure(20.0, T0 + 10**8) == [] and node.rejected == {'overexposed': 1}
         assert exposure(1 / 40, T0 + 2 * 10**8) == [] and node.rejected == {'overexposed': 1, 'underexposed': 1}

@@ -13,6 +13,15 @@ from skynav_core.camera import EquidistantCamera
 from skynav_core.colour import compress, linear_to_srgb8, mosaic
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.names import (
+    COLOUR_CAMERA_INFO,
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    GREEN_IMAGE,
+    SKYLINE_MASK,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.nodes import NodeSpec
 
 SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
@@ -50,21 +59,21 @@ def frames(rgb):
     srgb = linear_to_srgb8(rgb)
     rgb16 = np.rint(rgb * 65535).astype(np.uint16)
     out = {
-        'rgb8': ('/camera/image_raw', fill_image(Image(), srgb, 'rgb8')),
-        'bgr8': ('/camera/image_raw', fill_image(Image(), srgb[..., ::-1], 'bgr8')),
-        'rgb16': ('/camera/image_raw', fill_image(Image(), rgb16, 'rgb16')),
-        'bayer_rggb8': ('/camera/image_raw', fill_image(Image(), mosaic(srgb, 'rggb'), 'bayer_rggb8')),
-        'bayer_gbrg16': ('/camera/image_raw', fill_image(Image(), mosaic(rgb16, 'gbrg'), 'bayer_gbrg16')),
+        'rgb8': (COLOUR_IMAGE, fill_image(Image(), srgb, 'rgb8')),
+        'bgr8': (COLOUR_IMAGE, fill_image(Image(), srgb[..., ::-1], 'bgr8')),
+        'rgb16': (COLOUR_IMAGE, fill_image(Image(), rgb16, 'rgb16')),
+        'bayer_rggb8': (COLOUR_IMAGE, fill_image(Image(), mosaic(srgb, 'rggb'), 'bayer_rggb8')),
+        'bayer_gbrg16': (COLOUR_IMAGE, fill_image(Image(), mosaic(rgb16, 'gbrg'), 'bayer_gbrg16')),
     }
     for codec in ('jpeg', 'png'):
         message = CompressedImage()
         message.format, message.data = compress(srgb, codec)
-        out[codec] = ('/camera/image_raw/compressed', message)
+        out[codec] = (COLOUR_COMPRESSED, message)
     return out
 
 
 def masks_of(graph):
-    return [o for o in graph.outputs if o.topic == '/skyline/mask']
+    return [o for o in graph.outputs if o.topic == SKYLINE_MASK]
 
 
 def expected_mask():
@@ -80,7 +89,7 @@ def test_every_colour_encoding_gives_a_mask_of_the_input_size(scene, encoding, m
     with in_process([SPEC], ['-p', f'colour_method:={method}']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/camera_info', camera_info(), T0))
+        graph.feed(raw(COLOUR_CAMERA_INFO, camera_info(), T0))
         graph.feed(raw(topic, message, T0))
         (mask,) = masks_of(graph)
         assert stamp_ns(mask.message.header) == T0
@@ -103,11 +112,11 @@ def test_frames_that_cannot_be_decoded_are_counted_and_the_node_goes_on(scene):
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/image_raw/compressed', truncated, T0))
-        graph.feed(raw('/camera/image_raw/compressed', unknown, T0 + 1))
-        graph.feed(raw('/camera/image_raw', wrong_step, T0 + 2))
-        graph.feed(raw('/camera/image_raw', mono, T0 + 3))
+        graph.feed(raw(COLOUR_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(COLOUR_COMPRESSED, truncated, T0))
+        graph.feed(raw(COLOUR_COMPRESSED, unknown, T0 + 1))
+        graph.feed(raw(COLOUR_IMAGE, wrong_step, T0 + 2))
+        graph.feed(raw(COLOUR_IMAGE, mono, T0 + 3))
         assert masks_of(graph) == []
         assert node.rejected == {'decode': 1, 'format': 1, 'malformed': 1, 'encoding': 1}
         graph.feed(raw(*good['jpeg'], T0 + 4))  # and the next good frame is segmented
@@ -122,12 +131,12 @@ def test_auto_takes_the_first_source_and_drops_the_others(scene):
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/uv/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/image_raw', fill_image(Image(), srgb, 'rgb8'), T0))
-        graph.feed(raw('/camera/uv/image_raw', uv, T0 + 10**8))
-        graph.feed(raw('/camera/green/image_raw', green, T0 + 10**8))
-        graph.feed(raw('/camera/image_raw', fill_image(Image(), srgb, 'rgb8'), T0 + 2 * 10**8))
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(COLOUR_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(COLOUR_IMAGE, fill_image(Image(), srgb, 'rgb8'), T0))
+        graph.feed(raw(UV_IMAGE, uv, T0 + 10**8))
+        graph.feed(raw(GREEN_IMAGE, green, T0 + 10**8))
+        graph.feed(raw(COLOUR_IMAGE, fill_image(Image(), srgb, 'rgb8'), T0 + 2 * 10**8))
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0, T0 + 2 * 10**8]
         assert node.dropped == {'other_camera': 2} and sum(node.rejected.values()) == 0
 
@@ -137,8 +146,8 @@ def test_a_fixed_camera_takes_only_its_source(scene):
     with in_process([SPEC], ['-p', 'camera:=colour-compressed']) as graph:
         graph.keep_outputs = True
         node = graph.nodes[0]
-        graph.feed(raw('/camera/camera_info', camera_info(), T0))
-        graph.feed(raw('/camera/image_raw', fill_image(Image(), srgb, 'rgb8'), T0))
+        graph.feed(raw(COLOUR_CAMERA_INFO, camera_info(), T0))
+        graph.feed(raw(COLOUR_IMAGE, fill_image(Image(), srgb, 'rgb8'), T0))
         graph.feed(raw(*frames(scene)['jpeg'], T0 + 10**8))
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0 + 10**8]
         assert node.dropped == {'other_camera': 1}
@@ -150,10 +159,10 @@ def test_colour_frames_wait_for_their_own_camera_info(scene):
     other = EquidistantCamera.for_field_of_view(64, 48, math.radians(200))
     with in_process([SPEC]) as graph:
         graph.keep_outputs = True
-        graph.feed(raw('/camera/uv/camera_info', camera_info(other), T0))  # the UV/green pair's, another size
+        graph.feed(raw(UV_CAMERA_INFO, camera_info(other), T0))  # the UV/green pair's, another size
         graph.feed(raw(*frames(scene)['rgb8'], T0))
         assert masks_of(graph) == []  # held: the colour camera's geometry has not come
-        graph.feed(raw('/camera/camera_info', camera_info(), T0))
+        graph.feed(raw(COLOUR_CAMERA_INFO, camera_info(), T0))
         assert [stamp_ns(m.message.header) for m in masks_of(graph)] == [T0]
 
 

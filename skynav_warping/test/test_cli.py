@@ -21,6 +21,7 @@ import pytest
 
 from skynav_bringup.cli import main
 from skynav_core.maps import MapStore, Snapshot
+from skynav_core.names import GROUND_TRUTH_POSE
 from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_core.views import recording_views
 from skynav_warping.cli import eval as eval_cli
@@ -162,7 +163,7 @@ def _write_pose_only_bag(path: Path) -> None:
 
     with BagWriter(path) as writer:
         for topic, msgtype, t, message in sample_messages(frames=2):
-            if topic == '/ground_truth/pose':
+            if topic == GROUND_TRUTH_POSE:
                 writer.add_topic(topic, msgtype)
                 writer.write(topic, t, typestore().serialize_cdr(message, msgtype))
 

@@ -27,6 +27,7 @@ from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
+from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.rotations import as_matrix
 from skynav_core.views import recording_views
@@ -38,8 +39,6 @@ from skynav_warping.homing import estimate_home_vector
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_park_homing.mcap'
 WARPING = NodeSpec('warping', 'skynav_warping', 'skynav_warping.node:WarpingNode')
 COMPASS = NodeSpec('compass', 'skynav_compass', 'skynav_compass.node:CompassNode')
-HOME_TOPIC = '/homing/home_vector'
-COMPASS_TOPIC = '/compass/orientation'
 NO_COMPASS = ['-p', 'use_compass:=false']
 
 
@@ -106,7 +105,7 @@ def place_match(index, accepted, stamp):
     return message
 
 
-def deliver(graph, topic, message, outputs=HOME_TOPIC):
+def deliver(graph, topic, message, outputs=HOME_VECTOR):
     """Feed one message to the graph as a recording would; return what it caused on `outputs`."""
     before = len(graph.outputs)
     graph.feed(RawMessage(topic, type_name(message), stamp_ns(message.header), serialize_message(message)))
@@ -115,7 +114,7 @@ def deliver(graph, topic, message, outputs=HOME_TOPIC):
 
 def feed(graph, message):
     """Feed one view on /skyline/sh; return the home vectors it caused."""
-    return deliver(graph, '/skyline/sh', message)
+    return deliver(graph, SKYLINE_SH, message)
 
 
 def direction(home_vector):
@@ -193,11 +192,11 @@ def with_compass(recording, home_map):
             feed(graph, sh_message(view, fov))
         return SimpleNamespace(
             starts=starts,
-            estimates=[o.message for o in graph.outputs if o.topic == COMPASS_TOPIC],
-            home_vectors=[o.message for o in graph.outputs if o.topic == HOME_TOPIC],
+            estimates=[o.message for o in graph.outputs if o.topic == COMPASS_ORIENTATION],
+            home_vectors=[o.message for o in graph.outputs if o.topic == HOME_VECTOR],
             maps=[node.get_parameter('map').value for node in graph.nodes],
             use_compass=warping.get_parameter('use_compass').value,
-            estimates_received=warping.received[COMPASS_TOPIC],
+            estimates_received=warping.received[COMPASS_ORIENTATION],
             problems=sum(compass.rejected.values()) + sum(warping.rejected.values()) + compass.errors + warping.errors,
         )
 
@@ -242,8 +241,8 @@ def test_a_view_waits_for_its_compass_estimate(recording, home_map, with_compass
         graph.keep_outputs = True
         node = graph.nodes[0]
         assert feed(graph, sh_message(first, fov)) == []  # waits
-        assert deliver(graph, COMPASS_TOPIC, estimate[second.stamp]) == []  # another stamp: waits too
-        [home] = deliver(graph, COMPASS_TOPIC, estimate[first.stamp])
+        assert deliver(graph, COMPASS_ORIENTATION, estimate[second.stamp]) == []  # another stamp: waits too
+        [home] = deliver(graph, COMPASS_ORIENTATION, estimate[first.stamp])
         assert stamp_ns(home.header) == first.stamp
         [later] = feed(graph, sh_message(second, fov))  # its estimate came first
         assert stamp_ns(later.header) == second.stamp
@@ -294,7 +293,7 @@ def test_only_a_confident_compass_rotation_starts_the_homing(recording, snapshot
             graph.keep_outputs = True
             node = graph.nodes[0]
             assert feed(graph, sh_message(view, fov)) == []  # waits for its estimate
-            [results[confident]] = deliver(graph, COMPASS_TOPIC, compass_estimate(view.stamp, wrong, confident))
+            [results[confident]] = deliver(graph, COMPASS_ORIENTATION, compass_estimate(view.stamp, wrong, confident))
             values = {kv.key: kv.value for kv in node.diagnostic_status().values}
             assert values['compass_not_confident'] == ('0' if confident else '1')
             assert not node.rejected and node.errors == 0
@@ -319,7 +318,7 @@ def test_target_next_aims_lookahead_snapshots_beyond_the_match(recording, route_
             """Feed a place match (if index is given), then the next view; return its home vectors."""
             view = next(views)
             if index is not None:
-                deliver(graph, '/localization/match', place_match(index, accepted, view.stamp - 1))
+                deliver(graph, LOCALIZATION_MATCH, place_match(index, accepted, view.stamp - 1))
             return feed(graph, sh_message(view, fov))
 
         assert home_after() == []
@@ -421,7 +420,7 @@ def test_a_match_beyond_the_map_is_rejected(recording, route_map):
         graph.keep_outputs = True
         node = graph.nodes[0]
         # e.g. the localize node runs with a larger map than this node
-        deliver(graph, '/localization/match', place_match(7, True, view.stamp - 1))
+        deliver(graph, LOCALIZATION_MATCH, place_match(7, True, view.stamp - 1))
         assert feed(graph, sh_message(view, fov)) == []
         assert node.errors == 0 and node.rejected == {'match_beyond_map': 1}
 
