@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_core.environment import apply_ros_environment
-from skynav_core.names import GREEN_IMAGE, UV_IMAGE
+from skynav_core.names import CAMERA_FRAME, GREEN_IMAGE, UV_IMAGE
 from skynav_core.testing import claim_domain_id, start_skynav, wait_text
 
 WIDTH, HEIGHT = 640, 480
@@ -44,7 +44,7 @@ def write_pairs(path: Path, pairs: int) -> list[bytes]:
             writer.add_topic(topic, 'sensor_msgs/msg/Image')
         for i in range(pairs):
             t = 1_763_780_400 * 10**9 + i * FRAME_PERIOD_NS
-            header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9), 'camera_link')
+            header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](t // 10**9, t % 10**9), CAMERA_FRAME)
             for topic in (UV_IMAGE, GREEN_IMAGE):
                 pixels = (scene + rng.normal(0, 300, scene.shape)).clip(0, 65535).astype(np.uint16)
                 image = T['sensor_msgs/msg/Image'](
