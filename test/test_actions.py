@@ -8,6 +8,7 @@ import time
 import pytest
 
 from skynav_core.actions import ERROR_NONE, error_codes, error_name
+from skynav_core.names import TEACH_ACTION
 from skynav_core.testing import on_executor_thread
 
 # The fields of each action exactly as the contract writes them: (goal, result, feedback), name -> rosidl type.
@@ -111,8 +112,8 @@ def test_a_goal_round_trips_through_an_action_server(ros_context):
 
     server_node = Node('teach_server', context=ros_context)
     client_node = Node('teach_client', context=ros_context)
-    server = ActionServer(server_node, teach, '/skynav/teach', execute)
-    client = ActionClient(client_node, teach, '/skynav/teach')
+    server = ActionServer(server_node, teach, TEACH_ACTION, execute)
+    client = ActionClient(client_node, teach, TEACH_ACTION)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(server_node)
     executor.add_node(client_node)

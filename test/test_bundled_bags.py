@@ -12,22 +12,31 @@ from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
+from skynav_core.names import (
+    COLOUR_CAMERA_INFO,
+    COLOUR_COMPRESSED,
+    GREEN_IMAGE,
+    GROUND_TRUTH_MASK,
+    GROUND_TRUTH_POSE,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.testing import run_skynav
 
 BAGS = sorted((Path(__file__).parents[1] / 'bags').glob('*.mcap'))
 INPUT_TOPICS = {
-    '/camera/uv/image_raw': 'sensor_msgs/msg/Image',
-    '/camera/green/image_raw': 'sensor_msgs/msg/Image',
-    '/camera/uv/camera_info': 'sensor_msgs/msg/CameraInfo',
-    '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
-    '/ground_truth/mask': 'sensor_msgs/msg/Image',
+    UV_IMAGE: 'sensor_msgs/msg/Image',
+    GREEN_IMAGE: 'sensor_msgs/msg/Image',
+    UV_CAMERA_INFO: 'sensor_msgs/msg/CameraInfo',
+    GROUND_TRUTH_POSE: 'geometry_msgs/msg/PoseStamped',
+    GROUND_TRUTH_MASK: 'sensor_msgs/msg/Image',
 }
 #: The topics of a recording of one colour camera delivering JPEG (synthetic_garden_colour_repeat.mcap).
 COLOUR_TOPICS = {
-    '/camera/image_raw/compressed': 'sensor_msgs/msg/CompressedImage',
-    '/camera/camera_info': 'sensor_msgs/msg/CameraInfo',
-    '/ground_truth/pose': 'geometry_msgs/msg/PoseStamped',
-    '/ground_truth/mask': 'sensor_msgs/msg/Image',
+    COLOUR_COMPRESSED: 'sensor_msgs/msg/CompressedImage',
+    COLOUR_CAMERA_INFO: 'sensor_msgs/msg/CameraInfo',
+    GROUND_TRUTH_POSE: 'geometry_msgs/msg/PoseStamped',
+    GROUND_TRUTH_MASK: 'sensor_msgs/msg/Image',
 }
 
 
@@ -61,7 +70,7 @@ def test_bundled_bag(path):
                 assert data.encoding in ('mono8', 'mono16', '32FC1') and data.header.frame_id == 'camera_link'
             if message.topic.endswith('compressed'):
                 assert data.format == 'rgb8; jpeg compressed bgr8' and data.header.frame_id == 'camera_link'
-            if message.topic == '/ground_truth/mask':
+            if message.topic == GROUND_TRUTH_MASK:
                 assert data.encoding == 'mono8' and set(np.unique(data.data)) <= {0, 255}
             if message.topic.endswith('camera_info'):
                 camera = EquidistantCamera.from_camera_info(data)
@@ -76,7 +85,7 @@ def test_bundled_bag(path):
     assert next(r for r in records if isinstance(r, Footer)).summary_crc
     for topic, times in stamps.items():
         assert len(times) == frames and np.all(np.diff(times) > 0), topic  # strictly increasing
-        assert times == stamps['/ground_truth/pose'], topic  # one stamp per exposure on every topic
+        assert times == stamps[GROUND_TRUTH_POSE], topic  # one stamp per exposure on every topic
 
 
 def test_skynav_replays_every_bundled_bag():

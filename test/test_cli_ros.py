@@ -9,6 +9,7 @@ import time
 
 import yaml
 
+from skynav_core.names import LOCALIZATION_MATCH, UV_IMAGE
 from skynav_core.testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
 
 
@@ -22,7 +23,7 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
     node = Node('match_source', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    publisher = node.create_publisher(PlaceMatch, '/localization/match', 10)
+    publisher = node.create_publisher(PlaceMatch, LOCALIZATION_MATCH, 10)
     message = PlaceMatch(
         map_name='garden',
         index=42,
@@ -33,7 +34,7 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
     )
     message.header.frame_id = 'camera_link'
     message.snapshot_stamp.sec = 1234
-    echo = start_skynav('echo', '/localization/match', '--once')
+    echo = start_skynav('echo', LOCALIZATION_MATCH, '--once')
     deadline = time.monotonic() + 60
     while echo.poll() is None and time.monotonic() < deadline:
         publisher.publish(message)
@@ -64,7 +65,7 @@ def test_echo_in_a_namespace_prints_that_graphs_topic_only(ros_context):
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
     publishers = {index: node.create_publisher(PlaceMatch, f'/robot{index}/localization/match', 10) for index in (1, 2)}
-    echo = start_skynav('echo', '/localization/match', '--namespace', 'robot2', '--count', '3')
+    echo = start_skynav('echo', LOCALIZATION_MATCH, '--namespace', 'robot2', '--count', '3')
     deadline = time.monotonic() + 60
     while echo.poll() is None and time.monotonic() < deadline:
         for index, publisher in publishers.items():
@@ -157,7 +158,7 @@ def test_replay_waits_for_a_best_effort_subscriber_to_take_the_last_message(tmp_
     bag = tmp_path / 'sample.mcap'
     frames = 5
     write_sample_bag(bag, frames=frames)
-    topic = '/camera/uv/image_raw'
+    topic = UV_IMAGE
     node = Node('last_frame_reader', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)

@@ -18,6 +18,7 @@ import pytest
 
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
+from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH
 from skynav_core.testing import run_skynav, write_featureless_recording
 
 FOV = np.radians(200.0)  # rad: the bundled recordings' fish-eye
@@ -119,7 +120,7 @@ def outputs(path: Path) -> dict[str, list]:
     """Return the messages of every output topic of a `skynav run` recording."""
     found: dict[str, list] = {}
     with open_bag(path) as bag:
-        wanted = [t for t in ('/localization/match', '/compass/orientation', '/homing/home_vector') if t in bag.topics]
+        wanted = [t for t in (LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR) if t in bag.topics]
         for raw in bag.messages(wanted):
             found.setdefault(raw.topic, []).append(bag.deserialize(raw))
     return found
@@ -148,15 +149,15 @@ def test_the_node_graph_over_a_featureless_drive_with_its_own_map(kind, tmp_path
     ran = run_skynav('run', str(bag), '--map', str(tmp_path / 'map.db'), '--out', str(tmp_path / 'run.mcap'))
     assert ran.returncode == 0 and 'Traceback' not in ran.stderr, ran.stderr
     found = outputs(tmp_path / 'run.mcap')
-    matches = found['/localization/match']
+    matches = found[LOCALIZATION_MATCH]
     assert len(matches) == 30 and all(finite_fields(m) for m in matches)
-    for topic in ('/compass/orientation', '/homing/home_vector'):
+    for topic in (COMPASS_ORIENTATION, HOME_VECTOR):
         assert all(finite_fields(m) for m in found.get(topic, []))
     if kind == 'sky':  # the skyline node reads a uniform image as one class: no skyline anywhere
         assert not any(m.accepted for m in matches)
-        assert found.get('/compass/orientation', []) == [] and found.get('/homing/home_vector', []) == []
+        assert found.get(COMPASS_ORIENTATION, []) == [] and found.get(HOME_VECTOR, []) == []
     else:  # a level horizon: a skyline, but one alike everywhere on the drive
-        assert all(0.0 <= h.residual <= 1.0 for h in found.get('/homing/home_vector', []))
+        assert all(0.0 <= h.residual <= 1.0 for h in found.get(HOME_VECTOR, []))
         # and alike at every yaw: whatever the compass estimates, it is not sure of it
-        estimates = found.get('/compass/orientation', [])
+        estimates = found.get(COMPASS_ORIENTATION, [])
         assert estimates and not any(e.confident for e in estimates), [(e.confidence, e.confident) for e in estimates]

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from skynav_core.bag import BagWriter, open_bag
+from skynav_core.names import UV_CAMERA_INFO
 from skynav_core.testing import BAGS, one_line_error, run_skynav
 
 COMPASS = BAGS / 'synthetic_garden_compass.mcap'
@@ -29,7 +30,7 @@ SEEDS = range(30)  # per file kind: 30 zstd-compressed and 30 uncompressed corru
 COMMANDS = [
     ('run', COMPASS, ['run', '{bag}', '--out', '{out}/run.mcap', '--nodes', 'skyline']),
     ('map build', COMPASS, ['map', 'build', '{bag}', '--out', '{out}/built.db']),
-    ('replay', COMPASS, ['replay', '{bag}', '--rate', '0', '--topics', '/camera/uv/camera_info']),
+    ('replay', COMPASS, ['replay', '{bag}', '--rate', '0', '--topics', UV_CAMERA_INFO]),
     (
         'eval localization',
         COMPASS,

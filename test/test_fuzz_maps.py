@@ -40,6 +40,7 @@ from skynav_core import views
 from skynav_core.bag import RawMessage, open_bag
 from skynav_core.graph import in_process, type_name
 from skynav_core.maps import MapError, MapStore, _meta_crc
+from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.testing import one_line_error, run_skynav
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
@@ -57,9 +58,9 @@ FED_VIEWS = 3  # views fed to the nodes per map
 NODE_ARGUMENTS = ['-p', 'reference:=index', '-p', 'target:=index', '-p', 'index:=3']  # snapshot 3, as damaged
 #: What a map decides: the topics of the localize, compass and warping nodes, with their types.
 MAP_TOPICS = {
-    '/localization/match': PlaceMatch,
-    '/compass/orientation': CompassEstimate,
-    '/homing/home_vector': HomeVector,
+    LOCALIZATION_MATCH: PlaceMatch,
+    COMPASS_ORIENTATION: CompassEstimate,
+    HOME_VECTOR: HomeVector,
 }
 QUERY_VIEWS = 8  # views the evaluations query per map
 
@@ -270,7 +271,7 @@ def feed_views(graph, messages: list[ShCoefficients], offset_ns: int = 0) -> Non
     for message in messages:
         stamp = message.header.stamp.sec * 10**9 + message.header.stamp.nanosec + offset_ns
         message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
-        graph.feed(RawMessage('/skyline/sh', type_name(message), stamp, serialize_message(message)))
+        graph.feed(RawMessage(SKYLINE_SH, type_name(message), stamp, serialize_message(message)))
 
 
 def has_map(node) -> bool:
@@ -297,7 +298,7 @@ def test_a_node_started_with_a_refused_map_says_so_once_and_serves_without_one(d
         for node in nodes.values():
             assert not has_map(node) and node.rejected['parameters'] == 1 and node.errors == 0, node.get_name()
         assert nodes['compass'].rejected['no_map'] == FED_VIEWS
-        matches = [o.message for o in graph.outputs if o.topic == '/localization/match']
+        matches = [o.message for o in graph.outputs if o.topic == LOCALIZATION_MATCH]
         assert [m.index for m in matches] == [-1] * FED_VIEWS  # localize answers every view, without a map
 
 
@@ -316,7 +317,7 @@ def test_the_nodes_never_fail_on_a_damaged_map_set_at_run_time(clean_map, damage
             before = len(graph.outputs)
             feed_views(graph, messages, offset_ns=round * 10**9)
             assert all(node.errors == 0 for node in nodes.values()), name
-            matches = [o for o in graph.outputs[before:] if o.topic == '/localization/match']
+            matches = [o for o in graph.outputs[before:] if o.topic == LOCALIZATION_MATCH]
             assert len(matches) == len(messages), name
 
 

@@ -10,6 +10,7 @@ import pytest
 import yaml
 from mcap.writer import Writer
 
+from skynav_core.names import UV_CAMERA_INFO
 from skynav_core.testing import BAGS, one_line_error
 
 SOURCE = BAGS / 'synthetic_garden_compass.mcap'
@@ -56,7 +57,7 @@ def typed_bag(path, msgtype: str, data: bytes = b'\x00\x01\x00\x00\x02\x00\x00\x
         writer = Writer(stream)
         writer.start(profile='ros2', library='crafted')
         channel = writer.register_channel(
-            '/camera/uv/camera_info', 'cdr', writer.register_schema(msgtype, 'ros2msg', b'string data\n')
+            UV_CAMERA_INFO, 'cdr', writer.register_schema(msgtype, 'ros2msg', b'string data\n')
         )
         for t in range(3):
             writer.add_message(channel, log_time=10**9 + t, publish_time=10**9 + t, data=data)

@@ -12,6 +12,15 @@ import time
 import numpy as np
 
 from skynav_core.msgyaml import to_plain
+from skynav_core.names import (
+    COMPASS_ORIENTATION,
+    GROUND_TRUTH_POSE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_SH,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.ros import message_class
 from skynav_core.testing import start_skynav, write_sample_bag
 
@@ -55,13 +64,13 @@ def test_every_message_type_crosses_processes(tmp_path, ros_context):
         theirs = [rclpy_to_plain(m) for m in received[topic]]
         assert theirs == mine, topic
     assert set(topics) >= {
-        '/skyline/sh',
-        '/localization/match',
-        '/compass/orientation',
-        '/homing/home_vector',
-        '/camera/uv/image_raw',
-        '/camera/uv/camera_info',
-        '/ground_truth/pose',
+        SKYLINE_SH,
+        LOCALIZATION_MATCH,
+        COMPASS_ORIENTATION,
+        HOME_VECTOR,
+        UV_IMAGE,
+        UV_CAMERA_INFO,
+        GROUND_TRUTH_POSE,
     }
     executor.shutdown()
     node.destroy_node()

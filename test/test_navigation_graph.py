@@ -19,6 +19,17 @@ import pytest
 from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapStore
+from skynav_core.names import (
+    COMPASS_ORIENTATION,
+    GREEN_IMAGE,
+    GROUND_TRUTH_POSE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_MASK,
+    SKYLINE_SH,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.testing import run_skynav, start_skynav
 from skynav_localize.evaluation import correct_matches
 
@@ -41,7 +52,7 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     repeat = BAGS / 'synthetic_garden_repeat.mcap'
     truth, orientation = {}, {}
     with open_bag(repeat) as bag:
-        for raw in bag.messages(['/ground_truth/pose']):
+        for raw in bag.messages([GROUND_TRUTH_POSE]):
             message = bag.deserialize(raw)
             p, q = message.pose.position, message.pose.orientation
             truth[stamp_ns(message.header)] = np.array([p.x, p.y, p.z])
@@ -52,9 +63,9 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
     executor.add_node(node)
     matches, compass, homing = {}, {}, {}
     for topic, message_type, received in (
-        ('/localization/match', PlaceMatch, matches),
-        ('/compass/orientation', CompassEstimate, compass),
-        ('/homing/home_vector', HomeVector, homing),
+        (LOCALIZATION_MATCH, PlaceMatch, matches),
+        (COMPASS_ORIENTATION, CompassEstimate, compass),
+        (HOME_VECTOR, HomeVector, homing),
     ):
         node.create_subscription(message_type, topic, lambda m, r=received: r.__setitem__(stamp_ns(m.header), m), 100)
     launch = start_skynav('launch', '--map', str(map_file))
@@ -64,8 +75,8 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
         # its readers (sh; localize, compass, warping, route; compass, warping, route and this test; warping, route
         # and this test). The route node (idle here: no goal) reads them too, so it counts.
         deadline = time.monotonic() + 60
-        outputs = ('/localization/match', '/compass/orientation', '/homing/home_vector')
-        readers = {'/skyline/mask': 1, '/skyline/sh': 4, '/localization/match': 4, '/compass/orientation': 3}
+        outputs = (LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR)
+        readers = {SKYLINE_MASK: 1, SKYLINE_SH: 4, LOCALIZATION_MATCH: 4, COMPASS_ORIENTATION: 3}
         while time.monotonic() < deadline and (
             min(node.count_publishers(t) for t in outputs) == 0
             or any(node.count_subscribers(t) < n for t, n in readers.items())
@@ -77,9 +88,9 @@ def test_replayed_repeat_drive_is_localized_on_the_teach_map(tmp_path, ros_conte
             '--rate',
             str(REPLAY_RATE),
             '--topics',
-            '/camera/uv/image_raw',
-            '/camera/green/image_raw',
-            '/camera/uv/camera_info',
+            UV_IMAGE,
+            GREEN_IMAGE,
+            UV_CAMERA_INFO,
         )
         while replay.poll() is None:
             executor.spin_once(timeout_sec=0.05)

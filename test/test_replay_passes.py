@@ -14,10 +14,11 @@ import time
 from pathlib import Path
 
 from skynav_core.bag import open_bag
+from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.testing import run_skynav, start_skynav
 
 BAGS = Path(__file__).parents[1] / 'bags'
-CAMERA_TOPICS = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
+CAMERA_TOPICS = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)
 NODES = ('skyline', 'sh', 'localize', 'compass', 'warping')
 PASSES = 3
 SH_READERS = 3  # localize, compass, warping
@@ -34,7 +35,7 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
     assert built.returncode == 0, built.stderr
     repeat = BAGS / 'synthetic_garden_repeat.mcap'
     with open_bag(repeat) as bag:
-        exposures = bag.topics['/camera/uv/image_raw'].count
+        exposures = bag.topics[UV_IMAGE].count
 
     node = Node('replay_passes_test', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
@@ -46,7 +47,7 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
             status[entry.name.removeprefix('skynav/')] = {kv.key: kv.value for kv in entry.values}
 
     node.create_subscription(
-        DiagnosticArray, '/diagnostics', on_diagnostics, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        DiagnosticArray, DIAGNOSTICS, on_diagnostics, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     )
 
     def count(name: str, key: str) -> int:
@@ -68,7 +69,7 @@ def test_a_bag_replayed_three_times_into_a_running_graph_gives_every_output_each
         # their readers too (a localize node still loading its map on a busy machine lost a second of views)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and not (
-            all(name in status for name in NODES) and node.count_subscribers('/skyline/sh') >= SH_READERS
+            all(name in status for name in NODES) and node.count_subscribers(SKYLINE_SH) >= SH_READERS
         ):
             executor.spin_once(timeout_sec=0.05)
         for done in range(1, PASSES + 1):

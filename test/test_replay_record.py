@@ -10,6 +10,7 @@ import pytest
 from rosbags.rosbag2 import Reader
 
 from skynav_core.bag import open_bag
+from skynav_core.names import SKYLINE_SH
 from skynav_core.testing import messages_equal, start_skynav, wait_text, write_sample_bag
 
 
@@ -32,7 +33,7 @@ def test_replay_then_record_reproduces_the_bag(tmp_path):
             assert all(map(messages_equal, mine, theirs)), topic
     # The copy is a rosbag2 MCAP that other tools read too.
     with Reader(out) as reader:
-        assert reader.topics['/skyline/sh'].msgcount == 6
+        assert reader.topics[SKYLINE_SH].msgcount == 6
     with out.open('rb') as stream:
         summary = mcap.reader.make_reader(stream).get_summary()
         assert {s.encoding for s in summary.schemas.values()} == {'ros2msg'}
@@ -42,11 +43,9 @@ def test_replay_follows_the_recorded_timing(tmp_path):
     source = tmp_path / 'timed.mcap'
     write_sample_bag(source, frames=11)  # 10 Hz: 1.0 s of recording
     out = tmp_path / 'timed_copy.mcap'
-    recorder = start_skynav('record', str(out), '/skyline/sh')
+    recorder = start_skynav('record', str(out), SKYLINE_SH)
     wait_text(recorder, 'recording')
-    replay = start_skynav(
-        'replay', str(source), '--rate', '2', '--topics', '/skyline/sh', '--wait-for-subscribers', '1'
-    )
+    replay = start_skynav('replay', str(source), '--rate', '2', '--topics', SKYLINE_SH, '--wait-for-subscribers', '1')
     assert replay.wait(timeout=60) == 0, replay.stderr.read()
     recorder.send_signal(signal.SIGINT)
     assert recorder.wait(timeout=30) == 0
@@ -69,9 +68,9 @@ def test_stopped_recorder_leaves_a_whole_bag(tmp_path, ros_context, stop):
     node = Node('sh_source', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    publisher = node.create_publisher(ShCoefficients, '/skyline/sh', 100)
+    publisher = node.create_publisher(ShCoefficients, SKYLINE_SH, 100)
     out = tmp_path / 'stopped.mcap'
-    recorder = start_skynav('record', str(out), '/skyline/sh')
+    recorder = start_skynav('record', str(out), SKYLINE_SH)
     deadline = time.monotonic() + 30
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
         executor.spin_once(timeout_sec=0.05)
@@ -110,9 +109,9 @@ def test_a_recorder_stopped_right_after_a_burst_keeps_all_of_it(tmp_path, ros_co
     node = Node('sh_burst', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)
     executor.add_node(node)
-    publisher = node.create_publisher(ShCoefficients, '/skyline/sh', burst)  # reliable; keeps the burst to resend
+    publisher = node.create_publisher(ShCoefficients, SKYLINE_SH, burst)  # reliable; keeps the burst to resend
     out = tmp_path / 'burst.mcap'
-    recorder = start_skynav('record', str(out), '/skyline/sh')
+    recorder = start_skynav('record', str(out), SKYLINE_SH)
     try:
         wait_text(recorder, 'recording')
         deadline = time.monotonic() + 30

@@ -17,6 +17,7 @@ import yaml
 
 from skynav_core.bag import BagWriter, open_bag
 from skynav_core.maps import MapStore
+from skynav_core.names import CLOCK, UV_IMAGE
 from skynav_core.testing import running, start_skynav, wait_text, write_first_frames
 
 BAGS = Path(__file__).parents[1] / 'bags'
@@ -34,12 +35,12 @@ def with_clock(source: Path, target: Path) -> Path:
     with open_bag(source) as bag, BagWriter(target) as writer:
         for topic in bag.topics.values():
             writer.add_topic(topic.name, topic.msgtype, topic.offered_qos)
-        writer.add_topic('/clock', CLOCK_TYPE)
+        writer.add_topic(CLOCK, CLOCK_TYPE)
         for raw in bag.messages():
-            if raw.topic == '/camera/uv/image_raw':
+            if raw.topic == UV_IMAGE:
                 stamp = bag.deserialize(raw).header.stamp
                 data = store.serialize_cdr(clock(clock=time(sec=stamp.sec, nanosec=stamp.nanosec)), CLOCK_TYPE)
-                writer.write('/clock', raw.log_time - 1, data)
+                writer.write(CLOCK, raw.log_time - 1, data)
             writer.write(raw.topic, raw.log_time, raw.data)
     return target
 

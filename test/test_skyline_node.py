@@ -13,6 +13,7 @@ import pytest
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.images import fill_image, image_to_array, stamp_ns
+from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, GROUND_TRUTH_MASK, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.testing import start_skynav
 from skynav_skyline.classify import classification_rate
 
@@ -26,9 +27,9 @@ def ground_truth(path):
     """Return {stamp: truth mask} and the camera of a labelled recording."""
     truths, camera = {}, None
     with open_bag(path) as bag:
-        for raw in bag.messages(['/ground_truth/mask', '/camera/uv/camera_info']):
+        for raw in bag.messages([GROUND_TRUTH_MASK, UV_CAMERA_INFO]):
             message = bag.deserialize(raw)
-            if raw.topic == '/camera/uv/camera_info':
+            if raw.topic == UV_CAMERA_INFO:
                 camera = EquidistantCamera.from_camera_info(message)
             else:
                 truths[stamp_ns(message.header)] = image_to_array(message)
@@ -72,10 +73,10 @@ def test_replayed_recording_gives_masks_that_match_ground_truth(graph_node):
     bag = BAGS / 'synthetic_mineral_skyline.mcap'
     truths, camera = ground_truth(bag)
     masks = {}
-    node.create_subscription(Image, '/skyline/mask', lambda m: masks.__setitem__(stamp_ns(m.header), m), 50)
+    node.create_subscription(Image, SKYLINE_MASK, lambda m: masks.__setitem__(stamp_ns(m.header), m), 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
-        assert spin_until(executor, lambda: node.count_publishers('/skyline/mask') > 0, 30)
+        assert spin_until(executor, lambda: node.count_publishers(SKYLINE_MASK) > 0, 30)
         replay = start_skynav(
             'replay',
             str(bag),
@@ -84,9 +85,9 @@ def test_replayed_recording_gives_masks_that_match_ground_truth(graph_node):
             '--wait-for-subscribers',
             '1',  # this test's skyline node, the only one running (a graph's sh would read the camera info too)
             '--topics',
-            '/camera/uv/image_raw',
-            '/camera/green/image_raw',
-            '/camera/uv/camera_info',
+            UV_IMAGE,
+            GREEN_IMAGE,
+            UV_CAMERA_INFO,
         )
         assert replay.wait(timeout=120) == 0, replay.stderr.read()
         spin_until(executor, lambda: len(masks) == len(truths), 30)
@@ -145,12 +146,12 @@ def test_bad_input_is_logged_counted_and_survived(graph_node):
 
     node, executor = graph_node
     camera = EquidistantCamera.for_field_of_view(64, 48, math.radians(200))
-    uv_pub = node.create_publisher(Image, '/camera/uv/image_raw', 50)
-    green_pub = node.create_publisher(Image, '/camera/green/image_raw', 50)
-    info_pub = node.create_publisher(CameraInfo, '/camera/uv/camera_info', 50)
+    uv_pub = node.create_publisher(Image, UV_IMAGE, 50)
+    green_pub = node.create_publisher(Image, GREEN_IMAGE, 50)
+    info_pub = node.create_publisher(CameraInfo, UV_CAMERA_INFO, 50)
     masks, diagnostics = [], []
-    node.create_subscription(Image, '/skyline/mask', masks.append, 50)
-    node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
+    node.create_subscription(Image, SKYLINE_MASK, masks.append, 50)
+    node.create_subscription(DiagnosticArray, DIAGNOSTICS, diagnostics.append, 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
         assert spin_until(
@@ -159,7 +160,7 @@ def test_bad_input_is_logged_counted_and_survived(graph_node):
                 uv_pub.get_subscription_count()
                 and green_pub.get_subscription_count()
                 and info_pub.get_subscription_count()
-                and node.count_publishers('/skyline/mask')
+                and node.count_publishers(SKYLINE_MASK)
             ),
             30,
         )
@@ -222,10 +223,10 @@ def test_missing_camera_info_is_counted_and_nothing_crashes(graph_node):
     from sensor_msgs.msg import Image
 
     node, executor = graph_node
-    uv_pub = node.create_publisher(Image, '/camera/uv/image_raw', 100)
-    green_pub = node.create_publisher(Image, '/camera/green/image_raw', 100)
+    uv_pub = node.create_publisher(Image, UV_IMAGE, 100)
+    green_pub = node.create_publisher(Image, GREEN_IMAGE, 100)
     diagnostics = []
-    node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
+    node.create_subscription(DiagnosticArray, DIAGNOSTICS, diagnostics.append, 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
     try:
         assert spin_until(executor, lambda: uv_pub.get_subscription_count() and green_pub.get_subscription_count(), 30)
@@ -254,11 +255,9 @@ def test_an_image_too_large_for_the_transport_is_counted_as_lost(graph_node):
     from sensor_msgs.msg import Image
 
     node, executor = graph_node
-    uv_pub = node.create_publisher(
-        Image, '/camera/uv/image_raw', QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
-    )
+    uv_pub = node.create_publisher(Image, UV_IMAGE, QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE))
     diagnostics = []
-    node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 50)
+    node.create_subscription(DiagnosticArray, DIAGNOSTICS, diagnostics.append, 50)
     skyline = start_node('skynav_skyline.node:SkylineNode')
 
     def values():
@@ -266,9 +265,7 @@ def test_an_image_too_large_for_the_transport_is_counted_as_lost(graph_node):
         return found or {}
 
     try:
-        assert spin_until(
-            executor, lambda: uv_pub.get_subscription_count() and node.count_publishers('/diagnostics'), 30
-        )
+        assert spin_until(executor, lambda: uv_pub.get_subscription_count() and node.count_publishers(DIAGNOSTICS), 30)
         stamp = 1_800_000_000 * 10**9
         # small frames until the node takes them (discovery may still drop the first ones), then one of
         # 4200x4200 pixels (17.6 MB: beyond the 16 MiB shared-memory segment of skynav's Fast DDS profile; an

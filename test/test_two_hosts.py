@@ -29,18 +29,27 @@ import yaml
 from skynav_core import netns
 from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
+from skynav_core.names import (
+    COMPASS_ORIENTATION,
+    GREEN_IMAGE,
+    HOME_VECTOR,
+    LOCALIZATION_MATCH,
+    SKYLINE_SH,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.network import DISCOVERY_SERVER_PORT
 from skynav_core.testing import BAGS, messages_equal, run_skynav, skynav_command, write_first_frames
 
 PROBE = Path(__file__).with_name('graph_probe.py')
-CAMERA = ('/camera/uv/image_raw', '/camera/green/image_raw', '/camera/uv/camera_info')
-CROSSING = '/skyline/sh'  # what the robot sends the base station
-BASE_OUTPUTS = ('/localization/match', '/compass/orientation', '/homing/home_vector')
+CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)
+CROSSING = SKYLINE_SH  # what the robot sends the base station
+BASE_OUTPUTS = (LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR)
 ROBOT_NODES = ('skyline', 'sh')
 BASE_NODES = ('localize', 'compass', 'warping', 'route')
 # readers of each topic once the base station is up, among localize, compass, warping, route, the recorder and
 # the probe
-BASE_READERS = {CROSSING: 6, '/localization/match': 5, '/compass/orientation': 4, '/homing/home_vector': 3}
+BASE_READERS = {CROSSING: 6, LOCALIZATION_MATCH: 5, COMPASS_ORIENTATION: 4, HOME_VECTOR: 3}
 REPLAY_RATE = 0.2  # 2 Hz: the warping node (about 0.1 s a view, several times that on a loaded machine) keeps up
 EQUAL_FRAMES = 35  # the first views of the repeat drive compared frame for frame: past both fixed snapshots (3, 8)
 # the robot's replays wait for its one camera reader, its skyline node (by default a replay waits for every node of
@@ -207,7 +216,7 @@ def test_base_station_starts_late_and_survives_a_robot_restart(tmp_path, unavail
         pytest.skip(f'two hosts on one machine: {unavailable}')
     map_file = garden_map
     domain = 1 + int(tmp_path.stat().st_ino) % 200
-    match = '/localization/match'
+    match = LOCALIZATION_MATCH
     with netns.TwoHosts(domain) as hosts:
         robot, base = hosts.robot, hosts.base
         robot_env, base_env = hosts.environment(robot, domain), hosts.environment(base, domain)

@@ -24,11 +24,12 @@ from skynav_bringup.cli.view import layout_file
 from skynav_bringup.viewer import Viewer
 from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
+from skynav_core.names import SKYLINE_SH, VIZ_CONFIDENCE, VIZ_MARKERS, VIZ_OVERLAY, VIZ_STATE
 from skynav_core.testing import messages_equal, start_skynav, wait_text
 
 BAGS = Path(__file__).parents[1] / 'bags'
 RECORDING = BAGS / 'synthetic_park_skyline.mcap'  # 20 frames, with ground truth: a map with poses
-SH, MARKERS = '/skyline/sh', '/skynav/viz/markers'
+SH, MARKERS = SKYLINE_SH, VIZ_MARKERS
 SUBPROTOCOL = 'foxglove.sdk.v1'  # the Foxglove SDK's WebSocket protocol (foxglove-sdk 0.30)
 UNKNOWN_CHANNEL = 'Unknown channel ID: '  # the server's status for a subscription it did not take
 MESSAGE_DATA = 1  # opcode of a binary message-data frame: opcode, subscription id (u32), log time (u64), payload
@@ -137,15 +138,15 @@ def test_a_topic_that_cannot_be_forwarded_is_told_once_and_the_others_are_served
         ('/crafted', ['../msg/Evil']),
         ('/twice', ['std_msgs/msg/Float64', 'std_msgs/msg/Int32']),
         ('/skynav/teach/_action/feedback', ['skynav_msgs/action/Teach_FeedbackMessage']),
-        ('/skynav/viz/confidence', ['std_msgs/msg/Float64']),
+        (VIZ_CONFIDENCE, ['std_msgs/msg/Float64']),
     ]
     monkeypatch.setattr(node, 'get_topic_names_and_types', lambda: graph)
     monkeypatch.setattr(node, 'count_publishers', lambda topic: 1)
     lines: list[str] = []
     viewer = Viewer(node, warn=lines.append, context=foxglove.Context())
     viewer.discover()
-    assert sorted(viewer.forwards) == ['/skynav/viz/confidence']
-    assert viewer.forwards['/skynav/viz/confidence'].channel.schema_name() == 'std_msgs/msg/Float64'
+    assert sorted(viewer.forwards) == [VIZ_CONFIDENCE]
+    assert viewer.forwards[VIZ_CONFIDENCE].channel.schema_name() == 'std_msgs/msg/Float64'
     assert len(lines) == 3 and all('\n' not in line for line in lines)
     assert [line.split()[2] for line in lines] == ['/unknown', '/crafted', '/twice']
     node.destroy_node()
@@ -182,4 +183,4 @@ def test_the_layout_parses_and_names_only_topics_the_graph_publishes(graph_outpu
         outputs = set(bag.topics)
     named = layout_topics(layout)
     assert named <= outputs, named - outputs
-    assert {MARKERS, '/skynav/viz/overlay/compressed', '/skynav/viz/confidence', '/skynav/viz/state'} <= named
+    assert {MARKERS, VIZ_OVERLAY, VIZ_CONFIDENCE, VIZ_STATE} <= named
