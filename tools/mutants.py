@@ -63,8 +63,8 @@ MUTATIONS = (
     Mutation(
         'sector-threshold-from-neighbour',
         'skynav_skyline/skynav_skyline/segment.py',
-        'contrast, self._row.sectors(self.params.sectors), np.asarray(threshold) - margin',
-        'contrast, self._row.sectors(self.params.sectors), np.roll(threshold, 1) - margin',
+        'contrast, self._row.sectors(p.sectors), np.asarray(threshold) - margin',
+        'contrast, self._row.sectors(p.sectors), np.roll(threshold, 1) - margin',
         ('skynav_skyline/test/test_structure.py', 'skynav_skyline/test/test_segment.py'),
         "the hole filling's 'clearly ground' test takes each sector's threshold from its neighbour",
     ),
@@ -347,8 +347,8 @@ MUTATIONS = (
     Mutation(
         'refused-home-vector-is-missing',
         'skynav_route/skynav_route/controller.py',
-        '        if view.home_direction is None and view.home_expected:',
-        '        if view.home_direction is None and not view.home_expected:',
+        '        if view.home_direction is None and view.home_expected and self._refusal_credible(view):',
+        '        if view.home_direction is None and not view.home_expected and self._refusal_credible(view):',
         ('skynav_route/test/test_controller.py', 'skynav_route/test/test_node.py'),
         'the Homer takes a refused home vector as a missing one (LOST near home) and a missing one as arrived',
     ),
