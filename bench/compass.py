@@ -37,7 +37,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from skynav_compass.methods import METHODS, PREPARED  # noqa: E402
+from skynav_compass.eval.methods import METHODS, PREPARED  # noqa: E402
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 SETS = ('garden', 'mineral')

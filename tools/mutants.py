@@ -362,7 +362,7 @@ MUTATIONS = (
     ),
     Mutation(
         'confident-share-over-all',
-        'skynav_compass/skynav_compass/evaluation.py',
+        'skynav_compass/skynav_compass/eval/evaluation.py',
         '    return ConfidentStatistics(float(flags.mean()), int(flags.sum()),',
         '    return ConfidentStatistics(float(np.mean(confident)), int(flags.sum()),',
         ('skynav_compass/test/test_evaluation.py',),
@@ -370,7 +370,7 @@ MUTATIONS = (
     ),
     Mutation(
         'confident-median-over-all',
-        'skynav_compass/skynav_compass/evaluation.py',
+        'skynav_compass/skynav_compass/eval/evaluation.py',
         'float(np.median(e[flags])), float(e[flags].max()))',
         'float(np.median(e)), float(e[flags].max()))',
         ('skynav_compass/test/test_evaluation.py',),
@@ -378,7 +378,7 @@ MUTATIONS = (
     ),
     Mutation(
         'failed-estimate-no-error',
-        'skynav_compass/skynav_compass/evaluation.py',
+        'skynav_compass/skynav_compass/eval/evaluation.py',
         '    e = np.where(np.isfinite(errors), errors, 180.0)[chosen]',
         '    e = np.where(np.isfinite(errors), errors, 0.0)[chosen]',
         ('skynav_compass/test/test_evaluation.py',),

@@ -30,10 +30,10 @@ _EXPORTS = {
     ),
     'refine': ('refine', 'newton_prediction'),
     'verify': ('Verification', 'verify', 'recovered_masks'),
-    'exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
-    'yaw': ('PanoramicCompass', 'YawCompass'),
-    'features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
-    'evaluation': (
+    'eval.exhaustive': ('ExhaustiveCompass', 'ExhaustiveConfig'),
+    'eval.yaw': ('PanoramicCompass', 'YawCompass'),
+    'eval.features': ('FeatureCompass', 'FeatureConfig', 'kabsch', 'eight_point', 'decompose_essential'),
+    'eval.evaluation': (
         'CompassResult',
         'ConfidentStatistics',
         'ErrorStatistics',
@@ -47,9 +47,9 @@ _EXPORTS = {
         'roc_auc',
         'summary_rows',
     ),
-    'methods': ('METHODS', 'NODE_METHODS', 'DEFAULT_METHODS', 'CompassMethod'),
-    'dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
-    'runner': (
+    'eval.methods': ('METHODS', 'NODE_METHODS', 'DEFAULT_METHODS', 'CompassMethod'),
+    'eval.dataset': ('CompassSet', 'load_compass_set', 'true_rotation'),
+    'eval.runner': (
         'ImageViews',
         'Images',
         'Method',
@@ -61,7 +61,7 @@ _EXPORTS = {
         'standard_methods',
         'timed_estimates',
     ),
-    'recording': (
+    'eval.recording': (
         'ExternalSnapshot',
         'EvaluationError',
         'RecordingEvaluation',
@@ -76,16 +76,16 @@ __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 if TYPE_CHECKING:  # static analysers see the real imports
     from skynav_compass.compass import *  # noqa: F401,F403
     from skynav_compass.cost import *  # noqa: F401,F403
-    from skynav_compass.dataset import *  # noqa: F401,F403
     from skynav_compass.estimate import *  # noqa: F401,F403
-    from skynav_compass.evaluation import *  # noqa: F401,F403
-    from skynav_compass.exhaustive import *  # noqa: F401,F403
-    from skynav_compass.features import *  # noqa: F401,F403
-    from skynav_compass.methods import *  # noqa: F401,F403
-    from skynav_compass.recording import *  # noqa: F401,F403
+    from skynav_compass.eval.dataset import *  # noqa: F401,F403
+    from skynav_compass.eval.evaluation import *  # noqa: F401,F403
+    from skynav_compass.eval.exhaustive import *  # noqa: F401,F403
+    from skynav_compass.eval.features import *  # noqa: F401,F403
+    from skynav_compass.eval.methods import *  # noqa: F401,F403
+    from skynav_compass.eval.recording import *  # noqa: F401,F403
+    from skynav_compass.eval.runner import *  # noqa: F401,F403
+    from skynav_compass.eval.yaw import *  # noqa: F401,F403
     from skynav_compass.refine import *  # noqa: F401,F403
-    from skynav_compass.runner import *  # noqa: F401,F403
     from skynav_compass.so3 import *  # noqa: F401,F403
     from skynav_compass.verify import *  # noqa: F401,F403
     from skynav_compass.views import *  # noqa: F401,F403
-    from skynav_compass.yaw import *  # noqa: F401,F403

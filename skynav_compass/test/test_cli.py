@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """`skynav eval compass` and the evaluation behind it, on the views the skyline and SH nodes make of a bundled set.
 
-The numbers come from skynav_compass.recording (the command only prints them), measured on the output of the
+The numbers come from skynav_compass.eval.recording (the command only prints them), measured on the output of the
 installed skyline and SH nodes (not on ground-truth masks), so they include the skyline's own errors. Measured with
 this code on synthetic_garden_compass.mcap at L = 16: fft-masked median 0.18 deg for pure rotations (tilt 8-30 deg),
 1.78 deg for views moved 0.18-0.48 m. The tests assert the project's targets (median under 1 and under 3 deg).
@@ -32,7 +32,7 @@ def garden_views():
 
 @pytest.fixture(scope='module')
 def garden_evaluation(garden_views):
-    from skynav_compass.recording import evaluate_views
+    from skynav_compass.eval.recording import evaluate_views
 
     return evaluate_views(garden_views, ['fft-masked', 'visual-compass-panorama'])
 
@@ -58,7 +58,7 @@ def test_a_yaw_only_peer_is_measured_in_3d(garden_evaluation):
 
 
 def test_the_report_says_how_many_are_confident_and_how_wrong_those_are(garden_evaluation):
-    from skynav_compass.recording import format_report
+    from skynav_compass.eval.recording import format_report
 
     e = garden_evaluation
     lines = format_report(e).splitlines()
@@ -85,7 +85,7 @@ def test_the_report_says_how_many_are_confident_and_how_wrong_those_are(garden_e
 
 def test_against_a_map_snapshot_of_the_reference_frame(garden_views, tmp_path):
     from skynav_compass.cli.eval import map_snapshot
-    from skynav_compass.recording import evaluate_views
+    from skynav_compass.eval.recording import evaluate_views
     from skynav_core.maps import MapStore
 
     reference = next(v for v in garden_views.views if v.label == 'reference')
@@ -176,7 +176,7 @@ def test_command_offers_the_registry_methods_the_node_views_serve():
     import argparse
 
     from skynav_compass.cli import eval as command
-    from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
+    from skynav_compass.eval.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
 
     parser = argparse.ArgumentParser()
     command.configure(parser)
@@ -189,7 +189,7 @@ def test_command_offers_the_registry_methods_the_node_views_serve():
 
 
 def test_sh_node_settings_follow_the_parameter_files(tmp_path):
-    from skynav_compass.recording import sh_node_settings
+    from skynav_compass.eval.recording import sh_node_settings
 
     first, second = tmp_path / 'a.yaml', tmp_path / 'b.yaml'
     first.write_text('sh:\n  ros__parameters:\n    fill: mean\n    max_degree: 12\n')

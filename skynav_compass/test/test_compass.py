@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from skynav_compass import Compass, CompassConfig, CompassView, build_problem, cap_visibility, estimate_rotation
 from skynav_compass.compass import MIN_RIVAL_MARGIN, RIVAL_MARGIN_SCALE, rival_margin
-from skynav_compass.evaluation import heading, relative_tilt
+from skynav_compass.eval.evaluation import heading, relative_tilt
 from skynav_compass.refine import refine
 from skynav_core.rotations import rotation_angle
 from skynav_sh.basis import degree_order

@@ -20,7 +20,7 @@ from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 from std_srvs.srv import Trigger
 
-from skynav_compass.dataset import true_rotation
+from skynav_compass.eval.dataset import true_rotation
 from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns

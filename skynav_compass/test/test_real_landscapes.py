@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_compass.evaluation import RIGHT_DEG, error_statistics, roc_auc
-from skynav_compass.recording import evaluate_recording
+from skynav_compass.eval.evaluation import RIGHT_DEG, error_statistics, roc_auc
+from skynav_compass.eval.recording import evaluate_recording
 
 LANDSCAPES = ('garching', 'guereins', 'hurricane', 'geneva')
 SEED = 2

@@ -2,8 +2,8 @@
 """What every evaluation command shares: the choice of methods, the checks of its arguments, its text tables.
 
 Each stage keeps one registry of its methods, in the order its tables list them (localization:
-skynav_localize.localizer.METHODS, compass: skynav_compass.methods.METHODS, homing:
-skynav_warping.methods.METHODS, skyline: skynav_skyline.methods.METHODS). `skynav eval
+skynav_localize.localizer.METHODS, compass: skynav_compass.eval.methods.METHODS, homing:
+skynav_warping.eval.methods.METHODS, skyline: skynav_skyline.methods.METHODS). `skynav eval
 localization|compass|homing` and `skynav skyline eval` take --methods, check their numbers and folders and print
 their tables through the helpers here, so a method is offered, refused and listed alike everywhere. A refused
 argument is a CliError: exit code 2 for a malformed command line, 1 for a file that cannot be used.

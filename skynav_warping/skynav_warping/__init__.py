@@ -41,9 +41,16 @@ _EXPORTS = {
         'warping_tables',
     ),
     'homing': ('HomeEstimate', 'estimate_home_vector'),
-    'panorama': ('DEFAULT_ELEVATIONS', 'PanoramaUnwrapper'),
-    'planar': ('PlanarResult', 'horizon_profile', 'min_warping', 'min_warping_costs', 'scale_planes', 'warping_2d'),
-    'evaluation': (
+    'eval.panorama': ('DEFAULT_ELEVATIONS', 'PanoramaUnwrapper'),
+    'eval.planar': (
+        'PlanarResult',
+        'horizon_profile',
+        'min_warping',
+        'min_warping_costs',
+        'scale_planes',
+        'warping_2d',
+    ),
+    'eval.evaluation': (
         'DISTANCE_BINS',
         'TILT_BINS',
         'BinStatistics',
@@ -58,9 +65,9 @@ _EXPORTS = {
         'true_home_directions',
         'true_rotations',
     ),
-    'methods': ('METHODS', 'PANORAMA_METHODS'),
-    'recording': ('HomingGrid', 'load_homing_grid'),
-    'homing_eval': (
+    'eval.methods': ('METHODS', 'PANORAMA_METHODS'),
+    'eval.recording': ('HomingGrid', 'load_homing_grid'),
+    'eval.homing_eval': (
         'HomingEvalError',
         'HomingEvaluation',
         'HomingSnapshot',
@@ -69,7 +76,7 @@ _EXPORTS = {
         'map_snapshot',
         'recording_snapshot',
     ),
-    'synthetic': (
+    'eval.synthetic': (
         'BlobScene',
         'PoleWorld',
         'blob_scene',
@@ -81,13 +88,13 @@ _EXPORTS = {
 __getattr__, __dir__, __all__ = lazy_exports(__name__, _EXPORTS)
 
 if TYPE_CHECKING:  # static analysers see the real imports
-    from skynav_warping.evaluation import *  # noqa: F401,F403
+    from skynav_warping.eval.evaluation import *  # noqa: F401,F403
+    from skynav_warping.eval.homing_eval import *  # noqa: F401,F403
+    from skynav_warping.eval.methods import *  # noqa: F401,F403
+    from skynav_warping.eval.panorama import *  # noqa: F401,F403
+    from skynav_warping.eval.planar import *  # noqa: F401,F403
+    from skynav_warping.eval.recording import *  # noqa: F401,F403
+    from skynav_warping.eval.synthetic import *  # noqa: F401,F403
     from skynav_warping.homing import *  # noqa: F401,F403
-    from skynav_warping.homing_eval import *  # noqa: F401,F403
-    from skynav_warping.methods import *  # noqa: F401,F403
-    from skynav_warping.panorama import *  # noqa: F401,F403
-    from skynav_warping.planar import *  # noqa: F401,F403
-    from skynav_warping.recording import *  # noqa: F401,F403
-    from skynav_warping.synthetic import *  # noqa: F401,F403
     from skynav_warping.views import *  # noqa: F401,F403
     from skynav_warping.warping3d import *  # noqa: F401,F403

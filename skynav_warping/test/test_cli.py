@@ -25,7 +25,7 @@ from skynav_core.names import GROUND_TRUTH_POSE
 from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_core.views import recording_views
 from skynav_warping.cli import eval as eval_cli
-from skynav_warping.homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
+from skynav_warping.eval.homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_park_homing.mcap'
 

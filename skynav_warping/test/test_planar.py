@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from skynav_warping import min_warping, warping_2d
-from skynav_warping.synthetic import pole_world, render_pole_panorama
+from skynav_warping.eval.synthetic import pole_world, render_pole_panorama
 
 ELEVATIONS = np.radians(40.0) - np.radians(50.0) / 25 * (np.arange(25) + 0.5)  # band -10..40 degrees, 25 rows
 METHODS = {'2d-warping': lambda s, c: warping_2d(s, c), 'min-warping': lambda s, c: min_warping(s, c, ELEVATIONS)}

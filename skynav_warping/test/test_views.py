@@ -10,7 +10,7 @@ from skynav_core.camera import EquidistantCamera
 from skynav_sh.fisheye import FisheyeTransform
 from skynav_sh.transform import grid
 from skynav_warping import WarpingSettings, hypothesis_costs, view_from_coefficients, view_from_fisheye, warping_tables
-from skynav_warping.synthetic import blob_scene, render_equal_distance_view
+from skynav_warping.eval.synthetic import blob_scene, render_equal_distance_view
 from skynav_warping.views import cap_fraction, rim_weights
 
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """3D-warping on an exact equal-distance world (synthetic): direction convention, known steps, pure rotation.
 
-The world (skynav_warping.synthetic) puts every scene point on a unit sphere around the snapshot's place, so the
+The world (skynav_warping.eval.synthetic) puts every scene point on a unit sphere around the snapshot's place, so the
 translation model holds exactly and what is left is the band limit (degree 16 views of a sharper scene) and the
 search's grid. Measured over 24 random steps of 0.15-0.4 (|t| / rho) with yaw anywhere and tilt up to 15 degrees
 in 6 worlds: median / max direction error 1.6 / 4.2 degrees with the true rotation given, 3.5 / 9.1 degrees
@@ -24,7 +24,7 @@ from skynav_warping import (
     warp_home_vector,
     warping_tables,
 )
-from skynav_warping.synthetic import blob_scene, render_equal_distance_view
+from skynav_warping.eval.synthetic import blob_scene, render_equal_distance_view
 
 SETTINGS = WarpingSettings()
 

@@ -31,7 +31,7 @@ from pathlib import Path
 from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
 
-from ..methods import DEFAULT_METHODS, NODE_METHODS
+from ..eval.methods import DEFAULT_METHODS, NODE_METHODS
 
 HELP = 'compass error against ground truth, per method, for pure rotations and moved views'
 
@@ -68,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError, graph_arguments
     from skynav_core.evaluation import check_at_least, check_methods, check_not_negative, check_recordings, plots_folder
 
-    from ..evaluation import plot_errors
-    from ..recording import EvaluationError, evaluate_recording, format_report
+    from ..eval.evaluation import plot_errors
+    from ..eval.recording import EvaluationError, evaluate_recording, format_report
 
     check_methods(args.methods, NODE_METHODS)
     check_at_least(args.repeats, 1, '--repeats')
@@ -121,7 +121,7 @@ def map_snapshot(path: Path, index: int):
     from skynav_core.cli import CliError, open_map
     from skynav_core.maps import MapError
 
-    from ..recording import ExternalSnapshot
+    from ..eval.recording import ExternalSnapshot
 
     with open_map(path) as store:
         try:

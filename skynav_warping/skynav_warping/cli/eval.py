@@ -29,7 +29,7 @@ from pathlib import Path
 from skynav_core.cli import add_skip_damaged
 from skynav_core.evaluation import add_methods_argument, add_plots_argument
 
-from ..methods import METHODS
+from ..eval.methods import METHODS
 
 HELP = 'angular error of home vectors (3D-, 2D-, min-warping) against ground truth'
 
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.evaluation import check_methods, check_not_negative, check_recordings, plots_folder
     from skynav_core.views import recording_views
 
-    from ..homing_eval import HomingEvalError, evaluate_homing, map_snapshot
+    from ..eval.homing_eval import HomingEvalError, evaluate_homing, map_snapshot
 
     check_methods(args.methods, METHODS)
     check_not_negative(args.index, '--index')

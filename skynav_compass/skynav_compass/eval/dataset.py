@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from skynav_compass.errors import CompassError
-from skynav_compass.evaluation import relative_tilt
+from skynav_compass.eval.evaluation import relative_tilt
 from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_INFO_TOPIC

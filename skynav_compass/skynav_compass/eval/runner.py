@@ -22,12 +22,12 @@ import numpy as np
 from skynav_compass.compass import Compass, CompassConfig, any_tilt_config
 from skynav_compass.errors import CompassError
 from skynav_compass.estimate import CompassEstimate
-from skynav_compass.evaluation import CompassResult, angular_error, relative_tilt
-from skynav_compass.exhaustive import ExhaustiveCompass, ExhaustiveConfig
-from skynav_compass.features import FeatureCompass, FeatureConfig
-from skynav_compass.methods import METHODS, PREPARED, CompassMethod
+from skynav_compass.eval.evaluation import CompassResult, angular_error, relative_tilt
+from skynav_compass.eval.exhaustive import ExhaustiveCompass, ExhaustiveConfig
+from skynav_compass.eval.features import FeatureCompass, FeatureConfig
+from skynav_compass.eval.methods import METHODS, PREPARED, CompassMethod
+from skynav_compass.eval.yaw import PanoramicCompass, YawCompass
 from skynav_compass.views import CompassView
-from skynav_compass.yaw import PanoramicCompass, YawCompass
 from skynav_core.rotations import MAX_TILT
 from skynav_sh.basis import DEFAULT_DEGREE
 from skynav_sh.fisheye import FisheyeTransform

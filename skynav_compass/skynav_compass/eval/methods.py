@@ -2,7 +2,7 @@
 """The compass and its peers as they are evaluated, in one registry: what each method compares, with which compass.
 
 A method compares one view of a frame (VIEWS) with one compass and its settings. The frames of a compass set
-(skynav_compass.dataset: images and ground-truth masks) give every view; the SH node's output gives those of
+(skynav_compass.eval.dataset: images and ground-truth masks) give every view; the SH node's output gives those of
 NODE_VIEWS (its coefficients, whatever their fill, with the skyline node's masks and the UV images when recorded), so
 `skynav eval compass` offers NODE_METHODS. runner.build_method turns an entry into a runnable Method.
 

@@ -31,7 +31,7 @@ import numpy as np
 from skynav_compass import Compass, CompassView
 from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_warping.errors import WarpingError
-from skynav_warping.evaluation import (
+from skynav_warping.eval.evaluation import (
     DISTANCE_BINS,
     angular_errors,
     binned_statistics,
@@ -40,10 +40,10 @@ from skynav_warping.evaluation import (
     tilt_angles,
     true_home_directions,
 )
+from skynav_warping.eval.methods import METHODS, PANORAMA_METHODS
+from skynav_warping.eval.panorama import PanoramaUnwrapper
+from skynav_warping.eval.planar import min_warping, warping_2d
 from skynav_warping.homing import estimate_home_vector
-from skynav_warping.methods import METHODS, PANORAMA_METHODS
-from skynav_warping.panorama import PanoramaUnwrapper
-from skynav_warping.planar import min_warping, warping_2d
 from skynav_warping.views import view_from_coefficients
 from skynav_warping.warping3d import WarpingSettings
 

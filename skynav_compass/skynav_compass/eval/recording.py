@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from skynav_compass.dataset import true_rotation
 from skynav_compass.errors import CompassError
-from skynav_compass.evaluation import (
+from skynav_compass.eval.dataset import true_rotation
+from skynav_compass.eval.evaluation import (
     CONFIDENT_COLUMNS,
     RIGHT_DEG,
     STATISTICS_COLUMNS,
@@ -41,8 +41,8 @@ from skynav_compass.evaluation import (
     share_cell,
     summary_rows,
 )
-from skynav_compass.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
-from skynav_compass.runner import Method, NodeViews, build_method, compass_result, timed_estimates
+from skynav_compass.eval.methods import DEFAULT_METHODS, METHODS, NODE_METHODS
+from skynav_compass.eval.runner import Method, NodeViews, build_method, compass_result, timed_estimates
 from skynav_core.evaluation import Column, text_table, unknown_methods
 from skynav_core.rotations import MAX_TILT
 from skynav_core.views import recording_views
