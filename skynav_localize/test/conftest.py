@@ -118,3 +118,51 @@ def garden_map(tmp_path_factory):
     result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
     assert result.returncode == 0, result.stderr
     return path
+
+
+@pytest.fixture(scope='session')
+def render_route():
+    """Return render(folder, common, teach, repeat) -> (map store, repeat views): a teach and a repeat drive rendered by
+    `skynav sim bag` (common options, then each drive's own), the map as `skynav map build` makes it, and the repeat
+    drive's views as the skyline and SH nodes see them; the stores are closed at the end of the session."""
+    from skynav_core.maps import MapStore
+    from skynav_core.testing import run_skynav
+    from skynav_core.views import recording_views
+
+    stores = []
+
+    def render(folder: Path, common: tuple, teach: tuple, repeat: tuple):
+        teach_bag, repeat_bag, path = folder / 'teach.mcap', folder / 'repeat.mcap', folder / 'map.db'
+        for scenario, options, out in (('teach', teach, teach_bag), ('repeat', repeat, repeat_bag)):
+            result = run_skynav('sim', 'bag', scenario, *common, *options, '--out', str(out))
+            assert result.returncode == 0, result.stderr
+        result = run_skynav('map', 'build', str(teach_bag), '--out', str(path))
+        assert result.returncode == 0, result.stderr
+        stores.append(MapStore.open(path))
+        return stores[-1], recording_views(repeat_bag, images=False)
+
+    yield render
+    for store in stores:
+        store.close()
+
+
+def accepted_figures(store, views, tolerance: float, acceptance=None):
+    """Return the evaluation (skynav_localize.evaluation) of the default method's accepted matches of a drive's views
+    against a map, a match correct within `tolerance` m."""
+    from skynav_localize.evaluation import evaluate
+    from skynav_localize.localizer import Localizer
+
+    coefficients = np.stack([v.coefficients for v in views.views])
+    positions = np.stack([v.pose[:3] for v in views.views])
+    matches = Localizer(store, 'amplitude-seq', acceptance=acceptance).match_sequence(
+        coefficients, field_of_view=views.views[0].field_of_view, fill=views.views[0].fill
+    )
+    return evaluate(
+        'amplitude-seq', matches.index, matches.score, positions, store.positions(), tolerance, matches.accepted
+    )
+
+
+@pytest.fixture(scope='session')
+def accepted():
+    """Return accepted_figures (the default method's accepted matches of a drive, evaluated)."""
+    return accepted_figures

@@ -16,11 +16,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from skynav_core.maps import MapStore
-from skynav_core.testing import run_skynav
-from skynav_core.views import recording_views
-from skynav_localize.evaluation import evaluate
-from skynav_localize.localizer import METHODS, Localizer
+from skynav_localize.localizer import METHODS
 
 COMMON = ('--world', 'garden', '--seed', '21', '--length', '8', '--size', '320x240', '--encoding', 'mono8')
 TEACH = ('--speed', '1.0', '--time', 'forenoon')
@@ -29,40 +25,24 @@ TOLERANCE = 1.0  # m: a match within it is correct, a view farther from every sn
 
 
 @pytest.fixture(scope='module')
-def drive(tmp_path_factory):
+def drive(render_route, tmp_path_factory):
     """The garden route's map (as `skynav map build` makes it) and the views of a drive 1.5 m beside it."""
-    folder = tmp_path_factory.mktemp('parallel')
-    teach, beside, path = folder / 'teach.mcap', folder / 'beside.mcap', folder / 'map.db'
-    for scenario, options, out in (('teach', TEACH, teach), ('repeat', BESIDE, beside)):
-        result = run_skynav('sim', 'bag', scenario, *COMMON, *options, '--out', str(out))
-        assert result.returncode == 0, result.stderr
-    result = run_skynav('map', 'build', str(teach), '--out', str(path))
-    assert result.returncode == 0, result.stderr
-    views = recording_views(beside, images=False)
-    store = MapStore.open(path)
-    yield store, views
-    store.close()
+    return render_route(tmp_path_factory.mktemp('parallel'), COMMON, TEACH, BESIDE)
 
 
-def figures(store, views, acceptance=None):
-    """Return the evaluation of the default method's accepted matches of the drive beside the route."""
-    coefficients = np.stack([v.coefficients for v in views.views])
-    positions = np.stack([v.pose[:3] for v in views.views])
-    matches = Localizer(store, 'amplitude-seq', acceptance=acceptance).match_sequence(
-        coefficients, field_of_view=views.views[0].field_of_view, fill=views.views[0].fill
-    )
-    return evaluate(
-        'amplitude-seq', matches.index, matches.score, positions, store.positions(), TOLERANCE, matches.accepted
-    )
+@pytest.fixture
+def figures(accepted):
+    """Return figures(store, views, acceptance=None): the default method's accepted matches, evaluated."""
+    return lambda store, views, acceptance=None: accepted(store, views, TOLERANCE, acceptance)
 
 
-def test_no_view_beside_the_route_is_accepted(drive):
+def test_no_view_beside_the_route_is_accepted(drive, figures):
     result = figures(*drive)
     assert result.positives == 0 and result.queries > 80  # the whole drive runs beside the route
     assert result.off_route_accepted == 0 and not np.any(result.accepted)
 
 
-def test_the_tests_before_the_map_relative_distance_accepted_some(drive):
+def test_the_tests_before_the_map_relative_distance_accepted_some(drive, figures):
     # what the bound on the distance relative to the map's view change is for: the ratios, the motion and the
     # self-similarity alone vouch for views 1.5 m beside the route
     without = dataclasses.replace(METHODS['amplitude-seq'].acceptance, max_relative_distance=None)

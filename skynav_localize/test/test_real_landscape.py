@@ -16,11 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_core.maps import MapStore
-from skynav_core.testing import run_skynav
-from skynav_core.views import recording_views
-from skynav_localize.evaluation import evaluate
-from skynav_localize.localizer import METHODS, Localizer
+from skynav_localize.localizer import METHODS
 from skynav_localize.matching import Acceptance
 
 LANDSCAPE, SEED = 'geneva', 1
@@ -45,35 +41,18 @@ TARGET_PRECISION = 0.99
 
 
 @pytest.fixture(scope='module')
-def drive(stellarium, tmp_path_factory):
+def drive(stellarium, render_route, tmp_path_factory):
     """The landscape's map (as `skynav map build` makes it) and its repeat drive's views, as the nodes see them."""
-    folder = tmp_path_factory.mktemp('real_localization')
-    teach, repeat, path = folder / 'teach.mcap', folder / 'repeat.mcap', folder / 'map.db'
-    for scenario, options, out in (('teach', TEACH, teach), ('repeat', REPEAT, repeat)):
-        result = run_skynav('sim', 'bag', scenario, *COMMON, *options, '--out', str(out))
-        assert result.returncode == 0, result.stderr
-    result = run_skynav('map', 'build', str(teach), '--out', str(path))
-    assert result.returncode == 0, result.stderr
-    views = recording_views(repeat, images=False)
-    store = MapStore.open(path)
-    yield store, views
-    store.close()
+    return render_route(tmp_path_factory.mktemp('real_localization'), COMMON, TEACH, REPEAT)
 
 
-def figures(store, views, acceptance=None):
-    """Return the evaluation of the default method's accepted matches on the repeat drive."""
-    coefficients = np.stack([v.coefficients for v in views.views])
-    positions = np.stack([v.pose[:3] for v in views.views])
-    localizer = Localizer(store, 'amplitude-seq', acceptance=acceptance)
-    matches = localizer.match_sequence(
-        coefficients, field_of_view=views.views[0].field_of_view, fill=views.views[0].fill
-    )
-    return evaluate(
-        'amplitude-seq', matches.index, matches.score, positions, store.positions(), TOLERANCE, matches.accepted
-    )
+@pytest.fixture
+def figures(accepted):
+    """Return figures(store, views, acceptance=None): the default method's accepted matches, evaluated."""
+    return lambda store, views, acceptance=None: accepted(store, views, TOLERANCE, acceptance)
 
 
-def test_the_route_that_looks_alike_fooled_the_ratio_tests(drive):
+def test_the_route_that_looks_alike_fooled_the_ratio_tests(drive, figures):
     # what the new tests are for: without them the sequence and the newest view vouch for places metres away
     store, views = drive
     ratios = METHODS['amplitude-seq'].acceptance
@@ -82,7 +61,7 @@ def test_the_route_that_looks_alike_fooled_the_ratio_tests(drive):
     assert np.count_nonzero(result.accepted & ~result.correct) >= 5 and result.accepted_precision < 0.5
 
 
-def test_no_accepted_match_lies_beyond_the_tolerance(drive):
+def test_no_accepted_match_lies_beyond_the_tolerance(drive, figures):
     store, views = drive
     result = figures(store, views)
     assert result.accepted_precision >= TARGET_PRECISION, np.flatnonzero(result.accepted & ~result.correct)
