@@ -105,53 +105,32 @@ def spin_until(executor: SingleThreadedExecutor, done: Callable[[], bool], timeo
     return True
 
 
-SIGNAL_POLL_S = 0.1  # s: how often a node that takes the signals itself looks whether one came
-SHUTDOWN_LAG = 0.5  # s a signal's shutdown of the context may lag what it broke
+SIGNAL_POLL_S = 0.1  # s: how often a node's spin loop looks whether a signal came
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Run one node until Ctrl-C or SIGTERM: the body of every skynav node's main(); return an exit code."""
-    # A node that drives the robot stops it on the way out, which needs the context alive: it takes the signals
-    # itself (a flag its spin loop looks at) instead of rclpy's handler, which shuts the context down first. A flag,
-    # not KeyboardInterrupt, so that a signal never lands inside rclpy's own code and leaves it half done.
-    own_signals = getattr(node_factory, 'stops_on_signal', False)
+    # Every node takes the signals itself (a flag its spin loop looks at) instead of rclpy's handler, which shuts the
+    # context down from a thread of its own: that shutdown raced destroy_node on the main thread and could hang it in
+    # the middleware, and a node that drives the robot needs the context alive to send its zero command on the way
+    # out. A flag, not KeyboardInterrupt, so that a signal never lands inside rclpy's own code and leaves it half done;
+    # one way down for every node: the spin loop ends, the node is destroyed, then the context shuts down.
     stop = threading.Event()
-    node, started = None, False
-    try:  # a Ctrl-C at any moment from here on, even while rclpy starts or the node is built, ends quietly
-        if own_signals:
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(signum, lambda *_: stop.set())
+    node = None
+    try:  # a signal at any moment from here on, even while rclpy starts or the node is built, ends quietly
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda *_: stop.set())
         apply_ros_environment()
-        rclpy.init(
-            args=args, signal_handler_options=SignalHandlerOptions.NO if own_signals else SignalHandlerOptions.ALL
-        )
-        started = True
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         node = node_factory()
-        if own_signals:
-            spin_until_signal(node, stop)
-        else:
-            rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        spin_until_signal(node, stop)
+    except ExternalShutdownException:  # the context was shut down by other code in this process
         pass
-    except Exception:
-        if not started or _context_stays_up():  # a real failure, not one that raced the shutdown a signal started
-            raise
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def _context_stays_up() -> bool:
-    """Return whether rclpy's context is still up SHUTDOWN_LAG s after a failure: rclpy's signal handler shuts it
-    down from a thread of its own, so what a signal broke (a node half built) may fail before the context is down."""
-    deadline = time.monotonic() + SHUTDOWN_LAG
-    while rclpy.ok():
-        if time.monotonic() > deadline:
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def spin_until_signal(node: Node, stop: threading.Event) -> None:

@@ -126,8 +126,6 @@ class RouteNode(SkynavNode):
         IMU,
         TF_STATIC,
     )
-    #: run_node leaves SIGINT/SIGTERM to the node's own handling, so the zero command goes out before shutdown.
-    stops_on_signal = True
     values: dict[str, Any]  # the parameter values taken (configure)
     stamped: bool  # /cmd_vel is a TwistStamped (cmd_vel_stamped, read at start-up)
 
