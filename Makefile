@@ -12,7 +12,7 @@ PY_PACKAGES := skynav_core skynav_bringup skynav_skyline skynav_sh skynav_locali
 PY_PACKAGE_FILES := $(foreach p,$(PY_PACKAGES),$(p)/setup.py $(p)/setup.cfg $(p)/pyproject.toml $(p)/package.xml) \
                     $(shell find $(addsuffix /config,$(PY_PACKAGES)) \
                             $(addsuffix /launch,$(PY_PACKAGES)) -type f 2>/dev/null)
-PY_PACKAGE_FILES += tools/link_data_files.py
+PY_PACKAGE_FILES += tools/link_data_files.py testing/pyproject.toml
 MSG_FILES := $(wildcard skynav_msgs/msg/*.msg) $(wildcard skynav_msgs/action/*.action) skynav_msgs/CMakeLists.txt \
              skynav_msgs/package.xml cmake/strip_wheel_include_dirs.cmake tools/build_msgs.sh
 TF2_MSG_FILES := vendor/tf2_msgs/msg/TFMessage.msg vendor/tf2_msgs/CMakeLists.txt vendor/tf2_msgs/package.xml \
@@ -48,7 +48,7 @@ $(STAMPS)/tf2_msgs: $(STAMPS)/deps $(TF2_MSG_FILES)
 # folders of the same name in the repository root (namespace packages to Python) cannot shadow them.
 $(STAMPS)/packages: $(STAMPS)/msgs $(STAMPS)/tf2_msgs $(PY_PACKAGE_FILES)
 	$(PIP) install --quiet --no-deps --no-build-isolation --config-settings editable_mode=compat \
-	    $(addprefix -e ./,$(PY_PACKAGES))
+	    $(addprefix -e ./,$(PY_PACKAGES)) -e ./testing
 	$(BIN)/python tools/link_data_files.py $(VENV) $(PY_PACKAGES)
 	@touch $@
 

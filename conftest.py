@@ -12,8 +12,8 @@ import os
 
 import pytest
 
-from skynav_core.environment import apply_ros_environment
-from skynav_core.testing import claim_domain_id
+from skynav_core.process.environment import apply_ros_environment
+from skynav_testing import claim_domain_id
 
 _domain_lock = None
 

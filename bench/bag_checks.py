@@ -26,10 +26,10 @@ from pathlib import Path
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
 from skynav_bringup.cli import main
-from skynav_core.bag import BagWriter, open_bag
-from skynav_core.cdr import rosbags_cdr
-from skynav_core.testing import BAGS
-from skynav_core.typestore import typestore
+from skynav_core.recording.bag import BagWriter, open_bag
+from skynav_core.recording.cdr import rosbags_cdr
+from skynav_core.recording.typestore import typestore
+from skynav_testing import BAGS
 
 REPEATS = 5
 

@@ -4,7 +4,7 @@
     .venv/bin/python bench/link_split.py [--frames N] [--transport shm|udp] [--discovery peers|server]
     (as root: network namespaces)
 
-Two hosts on one machine (skynav_core.netns: network namespaces joined by a veth pair, UDP between them). A
+Two hosts on one machine (skynav_core.process.netns: network namespaces joined by a veth pair, UDP between them). A
 synthetic 640x480 mono16 repeat drive of the garden at 10 Hz is replayed on the robot in real time, with
 
 - images across: only the camera on the robot; skyline, sh, localize, compass, warping, route on the base station;
@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from skynav_core import netns
 from skynav_core.names import GREEN_IMAGE, HOME_VECTOR, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.network import DISCOVERY_SERVER_PORT, socket_buffer_warning
-from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
+from skynav_core.process import netns
+from skynav_core.process.network import DISCOVERY_SERVER_PORT, socket_buffer_warning
+from skynav_testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 PROBE = Path(__file__).parents[1] / 'test' / 'graph_probe.py'
 CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from skynav_core.environment import apply_ros_environment
 from skynav_core.names import CAMERA_FRAME, GREEN_IMAGE, UV_IMAGE
-from skynav_core.testing import claim_domain_id, start_skynav, wait_text
+from skynav_core.process.environment import apply_ros_environment
+from skynav_testing import claim_domain_id, start_skynav, wait_text
 
 WIDTH, HEIGHT = 640, 480
 FRAME_PERIOD_NS = 100_000_000  # 10 Hz, as the contract's recordings
@@ -31,8 +31,8 @@ FRAME_PERIOD_NS = 100_000_000  # 10 Hz, as the contract's recordings
 
 def write_pairs(path: Path, pairs: int) -> list[bytes]:
     """Write `pairs` UV+green mono16 frames (smooth scene plus noise) and return the serialized images."""
-    from skynav_core.bag import BagWriter
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.bag import BagWriter
+    from skynav_core.recording.typestore import typestore
 
     T = typestore().types
     rng = np.random.default_rng(0)
@@ -99,7 +99,7 @@ def main() -> int:
         domain, _lock = claim_domain_id()
         os.environ['ROS_DOMAIN_ID'] = str(domain)
     apply_ros_environment()
-    from skynav_core.bag import open_bag
+    from skynav_core.recording.bag import open_bag
 
     with tempfile.TemporaryDirectory() as tmp:
         source, copy = Path(tmp, 'pairs.mcap'), Path(tmp, 'copy.mcap')

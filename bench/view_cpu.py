@@ -34,7 +34,7 @@ import websockets
 
 from skynav_bringup.cli.view import layout_file
 from skynav_core.names import HOME_VECTOR
-from skynav_core.testing import BAGS, claim_domain_id, run_skynav, skynav_command
+from skynav_testing import BAGS, claim_domain_id, run_skynav, skynav_command
 
 SUBPROTOCOL = 'foxglove.sdk.v1'
 UNKNOWN_CHANNEL = 'Unknown channel ID: '

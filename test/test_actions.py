@@ -9,7 +9,7 @@ import pytest
 
 from skynav_core.actions import ERROR_NONE, error_codes, error_name
 from skynav_core.names import TEACH_ACTION
-from skynav_core.testing import on_executor_thread
+from skynav_testing import on_executor_thread
 
 # The fields of each action exactly as the contract writes them: (goal, result, feedback), name -> rosidl type.
 CONTRACT = {
@@ -152,8 +152,8 @@ def test_the_typestore_knows_the_action_messages_with_rosidls_hashes(name):
     """Bags can hold an action's topics: rosbags' definitions of its parts hash as rosidl's (installed JSON)."""
     import json
 
-    from skynav_core.environment import share_directory
-    from skynav_core.typestore import ensure_type, typestore
+    from skynav_core.process.environment import share_directory
+    from skynav_core.recording.typestore import ensure_type, typestore
 
     rosidl = json.loads((share_directory('skynav_msgs') / 'action' / f'{name}.json').read_text())
     hashes = {entry['type_name']: entry['hash_string'] for entry in rosidl['type_hashes']}
@@ -165,8 +165,8 @@ def test_the_typestore_knows_the_action_messages_with_rosidls_hashes(name):
 def test_a_feedback_message_crosses_rclpy_and_rosbags():
     from rclpy.serialization import serialize_message
 
+    from skynav_core.recording.typestore import ensure_type, typestore
     from skynav_core.ros import message_class
-    from skynav_core.typestore import ensure_type, typestore
 
     feedback_type = message_class('skynav_msgs/action/FollowRoute_FeedbackMessage')
     message = feedback_type()
@@ -185,9 +185,9 @@ def test_an_actions_feedback_is_echoed_and_not_recorded(tmp_path, ros_context):
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from skynav_core.bag import open_bag
+    from skynav_core.recording.bag import open_bag
     from skynav_core.ros import message_class
-    from skynav_core.testing import start_skynav, wait_text
+    from skynav_testing import start_skynav, wait_text
 
     topic = '/skynav/teach/_action/feedback'
     feedback_type = message_class('skynav_msgs/action/Teach_FeedbackMessage')

@@ -15,16 +15,16 @@ import signal
 import subprocess
 import sys
 
-from skynav_core.mcapfile import CHUNK_PERIOD
 from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_POSE, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.testing import BAGS, run_skynav, start_skynav, wait_text
+from skynav_core.recording.mcapfile import CHUNK_PERIOD
+from skynav_testing import BAGS, run_skynav, start_skynav, wait_text
 
 RECORD_FOR = 5.0  # s of receiving before the kill
 TOPICS = [UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO, GROUND_TRUTH_POSE]
 RECORDER = """
 import sys, time
-from skynav_core.bag import BagWriter
-from skynav_core.recorder import Recorder
+from skynav_core.recording.bag import BagWriter
+from skynav_core.recording.recorder import Recorder
 from skynav_core.ros import tool_node
 
 

@@ -10,7 +10,6 @@ from mcap.records import Chunk, DataEnd, Footer
 from mcap.stream_reader import StreamReader
 from rosbags.rosbag2 import Reader
 
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.names import (
     COLOUR_CAMERA_INFO,
@@ -21,7 +20,8 @@ from skynav_core.names import (
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
-from skynav_core.testing import run_skynav
+from skynav_core.recording.bag import open_bag
+from skynav_testing import run_skynav
 
 BAGS = sorted((Path(__file__).parents[1] / 'bags').glob('*.mcap'))
 INPUT_TOPICS = {

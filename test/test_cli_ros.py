@@ -10,7 +10,7 @@ import time
 import yaml
 
 from skynav_core.names import LOCALIZATION_MATCH, UV_IMAGE
-from skynav_core.testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
+from skynav_testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
 
 
 def test_echo_prints_a_custom_message_as_yaml(ros_context):

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH
-from skynav_core.testing import run_skynav, write_featureless_recording
+from skynav_core.recording.bag import open_bag
+from skynav_testing import run_skynav, write_featureless_recording
 
 FOV = np.radians(200.0)  # rad: the bundled recordings' fish-eye
 DEGREE = 16

@@ -19,9 +19,9 @@ import mcap.reader
 import numpy as np
 import pytest
 
-from skynav_core.bag import BagWriter, open_bag
 from skynav_core.names import UV_CAMERA_INFO
-from skynav_core.testing import BAGS, one_line_error, run_skynav
+from skynav_core.recording.bag import BagWriter, open_bag
+from skynav_testing import BAGS, one_line_error, run_skynav
 
 COMPASS = BAGS / 'synthetic_garden_compass.mcap'
 HOMING = BAGS / 'synthetic_park_homing.mcap'

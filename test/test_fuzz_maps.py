@@ -37,13 +37,13 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from skynav_bringup.cli import main
 from skynav_core import views
-from skynav_core.bag import RawMessage, open_bag
 from skynav_core.graph import in_process, type_name
 from skynav_core.maps import MapError, MapStore, _meta_crc
 from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
-from skynav_core.testing import one_line_error, run_skynav
+from skynav_core.recording.bag import RawMessage, open_bag
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
+from skynav_testing import one_line_error, run_skynav
 
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 BAG = BAGS / 'synthetic_garden_compass.mcap'  # short (31 exposures), with ground truth: map and queries alike

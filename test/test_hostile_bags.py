@@ -11,7 +11,7 @@ import yaml
 from mcap.writer import Writer
 
 from skynav_core.names import UV_CAMERA_INFO
-from skynav_core.testing import BAGS, one_line_error
+from skynav_testing import BAGS, one_line_error
 
 SOURCE = BAGS / 'synthetic_garden_compass.mcap'
 # Commands that read a bag, each on the crafted one: (arguments; {bag} and {out} filled in).

@@ -272,7 +272,7 @@ def _package(root: Path, name: str, deps: list[str], code: str = '', comment: st
 def test_the_check_names_a_missing_and_an_extra_skynav_dependency_and_counts_lazy_imports(tmp_path):
     _package(tmp_path, 'skynav_core', [])
     _package(tmp_path, 'skynav_sh', [])
-    code = 'def f():\n    from skynav_core.bag import open_bag\n'
+    code = 'def f():\n    from skynav_core.recording.bag import open_bag\n'
     _package(tmp_path, 'skynav_skyline', ['skynav_sh', 'rclpy'], code)
     assert check_package(tmp_path, 'skynav_skyline') == [
         'skynav_skyline/package.xml: misses skynav dependency skynav_core '

@@ -11,7 +11,6 @@ import time
 
 import numpy as np
 
-from skynav_core.msgyaml import to_plain
 from skynav_core.names import (
     COMPASS_ORIENTATION,
     GROUND_TRUTH_POSE,
@@ -21,8 +20,9 @@ from skynav_core.names import (
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
+from skynav_core.recording.msgyaml import to_plain
 from skynav_core.ros import message_class
-from skynav_core.testing import start_skynav, write_sample_bag
+from skynav_testing import start_skynav, write_sample_bag
 
 
 def rclpy_to_plain(message):

@@ -15,9 +15,9 @@ import signal
 import time
 from pathlib import Path
 
-from skynav_core.bag import open_bag
 from skynav_core.names import SKYLINE_SH
-from skynav_core.testing import running, start_skynav, wait_text, write_first_frames
+from skynav_core.recording.bag import open_bag
+from skynav_testing import running, start_skynav, wait_text, write_first_frames
 
 BAGS = Path(__file__).parents[1] / 'bags'
 DRIVES = {'robot1': 'synthetic_garden_repeat.mcap', 'robot2': 'synthetic_mineral_repeat.mcap'}
@@ -28,7 +28,7 @@ ROS_GLOBALS = ('/rosout', '/parameter_events')
 
 def coefficients(path: Path) -> dict[int, object]:
     """Return a recording's /skyline/sh messages by stamp (ns)."""
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.typestore import typestore
 
     store = typestore()
     with open_bag(path) as bag:
@@ -44,7 +44,7 @@ def test_two_namespaced_graphs_on_one_domain_each_give_exactly_their_own_run(
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-    from skynav_core.testing import messages_equal
+    from skynav_testing import messages_equal
 
     drives = {ns: write_first_frames(BAGS / name, tmp_path / f'{ns}.mcap', FRAMES) for ns, name in DRIVES.items()}
     expected = {}

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapStore
 from skynav_core.names import (
@@ -30,8 +29,9 @@ from skynav_core.names import (
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
-from skynav_core.testing import run_skynav, start_skynav
+from skynav_core.recording.bag import open_bag
 from skynav_localize.evaluation import correct_matches
+from skynav_testing import run_skynav, start_skynav
 
 BAGS = Path(__file__).parents[1] / 'bags'
 # 5 Hz: the graph takes about 0.11 s of CPU a view (0.07 s of it the warping node's, bench/homing.py), so at the

@@ -13,9 +13,9 @@ import signal
 import time
 from pathlib import Path
 
-from skynav_core.bag import open_bag
 from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.testing import run_skynav, start_skynav
+from skynav_core.recording.bag import open_bag
+from skynav_testing import run_skynav, start_skynav
 
 BAGS = Path(__file__).parents[1] / 'bags'
 CAMERA_TOPICS = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from skynav_core.bag import open_bag
 from skynav_core.names import SKYLINE_SH
-from skynav_core.testing import messages_equal, start_skynav, wait_text, write_sample_bag
+from skynav_core.recording.bag import open_bag
+from skynav_testing import messages_equal, start_skynav, wait_text, write_sample_bag
 
 
 def test_replay_then_record_reproduces_the_bag(tmp_path):

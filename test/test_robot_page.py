@@ -20,7 +20,7 @@ the page's links must lead to files and headings that exist.
 
 The runnable blocks run in page order in one temporary folder whose `bags/` holds the repository's bundled
 synthetic recordings, with `synthetic_garden_repeat.mcap` cut to its first exposures
-(skynav_core.testing.write_first_frames) so that `skynav run` over it stays short; `skynav` is this virtualenv's
+(skynav_testing.write_first_frames) so that `skynav run` over it stays short; `skynav` is this virtualenv's
 (its folder first on PATH), on the test run's own ROS domain (conftest.py).
 """
 
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import pytest
 
-from skynav_core.testing import one_line_error, write_first_frames
+from skynav_testing import one_line_error, write_first_frames
 
 ROOT = Path(__file__).parents[1]
 PAGE = ROOT / 'docs' / 'robot.md'

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import yaml
 
-from skynav_core.bag import BagWriter, open_bag
 from skynav_core.maps import MapStore
 from skynav_core.names import CLOCK, UV_IMAGE
-from skynav_core.testing import running, start_skynav, wait_text, write_first_frames
+from skynav_core.recording.bag import BagWriter, open_bag
+from skynav_testing import running, start_skynav, wait_text, write_first_frames
 
 BAGS = Path(__file__).parents[1] / 'bags'
 FRAMES = 40
@@ -28,7 +28,7 @@ CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 
 def with_clock(source: Path, target: Path) -> Path:
     """Copy a recording, adding a /clock message stamped as each UV exposure, logged just before it."""
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.typestore import typestore
 
     store = typestore()
     clock, time = store.types[CLOCK_TYPE], store.types['builtin_interfaces/msg/Time']

@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.images import fill_image, image_to_array, stamp_ns
 from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, GROUND_TRUTH_MASK, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.testing import start_skynav
+from skynav_core.recording.bag import open_bag
 from skynav_skyline.classify import classification_rate
+from skynav_testing import start_skynav
 
 BAGS = Path(__file__).parents[1] / 'bags'
 # `skynav skyline eval` on the bundled skyline sets: default method 99.1 % mean, worst exposure 96.2 %.

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """The graph split across two hosts over UDP gives the outputs of one process, frame for frame.
 
-Two network namespaces joined by a veth pair stand for a robot and a base station (skynav_core.netns):
+Two network namespaces joined by a veth pair stand for a robot and a base station (skynav_core.process.netns):
 each has its own /dev/shm, so between them Fast DDS can only use UDP, as between two machines. The robot
 runs the camera (a bundled bag replayed), skyline and sh; the base station localize, compass, warping and
 the route controller (idle: it has no goal) and a recorder. What the base station records must equal what
@@ -26,8 +26,6 @@ from pathlib import Path
 import pytest
 import yaml
 
-from skynav_core import netns
-from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
 from skynav_core.names import (
     COMPASS_ORIENTATION,
@@ -38,8 +36,10 @@ from skynav_core.names import (
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
-from skynav_core.network import DISCOVERY_SERVER_PORT
-from skynav_core.testing import BAGS, messages_equal, run_skynav, skynav_command, write_first_frames
+from skynav_core.process import netns
+from skynav_core.process.network import DISCOVERY_SERVER_PORT
+from skynav_core.recording.bag import open_bag
+from skynav_testing import BAGS, messages_equal, run_skynav, skynav_command, write_first_frames
 
 PROBE = Path(__file__).with_name('graph_probe.py')
 CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)

@@ -22,10 +22,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from skynav_bringup.cli.view import layout_file
 from skynav_bringup.viewer import Viewer
-from skynav_core.bag import open_bag
 from skynav_core.images import stamp_ns
 from skynav_core.names import SKYLINE_SH, VIZ_CONFIDENCE, VIZ_MARKERS, VIZ_OVERLAY, VIZ_STATE
-from skynav_core.testing import messages_equal, start_skynav, wait_text
+from skynav_core.recording.bag import open_bag
+from skynav_testing import messages_equal, start_skynav, wait_text
 
 BAGS = Path(__file__).parents[1] / 'bags'
 RECORDING = BAGS / 'synthetic_park_skyline.mcap'  # 20 frames, with ground truth: a map with poses

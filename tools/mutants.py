@@ -163,7 +163,7 @@ MUTATIONS = (
     ),
     Mutation(
         'chunk-crc-not-compared',
-        'skynav_core/skynav_core/mcapfile.py',
+        'skynav_core/skynav_core/recording/mcapfile.py',
         'if len(records) != size or (crc and zlib.crc32(records) != crc):',
         'if len(records) != size:',
         ('skynav_core/test/test_mcapfile.py',),

@@ -12,11 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from skynav_core.cli import graph_arguments
-from skynav_core.environment import share_directory
 from skynav_core.graph import node_class
 from skynav_core.namespaces import write_any_namespace_file
 from skynav_core.nodes import installed_nodes
 from skynav_core.parameters import COMMON_PARAMETERS, parameter_file
+from skynav_core.process.environment import share_directory
 
 SHIPPED = Path(__file__).resolve().parents[1] / 'config' / 'skynav.yaml'
 HEADER = """\

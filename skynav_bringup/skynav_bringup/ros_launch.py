@@ -19,12 +19,12 @@ from pathlib import Path
 from typing import Any
 
 from skynav_core.camera_input import CAMERA_SETTINGS
-from skynav_core.environment import share_directory
 from skynav_core.errors import SkynavError
 from skynav_core.graph import node_class
 from skynav_core.namespaces import check_namespace, remap_arguments, write_any_namespace_file
 from skynav_core.nodes import NodeSpec, installed_nodes
 from skynav_core.parameters import load_parameter_file
+from skynav_core.process.environment import share_directory
 
 #: Values of the launch argument `camera`; '' leaves it to the parameter files (the shipped one says auto).
 CAMERA_CHOICES = ('', *CAMERA_SETTINGS)

@@ -6,7 +6,7 @@ encoding `cdr`, schema encoding `ros2msg` with the type's full definition (its f
 a `MSG:` line, as MCAP recordings carry it), so Foxglove decodes the messages as it decodes a recording's. A topic
 is subscribed (raw, with a profile that matches its publishers) only while some Foxglove client subscribes to its
 channel, so an idle viewer costs the graph nothing but discovery. The bytes forwarded are the received CDR in the
-form every reader takes (skynav_core.cdr), logged at their time of receipt.
+form every reader takes (skynav_core.recording.cdr), logged at their time of receipt.
 
 A topic that cannot be forwarded (a type without an installed definition, several types on one topic) is told
 in one line, once, and the others go on. Hidden topics (a name part starting with '_', e.g. actions' feedback)
@@ -28,12 +28,12 @@ from foxglove.websocket import ServerListener
 from rclpy.node import Node
 from rosbags.typesys import TypesysError
 
-from skynav_core.cdr import rosbags_cdr
 from skynav_core.errors import SkynavError
 from skynav_core.namespaces import without_namespace
-from skynav_core.qos import subscription_qos
+from skynav_core.recording.cdr import rosbags_cdr
+from skynav_core.recording.qos import subscription_qos
+from skynav_core.recording.typestore import ros2msg_definition
 from skynav_core.ros import message_class
-from skynav_core.typestore import ros2msg_definition
 
 DISCOVERY_PERIOD = 1.0  # s between looks for topics that appeared
 CLIENTS_PERIOD = 0.1  # s between looks at what the clients subscribe to (they are told within this)

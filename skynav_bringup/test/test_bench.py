@@ -7,7 +7,7 @@ import pytest
 
 from skynav_bringup.cli import main
 from skynav_core.nodes import installed_nodes
-from skynav_core.testing import BAGS
+from skynav_testing import BAGS
 
 SMALLEST = min(BAGS.glob('*.mcap'), key=lambda path: path.stat().st_size)
 ROW = re.compile(r'^(\S+) +(\d+) +([\d.]+) +([\d.]+|inf) +([\d.]+) %$')

@@ -14,8 +14,8 @@ from skynav_bringup.cli import main
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_yaml import camera_from_url
 from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, ODOM, UV_IMAGE
-from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.checkerboard import BoardRenderer, Checkerboard, calibration_poses, synthetic_fisheye
+from skynav_testing import one_line_error, run_skynav
 
 FOV = np.radians(200.0)
 BOARD = Checkerboard(9, 6, 0.025)
@@ -51,8 +51,8 @@ def _write_folder(folder: Path, images: list[np.ndarray]) -> Path:
 
 def _write_recording(path: Path, images: list[np.ndarray]) -> Path:
     """Write views as rgb8 sensor_msgs/Image on /camera/image_raw, 0.5 s apart, into a bare MCAP recording."""
-    from skynav_core.bag import BagWriter
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.bag import BagWriter
+    from skynav_core.recording.typestore import typestore
 
     store = typestore()
     T = store.types
@@ -153,9 +153,9 @@ def test_a_compressed_frame_is_decoded_for_the_detector(views):
     from types import SimpleNamespace
 
     from skynav_bringup.cli.calibrate import _message_frame
-    from skynav_core.bag import RawMessage
     from skynav_core.calibration import Board, find_corners
     from skynav_core.colour import compress
+    from skynav_core.recording.bag import RawMessage
 
     _, images = views
     format_text, data = compress(images[0], 'jpeg', 95)
@@ -174,9 +174,9 @@ def test_a_mono_frame_is_taken_as_linear(views):
     from types import SimpleNamespace
 
     from skynav_bringup.cli.calibrate import _message_frame
-    from skynav_core.bag import RawMessage
     from skynav_core.calibration import Board, find_corners
     from skynav_core.colour import SRGB8_TO_LINEAR16
+    from skynav_core.recording.bag import RawMessage
 
     _, images = views
     grey = cv2.cvtColor(images[0], cv2.COLOR_RGB2GRAY)

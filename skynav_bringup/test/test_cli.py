@@ -4,7 +4,7 @@
 import pytest
 
 from skynav_bringup.cli import build_parser, main
-from skynav_core.testing import one_line_error, run_skynav, write_sample_bag
+from skynav_testing import one_line_error, run_skynav, write_sample_bag
 
 
 def _commands(parser, path=()):

@@ -15,9 +15,9 @@ import re
 from collections import Counter
 from pathlib import Path
 
-from skynav_core.bag import open_bag
 from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_MASK, SKYLINE_SH
-from skynav_core.testing import run_skynav
+from skynav_core.recording.bag import open_bag
+from skynav_testing import run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 OUTPUT_TOPICS = (SKYLINE_MASK, SKYLINE_SH, LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR)

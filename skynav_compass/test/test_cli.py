@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_core.testing import one_line_error, run_skynav
+from skynav_testing import one_line_error, run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 GARDEN = BAGS / 'synthetic_garden_compass.mcap'
@@ -136,9 +136,9 @@ def test_command_prints_both_groups_and_saves_the_plot(tmp_path):
 
 
 def _bag_without_camera(path: Path) -> Path:
-    from skynav_core.bag import BagWriter
-    from skynav_core.testing import sample_messages
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.bag import BagWriter
+    from skynav_core.recording.typestore import typestore
+    from skynav_testing import sample_messages
 
     with BagWriter(path) as writer:
         for topic, msgtype, t, message in sample_messages(3):

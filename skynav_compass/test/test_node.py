@@ -21,12 +21,12 @@ from scipy.spatial.transform import Rotation
 from std_srvs.srv import Trigger
 
 from skynav_compass.eval.dataset import true_rotation
-from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
 from skynav_core.names import COMPASS_ORIENTATION, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
+from skynav_core.recording.bag import RawMessage
 from skynav_core.views import recording_views
 from skynav_localize.mapping import build_map
 from skynav_msgs.msg import PlaceMatch, ShCoefficients

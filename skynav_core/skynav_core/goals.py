@@ -5,7 +5,7 @@ Once the server is seen, the client lets discovery settle before it sends the go
 callback (the command's progress line, :class:`ProgressLine`); a stop request (Ctrl-C, SIGTERM) cancels the goal once
 and waits for its result, a second one gives up waiting. :func:`goal_result` turns the outcome into the command's
 exit: the result of a goal that ended well, or a CliError naming the result's error code (exit code 1). Import after
-:func:`skynav_core.environment.apply_ros_environment` (as skynav_core.ros).
+:func:`skynav_core.process.environment.apply_ros_environment` (as skynav_core.ros).
 
 An action's goal and result are services, and Fast DDS drops a service's answer when the server has not yet
 discovered the client's reader of answers (rmw_fastrtps: "client will not receive response"). rclpy's server then

@@ -21,10 +21,10 @@ from rclpy.context import Context
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.signals import SignalHandlerOptions
 
-from .bag import BagError, BagReader, RawMessage
-from .environment import apply_ros_environment
 from .node import DIAGNOSTICS_PERIOD, SkynavNode
 from .nodes import NodeSpec
+from .process.environment import apply_ros_environment
+from .recording.bag import BagError, BagReader, RawMessage
 from .ros import message_class
 
 # (topic, type name, log time in ns, serialized message)

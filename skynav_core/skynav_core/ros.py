@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Small rclpy helpers shared by the `skynav` tools and the nodes.
 
-Import this module only after :func:`skynav_core.environment.apply_ros_environment`
+Import this module only after :func:`skynav_core.process.environment.apply_ros_environment`
 has run (the `skynav` command and :func:`run_node` take care of it).
 """
 
@@ -22,9 +22,9 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from .environment import apply_ros_environment
-from .network import make_super_client
-from .typestore import UnknownMessageType, action_part, split_type
+from .process.environment import apply_ros_environment
+from .process.network import make_super_client
+from .recording.typestore import UnknownMessageType, action_part, split_type
 
 
 def message_class(msgtype: str) -> type:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from skynav_core.bag import BagError, open_bag
+from skynav_core.recording.bag import BagError, open_bag
 
 from .camera import EquidistantCamera
 from .camera_input import CAMERA_INFO_TOPICS, recorded_source
@@ -90,7 +90,7 @@ class RecordedFrames(Described):
 def recorded_frames(
     bag: Any, image_topics: Sequence[str] = (), encodings: tuple[str, ...] = tuple(DTYPES)
 ) -> RecordedFrames:
-    """Return the camera, ground-truth poses and images of `image_topics` of an open recording (skynav_core.bag).
+    """Return the camera, ground-truth poses and images of `image_topics` of an open recording (recording.bag).
 
     Topics the recording lacks are left out (their tables empty); an image in another encoding is an ImageError.
     The camera and the frame order come from the camera info of the recording's camera source; the colour

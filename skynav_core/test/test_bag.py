@@ -7,11 +7,11 @@ import mcap.reader
 import pytest
 from rosbags.rosbag2 import Reader
 
-from skynav_core.bag import BagError, BagWriter, open_bag
-from skynav_core.environment import share_directory
 from skynav_core.names import SKYLINE_SH, UV_IMAGE
-from skynav_core.testing import messages_equal, write_sample_bag
-from skynav_core.typestore import typestore
+from skynav_core.process.environment import share_directory
+from skynav_core.recording.bag import BagError, BagWriter, open_bag
+from skynav_core.recording.typestore import typestore
+from skynav_testing import messages_equal, write_sample_bag
 
 
 @pytest.fixture(scope='module')

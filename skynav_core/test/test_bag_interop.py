@@ -19,12 +19,12 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.rosbag2 import Reader
 
-from skynav_core.bag import BagWriter
-from skynav_core.cdr import rosbags_cdr
 from skynav_core.names import LOCALIZATION_MATCH, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
+from skynav_core.recording.bag import BagWriter
+from skynav_core.recording.cdr import rosbags_cdr
+from skynav_core.recording.typestore import ensure_type, typestore
 from skynav_core.ros import message_class
-from skynav_core.testing import messages_equal, sample_messages
-from skynav_core.typestore import ensure_type, typestore
+from skynav_testing import messages_equal, sample_messages
 
 
 def empty_array_cases() -> list[tuple[str, str, int, object]]:

@@ -4,7 +4,7 @@
 import sys
 from pathlib import Path
 
-from skynav_core.environment import ament_prefixes, ros_environment, share_directory
+from skynav_core.process.environment import ament_prefixes, ros_environment, share_directory
 
 
 def test_defaults_fill_an_empty_environment():

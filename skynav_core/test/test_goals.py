@@ -19,8 +19,8 @@ from rclpy.node import Node
 from skynav_core import goals
 from skynav_core.cli import CliError
 from skynav_core.names import TEACH_ACTION
-from skynav_core.testing import wait_until
 from skynav_msgs.action import Teach
+from skynav_testing import wait_until
 
 TIMEOUT = 30.0  # s for discovery and answers under load
 

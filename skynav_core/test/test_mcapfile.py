@@ -8,11 +8,11 @@ import pytest
 from mcap.records import Channel, Chunk, Message
 from mcap.stream_reader import StreamReader, breakup_chunk
 
-from skynav_core.bag import BagError, BagReader, BagWriter, open_bag
-from skynav_core.mcapfile import CHUNK_PERIOD, Salvage, SalvagedChannel, SalvagedMessage
 from skynav_core.names import SKYLINE_SH
-from skynav_core.testing import sample_messages, write_sample_bag
-from skynav_core.typestore import typestore
+from skynav_core.recording.bag import BagError, BagReader, BagWriter, open_bag
+from skynav_core.recording.mcapfile import CHUNK_PERIOD, Salvage, SalvagedChannel, SalvagedMessage
+from skynav_core.recording.typestore import typestore
+from skynav_testing import sample_messages, write_sample_bag
 
 FRAMES = 25  # 2.4 s at 10 Hz: three chunks of at most CHUNK_PERIOD
 

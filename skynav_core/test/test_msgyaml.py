@@ -5,8 +5,8 @@ import math
 
 import yaml
 
-from skynav_core.msgyaml import to_plain, to_yaml
-from skynav_core.testing import sample_messages
+from skynav_core.recording.msgyaml import to_plain, to_yaml
+from skynav_testing import sample_messages
 
 
 def _first(msgtype):

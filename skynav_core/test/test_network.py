@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from skynav_core.network import (
+from skynav_core.process.network import (
     SOCKET_BUFFER,
     NetworkError,
     discovery_server_command,

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """Shared test data: synthetic SH routes, and the bundled synthetic recordings turned into SH coefficients.
 
-The recordings are read through skynav_core.bag; SH coefficients come from the ground-truth sky masks
+The recordings are read through skynav_core.recording.bag; SH coefficients come from the ground-truth sky masks
 (FisheyeTransform, fill 'zero'), so these tests measure place recognition, not segmentation.
 """
 
@@ -50,8 +50,8 @@ class Recording:
 
 def read_recording(name: str, degree: int = BAG_DEGREE) -> Recording:
     """Read a bundled recording's masks, UV images and poses; SH coefficients from the ground-truth masks."""
-    from skynav_core.bag import open_bag
     from skynav_core.camera import EquidistantCamera
+    from skynav_core.recording.bag import open_bag
     from skynav_sh.fisheye import FisheyeTransform
 
     masks, uv, poses, info = {}, {}, {}, None
@@ -100,8 +100,8 @@ def make_view():
 
 @pytest.fixture
 def featureless_recording(tmp_path):
-    """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_core.testing)."""
-    from skynav_core.testing import write_featureless_recording
+    """(kind, frames) -> path of a synthetic featureless recording in tmp_path (skynav_testing)."""
+    from skynav_testing import write_featureless_recording
 
     def write(kind: str, frames: int = 30) -> Path:
         return write_featureless_recording(tmp_path / f'synthetic_featureless_{kind}.mcap', kind, frames)
@@ -112,7 +112,7 @@ def featureless_recording(tmp_path):
 @pytest.fixture(scope='session')
 def garden_map(tmp_path_factory):
     """The map of the bundled garden teach drive, as `skynav map build` writes it."""
-    from skynav_core.testing import run_skynav
+    from skynav_testing import run_skynav
 
     path = tmp_path_factory.mktemp('maps') / 'garden.db'
     result = run_skynav('map', 'build', str(BAGS / 'synthetic_garden_teach.mcap'), '--out', str(path))
@@ -126,8 +126,8 @@ def render_route():
     `skynav sim bag` (common options, then each drive's own), the map as `skynav map build` makes it, and the repeat
     drive's views as the skyline and SH nodes see them; the stores are closed at the end of the session."""
     from skynav_core.maps import MapStore
-    from skynav_core.testing import run_skynav
     from skynav_core.views import recording_views
+    from skynav_testing import run_skynav
 
     stores = []
 

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapError, MapStore, partial_path
-from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.localizer import Localizer
+from skynav_testing import one_line_error, run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 BYTES_PER_SNAPSHOT = 4096  # the target: at most 4 kB per snapshot at L = 16 without the baselines

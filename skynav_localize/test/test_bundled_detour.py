@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapStore
-from skynav_core.testing import run_skynav
 from skynav_core.views import recording_views
 from skynav_localize.evaluation import evaluate
 from skynav_localize.localizer import OUR_METHODS, SH_SEQUENCE_MAX_RATIO, Localizer
 from skynav_localize.matching import Acceptance
+from skynav_testing import run_skynav
 
 BAGS = Path(__file__).parents[2] / 'bags'
 TARGET_PRECISION, TARGET_RECALL = 0.99, 0.9

@@ -9,15 +9,15 @@ import numpy as np
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
-from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.maps import MapStore
 from skynav_core.names import LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
-from skynav_core.testing import run_skynav
+from skynav_core.recording.bag import RawMessage
 from skynav_core.views import recording_views
 from skynav_localize.evaluation import correct_matches
 from skynav_localize.matching import MOTION_SLACK
+from skynav_testing import run_skynav
 
 BAGS = Path(__file__).parents[2] / 'bags'
 SPEC = NodeSpec('localize', 'skynav_localize', 'skynav_localize.node:LocalizeNode')
@@ -162,7 +162,7 @@ def test_unusable_map_leaves_the_node_serving_without_one(tmp_path, garden_map):
 
 
 def test_map_info_refuses_foreign_and_corrupt_files(tmp_path, garden_map):
-    from skynav_core.testing import one_line_error
+    from skynav_testing import one_line_error
 
     foreign = tmp_path / 'foreign.db'
     __import__('sqlite3').connect(foreign).execute('CREATE TABLE t (x)').connection.commit()

@@ -16,8 +16,8 @@ import numpy as np
 
 from skynav_core.maps import MapStore
 from skynav_core.names import GREEN_IMAGE, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.testing import claim_domain_id, one_line_error, run_skynav, running, start_skynav, wait_text
 from skynav_localize.cli.eval import positions_at
+from skynav_testing import claim_domain_id, one_line_error, run_skynav, running, start_skynav, wait_text
 
 BAGS = Path(__file__).parents[2] / 'bags'
 TEACH = BAGS / 'synthetic_garden_teach.mcap'

@@ -21,7 +21,7 @@ from skynav_core.actions import error_name
 from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
 from skynav_core.names import CLOCK, CMD_VEL, LOCALIZATION_MATCH, ODOM, SKYLINE_SH, TEACH_ACTION
-from skynav_core.testing import CanceledGoalHandle, on_executor_thread, run_without_waiting, wait_until
+from skynav_testing import CanceledGoalHandle, on_executor_thread, run_without_waiting, wait_until
 
 TIMEOUT = 30.0  # s for discovery and results under load
 

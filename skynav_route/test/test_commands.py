@@ -16,8 +16,8 @@ from rclpy.node import Node
 
 from skynav_core.maps import Snapshot
 from skynav_core.names import CMD_VEL
-from skynav_core.testing import one_line_error, run_skynav, start_skynav
 from skynav_localize.mapping import build_map
+from skynav_testing import one_line_error, run_skynav, start_skynav
 
 SNAPSHOTS = 12
 

@@ -40,10 +40,10 @@ from skynav_core.names import (
 )
 from skynav_core.namespaces import relative
 from skynav_core.nodes import installed_nodes
-from skynav_core.testing import CanceledGoalHandle, run_without_waiting
 from skynav_localize.mapping import build_map
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
+from skynav_testing import CanceledGoalHandle, run_without_waiting
 
 START = 1_750_000_000_000_000_000  # ns
 FRAME = 200_000_000  # ns between frames
@@ -458,7 +458,7 @@ def test_a_latched_tf_static_published_before_the_node_started_reaches_it(ros_co
     from tf2_msgs.msg import TFMessage
 
     from skynav_core.mount import mount_rpy_deg
-    from skynav_core.testing import wait_until
+    from skynav_testing import wait_until
 
     robot = Node('robot_state_publisher', context=ros_context)
     qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -648,7 +648,7 @@ def test_the_live_node_publishes_the_velocity_type_cmd_vel_stamped_asks_for(rout
     from rclpy.signals import SignalHandlerOptions
     from skynav_route.node import RouteNode
 
-    from skynav_core.testing import wait_until
+    from skynav_testing import wait_until
 
     context = Context()
     arguments = ['--ros-args', '-p', f'cmd_vel_stamped:={str(stamped).lower()}', '-r', 'cmd_vel:=/base/cmd_vel']

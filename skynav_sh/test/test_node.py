@@ -6,12 +6,12 @@ import math
 import numpy as np
 from rclpy.serialization import serialize_message
 
-from skynav_core.bag import RawMessage
 from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import fill_image
 from skynav_core.names import COLOUR_CAMERA_INFO, SKYLINE_MASK, SKYLINE_SH, UV_CAMERA_INFO
 from skynav_core.nodes import NodeSpec
+from skynav_core.recording.bag import RawMessage
 from skynav_sh.fisheye import FisheyeTransform
 
 SPEC = NodeSpec('sh', 'skynav_sh', 'skynav_sh.node:ShNode')

@@ -20,11 +20,11 @@ import numpy as np
 import yaml
 
 from skynav_core import names
-from skynav_core.bag import BagWriter
 from skynav_core.camera import EquidistantCamera
 from skynav_core.colour import CODECS, COLOUR_ENCODINGS
 from skynav_core.names import CAMERA_FRAME, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, MAP_FRAME
-from skynav_core.typestore import typestore
+from skynav_core.recording.bag import BagWriter
+from skynav_core.recording.typestore import typestore
 
 from .colour_sensor import DEFAULT_JPEG_QUALITY, ColourSensor, bits, compressed, encode
 from .errors import SimError

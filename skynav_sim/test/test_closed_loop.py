@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from skynav_core.testing import one_line_error, run_skynav
+from skynav_testing import one_line_error, run_skynav
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 TEACH = BAGS / 'synthetic_garden_teach.mcap'
@@ -150,7 +150,7 @@ def test_follow_command_refuses_bad_input_in_one_line(case, code, garden_map, tm
     teach, map_file, extra = TEACH, garden_map, []
     if case == 'not synthetic':
         teach = tmp_path / 'other.mcap'
-        from skynav_core.testing import write_sample_bag
+        from skynav_testing import write_sample_bag
 
         write_sample_bag(teach)
     elif case == 'missing map':

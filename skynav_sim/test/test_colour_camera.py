@@ -10,7 +10,6 @@ import yaml
 from scipy.ndimage import binary_erosion
 from scipy.spatial.transform import Rotation
 
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.colour import (
     COLOUR_ENCODINGS,
@@ -20,8 +19,8 @@ from skynav_core.colour import (
     linear_to_srgb,
 )
 from skynav_core.names import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE
-from skynav_core.testing import run_skynav
-from skynav_core.typestore import typestore
+from skynav_core.recording.bag import open_bag
+from skynav_core.recording.typestore import typestore
 from skynav_sim import recording
 from skynav_sim.colour_sensor import ColourSensor, compressed, daylight_white_balance, encode
 from skynav_sim.materials import BAND_RANGES, Surface
@@ -31,6 +30,7 @@ from skynav_sim.robot import CAMERA_HEIGHT
 from skynav_sim.scenarios import ScenarioParameters, build
 from skynav_sim.sky import RGB, TIMES_OF_DAY, UV_GREEN, Sky
 from skynav_sim.world import generate
+from skynav_testing import run_skynav
 
 SMALL = ['--size', '96x72', '--length', '1.0', '--speed', '1.0']
 # A camera at a mower's camera height turned to look 10 degrees above the horizon: half its view is ground.

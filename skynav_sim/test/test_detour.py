@@ -4,9 +4,9 @@
 import numpy as np
 import pytest
 
-from skynav_core.testing import one_line_error, run_skynav
 from skynav_sim.scenarios import ScenarioParameters, build, describe
 from skynav_sim.world import generate
+from skynav_testing import one_line_error, run_skynav
 
 ROUTE = dict(route_length=8.0, speed=0.9, offset=0.25)  # the bundled garden repeat drive's route and offset
 

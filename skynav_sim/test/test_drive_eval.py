@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from skynav_bringup.cli import main
-from skynav_core.testing import one_line_error
 from skynav_sim.closed_loop import Run, route_deviation
 from skynav_sim.drive_eval import ErrorSummary, cross_track, path_length, time_stopped, turns
+from skynav_testing import one_line_error
 
 PERIOD = 0.2  # s between frames
 

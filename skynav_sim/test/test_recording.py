@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 from scipy.ndimage import binary_erosion
 
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera, angles_from_directions
 from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, UV_CAMERA_INFO, UV_IMAGE
-from skynav_core.testing import one_line_error, run_skynav
+from skynav_core.recording.bag import open_bag
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE
 from skynav_sim.render import Renderer
 from skynav_sim.scenarios import ScenarioParameters, build
 from skynav_sim.sky import Sky
 from skynav_sim.world import generate
+from skynav_testing import one_line_error, run_skynav
 
 SMALL = ['--size', '96x72', '--length', '1.0', '--speed', '1.0']
 

@@ -8,9 +8,9 @@ import pytest
 import yaml
 
 from skynav_core.maps import ODOM_POSE, MapStore
-from skynav_core.testing import one_line_error, run_skynav
 from skynav_localize.parameters import PARAMETERS
 from skynav_sim.closed_loop import truth_at
+from skynav_testing import one_line_error, run_skynav
 
 LENGTH = 4.0  # m of route taught
 

@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from skynav_core.bag import BagError, open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import recorded_source
 from skynav_core.colour import decode_compressed, decode_image
 from skynav_core.images import image_to_array, stamp_ns
 from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
+from skynav_core.recording.bag import BagError, open_bag
 
 #: How each camera topic's messages become pixels: colour frames as linear RGB, the rest as they are.
 _DECODERS = {COLOUR_IMAGE: decode_image, COLOUR_COMPRESSED: decode_compressed}

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import yaml
 
-from skynav_core.testing import run_skynav
+from skynav_testing import run_skynav
 
 BAG = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_garden_skyline.mcap'
 NUMBER = r'(-?[\d.]+)'

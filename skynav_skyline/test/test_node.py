@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 
-from skynav_core.bag import RawMessage
 from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process
 from skynav_core.images import fill_image, image_to_array, stamp_ns
 from skynav_core.names import GREEN_IMAGE, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.nodes import NodeSpec
+from skynav_core.recording.bag import RawMessage
 
 SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
 CAMERA = EquidistantCamera.for_field_of_view(64, 48, math.radians(200))

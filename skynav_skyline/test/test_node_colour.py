@@ -8,7 +8,6 @@ import pytest
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
-from skynav_core.bag import RawMessage
 from skynav_core.camera import EquidistantCamera
 from skynav_core.colour import compress, linear_to_srgb8, mosaic
 from skynav_core.graph import in_process, type_name
@@ -23,6 +22,7 @@ from skynav_core.names import (
     UV_IMAGE,
 )
 from skynav_core.nodes import NodeSpec
+from skynav_core.recording.bag import RawMessage
 
 SPEC = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
 CAMERA = EquidistantCamera.for_field_of_view(80, 60, math.radians(200))

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from skynav_core.environment import share_directory
+from skynav_core.process.environment import share_directory
 from skynav_skyline.parameters import PARAMETERS, defaults, load_parameter_file, skyline_params
 
 

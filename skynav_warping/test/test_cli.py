@@ -22,8 +22,8 @@ import pytest
 from skynav_bringup.cli import main
 from skynav_core.maps import MapStore, Snapshot
 from skynav_core.names import GROUND_TRUTH_POSE
-from skynav_core.testing import one_line_error, run_skynav, sample_messages
 from skynav_core.views import recording_views
+from skynav_testing import one_line_error, run_skynav, sample_messages
 from skynav_warping.cli import eval as eval_cli
 from skynav_warping.eval.homing_eval import METHODS, HomingEvalError, evaluate_homing, map_snapshot
 
@@ -158,8 +158,8 @@ def test_cli_offers_the_registry():
 
 
 def _write_pose_only_bag(path: Path) -> None:
-    from skynav_core.bag import BagWriter
-    from skynav_core.typestore import typestore
+    from skynav_core.recording.bag import BagWriter
+    from skynav_core.recording.typestore import typestore
 
     with BagWriter(path) as writer:
         for topic, msgtype, t, message in sample_messages(frames=2):

@@ -23,12 +23,12 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from scipy.spatial.transform import Rotation
 
-from skynav_core.bag import RawMessage
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
 from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
+from skynav_core.recording.bag import RawMessage
 from skynav_core.rotations import as_matrix
 from skynav_core.views import recording_views
 from skynav_localize.mapping import build_map

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from importlib.metadata import entry_points
 
 from skynav_core.cli import CliError
-from skynav_core.environment import apply_ros_environment
+from skynav_core.process.environment import apply_ros_environment
 
 COMMAND_GROUP = 'skynav.commands'
 __all__ = ['CliError', 'build_parser', 'main']
@@ -109,8 +109,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not hasattr(args, 'run'):
         args.parser.print_help(sys.stderr)
         return 2
-    from skynav_core.bag import set_skip_damaged  # loaded after the parser: `skynav --help` stays light
     from skynav_core.errors import SkynavError
+    from skynav_core.recording.bag import set_skip_damaged  # loaded after the parser: `skynav --help` stays light
 
     set_skip_damaged(getattr(args, 'skip_damaged', False))  # for this command only (tests call main repeatedly)
     try:

@@ -153,11 +153,11 @@ def measure(bag_path: Path, map_path: Path, params: Path | None, warmup: int, fr
     """Run the graph over a recording; return what was timed: per row CPU seconds and calls, frames, the camera."""
     from rclpy.serialization import deserialize_message
 
-    from skynav_core.bag import open_bag
     from skynav_core.camera_input import recorded_source
     from skynav_core.cli import open_map
     from skynav_core.graph import in_process
     from skynav_core.nodes import installed_nodes
+    from skynav_core.recording.bag import open_bag
     from skynav_core.ros import message_class
 
     from ..parameters import ros_arguments

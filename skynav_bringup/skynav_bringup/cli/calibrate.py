@@ -27,8 +27,8 @@ from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, UV_IMAGE
 if TYPE_CHECKING:
     import numpy as np
 
-    from skynav_core.bag import BagReader, RawMessage
     from skynav_core.calibration import Board, Calibration
+    from skynav_core.recording.bag import BagReader, RawMessage
 
 HELP = 'calibrate a fish-eye camera from checkerboard views; write its camera YAML'
 # Image topics a recording's views are taken from, in the order the default prefers them.
@@ -119,8 +119,8 @@ def _recording_source(path: Path, topic: str | None, max_frames: int) -> Source:
     """Return the source of a recording's image topic, at most `max_frames` frames evenly spaced (0: all)."""
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.cli import CliError
+    from skynav_core.recording.bag import open_bag
 
     bag = open_bag(path)
     if topic is None:
@@ -150,10 +150,10 @@ def _recording_source(path: Path, topic: str | None, max_frames: int) -> Source:
 
 def _message_frame(bag: BagReader, raw: RawMessage, name: str) -> Frame:
     """Return the view of one recorded Image or CompressedImage message (colour decoded to linear, mono as linear)."""
-    from skynav_core.bag import BagError
     from skynav_core.calibration import grey_for_detection
     from skynav_core.colour import decode_compressed, decode_image
     from skynav_core.images import DTYPES, ImageError, image_to_array
+    from skynav_core.recording.bag import BagError
 
     try:
         message = bag.deserialize(raw)

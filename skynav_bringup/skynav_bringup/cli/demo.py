@@ -138,8 +138,8 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned
 
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.images import image_to_array, stamp_ns
+    from skynav_core.recording.bag import open_bag
     from skynav_skyline.classify import classification_rate
     from skynav_skyline.dataset import labelled_frames
     from skynav_skyline.geometry import SkylineGeometry
@@ -238,8 +238,8 @@ def ground_truth_poses(recording: Path) -> dict:
     """Return {stamp (ns): (position (3,) m, quaternion (x, y, z, w))} of camera_link in map from /ground_truth/pose."""
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
+    from skynav_core.recording.bag import open_bag
 
     poses = {}
     with open_bag(recording) as bag:
@@ -254,9 +254,9 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     """Print the place matches of the run against the true positions, and plot them along the route."""
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
     from skynav_core.maps import MapStore
+    from skynav_core.recording.bag import open_bag
     from skynav_localize.evaluation import correct_matches, plot_matches_along_route
 
     with open_bag(run_bag) as bag:
@@ -303,9 +303,9 @@ def navigation_summary(poses: dict, run_bag: Path, map_file: Path) -> None:
     """Print the compass's rotation errors and the home vectors' direction errors against ground truth `poses`."""
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.images import stamp_ns
     from skynav_core.maps import MapStore
+    from skynav_core.recording.bag import open_bag
     from skynav_core.rotations import home_direction, relative_rotation, rotation_angle
 
     with open_bag(run_bag) as bag:

@@ -43,11 +43,11 @@ def run(args: argparse.Namespace) -> int:
     """Echo the topic; return the exit code."""
     from rclpy.validate_topic_name import validate_topic_name
 
-    from skynav_core.msgyaml import to_yaml
     from skynav_core.namespaces import namespaced
-    from skynav_core.qos import subscription_qos
+    from skynav_core.recording.msgyaml import to_yaml
+    from skynav_core.recording.qos import subscription_qos
+    from skynav_core.recording.typestore import ensure_type, typestore
     from skynav_core.ros import StopRequest, message_class, spin_until, tool_node
-    from skynav_core.typestore import ensure_type, typestore
 
     from . import CliError
 

@@ -67,7 +67,7 @@ def describe(bag) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Print the description; return the exit code."""
-    from skynav_core.bag import open_bag
+    from skynav_core.recording.bag import open_bag
 
     with open_bag(args.bag) as bag:
         print(describe(bag))

@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 from skynav_core.cli import add_namespace
-from skynav_core.network import DISCOVERY_RANGES, DISCOVERY_SERVER_PORT, TRANSPORTS
+from skynav_core.process.network import DISCOVERY_RANGES, DISCOVERY_SERVER_PORT, TRANSPORTS
 
 HELP = 'start the whole node graph on live topics'
 
@@ -72,10 +72,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Launch and wait; return the exit code."""
-    from skynav_core.launcher import Launcher
     from skynav_core.namespaces import NamespaceError, remap_arguments
-    from skynav_core.network import network_environment, socket_buffer_warning, start_discovery_server
     from skynav_core.nodes import installed_nodes
+    from skynav_core.process.launcher import Launcher
+    from skynav_core.process.network import network_environment, socket_buffer_warning, start_discovery_server
     from skynav_core.ros import StopRequest
 
     from ..parameters import ros_arguments

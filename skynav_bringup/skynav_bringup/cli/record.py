@@ -34,8 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C or SIGTERM; return the exit code."""
-    from skynav_core.bag import BagWriter
-    from skynav_core.recorder import Recorder
+    from skynav_core.recording.bag import BagWriter
+    from skynav_core.recording.recorder import Recorder
     from skynav_core.ros import StopRequest, tool_node
 
     from . import CliError

@@ -45,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
     """Recover; return the exit code."""
     from rosbags.rosbag2.metadata import parse_qos
 
-    from skynav_core.bag import BagError, BagWriter
-    from skynav_core.mcapfile import McapError, Salvage, SalvagedChannel
+    from skynav_core.recording.bag import BagError, BagWriter
+    from skynav_core.recording.mcapfile import McapError, Salvage, SalvagedChannel
 
     from . import CliError
 

@@ -61,7 +61,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Replay the bag; return the exit code."""
-    from skynav_core.bag import open_bag
+    from skynav_core.recording.bag import open_bag
     from skynav_core.ros import StopRequest, tool_node
 
     from . import CliError
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         expected = _expected_subscribers(topics, args.wait_for_subscribers)
         if names := _readers(expected):
             say(f'waiting for {names}')
-        from skynav_core.player import SUBSCRIBER_LINGER, Player
+        from skynav_core.recording.player import SUBSCRIBER_LINGER, Player
 
         with StopRequest() as stop, tool_node('skynav_replay') as (node, executor):
             player = Player(node, bag, topics, args.namespace)

@@ -32,11 +32,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the graph; return the exit code."""
     from tqdm import tqdm
 
-    from skynav_core.bag import BagWriter, open_bag
-    from skynav_core.cdr import rosbags_cdr
     from skynav_core.cli import open_map
     from skynav_core.graph import in_process, node_class
     from skynav_core.nodes import installed_nodes
+    from skynav_core.recording.bag import BagWriter, open_bag
+    from skynav_core.recording.cdr import rosbags_cdr
 
     from ..parameters import ros_arguments
     from . import CliError
@@ -59,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
         def record(topic: str, msgtype: str, log_time: int, data: bytes) -> None:
             if topic not in writer.topics:
                 writer.add_topic(topic, msgtype)
-            writer.write(topic, log_time, rosbags_cdr(msgtype, data))  # as rosbags reads it (see skynav_core.cdr)
+            writer.write(
+                topic, log_time, rosbags_cdr(msgtype, data)
+            )  # as rosbags reads it (see skynav_core.recording.cdr)
 
         try:
             with in_process(specs, ros_args, sink=record) as graph:

@@ -30,7 +30,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 def layout_file():
     """Return the Foxglove layout shipped with skynav_bringup, if installed."""
-    from skynav_core.environment import share_directory
+    from skynav_core.process.environment import share_directory
 
     share = share_directory('skynav_bringup')
     path = None if share is None else share / 'config' / 'skynav.foxglove.json'

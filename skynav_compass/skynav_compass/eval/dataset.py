@@ -14,10 +14,10 @@ import numpy as np
 
 from skynav_compass.errors import CompassError
 from skynav_compass.eval.evaluation import relative_tilt
-from skynav_core.bag import open_bag
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
+from skynav_core.recording.bag import open_bag
 from skynav_core.rotations import as_quaternion, relative_rotation
 from skynav_core.views import recorded_frames
 

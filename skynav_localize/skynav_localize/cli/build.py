@@ -66,9 +66,9 @@ def build(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from skynav_core.bag import open_bag
     from skynav_core.cli import CliError, graph_arguments
     from skynav_core.maps import MapError, Snapshot, partial_path
+    from skynav_core.recording.bag import open_bag
     from skynav_core.views import recording_views
 
     from ..descriptors import describe

@@ -101,9 +101,9 @@ def positions_at(bag: Path, stamps):
     """Return the ground-truth positions (N, 3) of camera_link in map at the given stamps (ns) of a recording."""
     import numpy as np
 
-    from skynav_core.bag import open_bag
     from skynav_core.cli import CliError
     from skynav_core.images import stamp_ns
+    from skynav_core.recording.bag import open_bag
 
     truth = {}
     with open_bag(bag) as recording:

@@ -75,9 +75,9 @@ def teach_world(teach: Path):
     import yaml
     from sensor_msgs.msg import CameraInfo
 
-    from skynav_core.bag import BagError, open_bag
     from skynav_core.camera import EquidistantCamera
     from skynav_core.cli import CliError
+    from skynav_core.recording.bag import BagError, open_bag
 
     from ..world import STYLES, generate
 

@@ -125,8 +125,8 @@ def _from_bag(args):
     import numpy as np
     import yaml
 
-    from skynav_core.bag import open_bag
     from skynav_core.colour import LINEAR_FULL_SCALE, linear_to_srgb8
+    from skynav_core.recording.bag import open_bag
 
     from ..preview import SheetFrame
     from ..world import generate

@@ -99,7 +99,7 @@ def evaluate(paths, configurations):
     import numpy as np
     from tqdm import tqdm
 
-    from skynav_core.bag import open_bag
+    from skynav_core.recording.bag import open_bag
 
     from ..classify import classification_rate
     from ..dataset import count_frames, labelled_frames

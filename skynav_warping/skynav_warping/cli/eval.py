@@ -54,9 +54,9 @@ def run(args: argparse.Namespace) -> int:
     """Evaluate; return the exit code."""
     from tqdm import tqdm
 
-    from skynav_core.bag import open_bag
     from skynav_core.cli import CliError, graph_arguments, open_map
     from skynav_core.evaluation import check_methods, check_not_negative, check_recordings, plots_folder
+    from skynav_core.recording.bag import open_bag
     from skynav_core.views import recording_views
 
     from ..eval.homing_eval import HomingEvalError, evaluate_homing, map_snapshot

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from skynav_core.bag import open_bag
 from skynav_core.camera_input import CAMERA_INFO_TOPIC
 from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, UV_IMAGE
+from skynav_core.recording.bag import open_bag
 from skynav_core.views import recorded_frames
 from skynav_warping.errors import WarpingError
 

@@ -21,9 +21,7 @@ import numpy as np
 import yaml
 
 from skynav_core.camera import EquidistantCamera
-
-from .bag import BagWriter, open_bag
-from .names import (
+from skynav_core.names import (
     CAMERA_FRAME,
     COMPASS_ORIENTATION,
     GREEN_IMAGE,
@@ -35,8 +33,9 @@ from .names import (
     UV_CAMERA_INFO,
     UV_IMAGE,
 )
-from .rotations import as_matrix
-from .typestore import ensure_type, typestore
+from skynav_core.recording.bag import BagWriter, open_bag
+from skynav_core.recording.typestore import ensure_type, typestore
+from skynav_core.rotations import as_matrix
 
 # Fast DDS maps domain ids up to 232 to UDP ports; tests take theirs from the upper part.
 TEST_DOMAINS = range(100, 232)

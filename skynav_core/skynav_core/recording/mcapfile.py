@@ -24,7 +24,7 @@ from backports import zstd
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapWriter
 
-from .errors import SkynavError
+from ..errors import SkynavError
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Connection

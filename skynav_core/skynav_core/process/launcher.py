@@ -17,9 +17,9 @@ import time
 from collections.abc import Sequence
 from typing import TextIO
 
+from ..nodes import NodeSpec
+from ..run_node import STACKS_SIGNAL
 from .environment import apply_ros_environment
-from .nodes import NodeSpec
-from .run_node import STACKS_SIGNAL
 
 # After SIGINT a node gets this long to shut down before SIGTERM, and as long again before SIGKILL (s).
 STOP_GRACE = 10.0

@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import Nodetype
 
-from .environment import ament_prefixes
-from .errors import SkynavError
+from ..errors import SkynavError
+from ..process.environment import ament_prefixes
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

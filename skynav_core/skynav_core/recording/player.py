@@ -14,10 +14,10 @@ from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.qos import ReliabilityPolicy
 
+from ..namespaces import namespaced
+from ..ros import StopRequest, message_class, spin_until
 from .bag import BagReader, RawMessage
-from .namespaces import namespaced
 from .qos import replay_qos
-from .ros import StopRequest, message_class, spin_until
 
 # History kept per replayed topic: the burst a slow subscriber may fall behind before losing messages.
 REPLAY_DEPTH = 100

@@ -18,7 +18,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from rosbags.typesys.base import Nodetype
 
-from .ros import message_class
+from ..ros import message_class
 from .typestore import ensure_type, typestore
 
 # Primitive types CDR aligns to 8 bytes.

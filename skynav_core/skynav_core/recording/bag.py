@@ -27,7 +27,7 @@ import yaml
 from rosbags.interfaces import ConnectionExtRosbag2
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Reader, StoragePlugin
 
-from .errors import SkynavError
+from ..errors import SkynavError
 from .mcapfile import CheckedWriter, McapError, check_mcap
 from .typestore import BadMessageType, UnknownMessageType, ensure_type, split_type, typestore
 

@@ -10,11 +10,11 @@ from functools import partial
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from ..namespaces import without_namespace
+from ..ros import message_class
 from .bag import BagError, BagWriter
 from .cdr import rosbags_cdr
-from .namespaces import without_namespace
 from .qos import bag_qos, subscription_qos
-from .ros import message_class
 from .typestore import UnknownMessageType
 
 # Subscriber history per topic: how far the writer may fall behind before messages are lost.

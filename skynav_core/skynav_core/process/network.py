@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 """How the nodes find each other and what carries their messages: discovery and transport for real networks.
 
-By default (skynav_core.environment) discovery stays on this machine and messages between processes go
+By default (skynav_core.process.environment) discovery stays on this machine and messages between processes go
 through shared memory. A robot and a base station on one network need wider discovery: the subnet
 (multicast), static peers (unicast to given addresses, where multicast is blocked, as on many Wi-Fi
 networks), or a Fast DDS discovery server that every participant asks. The transport 'shm' keeps shared
@@ -28,8 +28,8 @@ from collections.abc import MutableMapping
 from pathlib import Path
 from typing import TextIO
 
+from ..errors import SkynavError
 from .environment import FASTDDS_PROFILE, PACKAGE, share_directory
-from .errors import SkynavError
 
 DISCOVERY_RANGES = ('localhost', 'subnet', 'off', 'system_default')
 TRANSPORTS = {'shm': FASTDDS_PROFILE, 'udp': Path('config') / 'fastdds_udp.xml'}
