@@ -56,7 +56,7 @@ from urllib.parse import quote
 
 import numpy as np
 
-from .errors import SkynavError
+from ..errors import SkynavError
 
 SCHEMA_VERSION = 3
 FIRST_CHECKED_VERSION = 3  # the first schema version whose checksums cover stamps, poses and the meta table
