@@ -5,7 +5,10 @@ While a Teach goal runs (docs/interfaces.md, "Driving: teach, follow, home"), ev
 offered to a RouteTeacher. It keeps one as a snapshot
 
 - every `spacing` m of travel by odometry (/odom, path length of base_link in `odom`), when an odometry sample lies
-  within `odometry_tolerance` of the view's stamp;
+  within `odometry_tolerance` of the view's stamp: the first view past each multiple of `spacing` from the first
+  snapshot (so that the mean spacing is `spacing` whatever the camera's rate), and at least half a spacing apart;
+- every TURN_SNAPSHOT_ANGLE of turn by odometry, so that a point turn (the robot turning where it stands, as a mower
+  does at a lane's end) is stored where it happens and the route's shape has its corner;
 - otherwise when the view's amplitude descriptor moved `spacing` x `change_per_metre` from the last snapshot's.
   VIEW_CHANGE_PER_METRE is calibrated on the bundled synthetic teach drives so that the two give similar spacing
   (README, "Teach a route");
@@ -32,6 +35,7 @@ import numpy as np
 from skynav_core.errors import SkynavError
 from skynav_core.maps import COMMAND_POSE, ODOM_POSE, MapError, MapStore
 from skynav_core.motion import arc, ground_pose
+from skynav_core.rotations import wrap_angle, yaw
 
 from .descriptors import describe
 from .mapping import DEFAULT_MIN_TRAVEL, create_map
@@ -46,6 +50,7 @@ ODOMETRY_CAPACITY = 256  # odometry samples kept for pairing with views (about 5
 NO_POSE = np.full(7, np.nan)
 COMMAND_HOLD_NS = 500_000_000  # a velocity command moves the robot for at most 0.5 s (a base's usual command timeout)
 COMMAND_CAPACITY = 256  # commands kept for looking up views' poses (about 10 s at 25 Hz)
+TURN_SNAPSHOT_ANGLE = math.radians(30.0)  # rad of turn by odometry since the last snapshot that store another
 
 
 class TeachError(SkynavError):
@@ -215,6 +220,7 @@ class RouteTeacher:
         self.finished = False  # max_length reached: the goal ends
         self._descriptor: np.ndarray | None = None  # the last snapshot's amplitude descriptor
         self._travelled: float | None = None  # path length (m, by odometry) at the last snapshot; None without
+        self._heading: float | None = None  # heading (rad, by odometry) at the last snapshot; None without
         self._start: float | None = None  # path length at the first snapshot with odometry
         self._end: float | None = None  # path length at the last snapshot with odometry
         self._commanded: tuple[float, float] | None = None  # commanded path length at the first and last snapshot
@@ -264,7 +270,8 @@ class RouteTeacher:
         descriptor = describe('amplitude', coefficients, degree)
         odometry = self.odometry.at(stamp_ns, self.odometry_tolerance_ns)
         travelled = None if odometry is None else odometry[1]
-        if not self._keep(descriptor, travelled):
+        heading = None if odometry is None else float(yaw(odometry[0][3:]))
+        if not self._keep(descriptor, travelled, heading):
             return False
         commanded = self.commanded.at(stamp_ns)
         self._store(
@@ -279,23 +286,29 @@ class RouteTeacher:
         if commanded is not None:
             self._commanded = (commanded[1] if self._commanded is None else self._commanded[0], commanded[1])
         if travelled is not None:
-            self._travelled = travelled
+            self._travelled, self._heading = travelled, heading
             self._start = travelled if self._start is None else self._start
             self._end = travelled
         if self.max_length > 0 and self.route_length >= self.max_length:
             self.finished = True
         return True
 
-    def _keep(self, descriptor: np.ndarray, travelled: float | None) -> bool:
-        """Return whether a view (amplitude descriptor, path length by odometry or None) becomes a snapshot."""
+    def _keep(self, descriptor: np.ndarray, travelled: float | None, heading: float | None) -> bool:
+        """Return whether a view (amplitude descriptor; path length (m) and heading (rad) by odometry, or None)
+        becomes a snapshot."""
         if self._descriptor is None:
             return True
         if travelled is not None:
-            # before the first snapshot with odometry (the first view may beat the first /odom sample) the
-            # distance counts from the first sample, which came after that view
-            since = travelled - (self._travelled if self._travelled is not None else 0.0)
-            reached_end = self.max_length > 0 and self._start is not None and travelled - self._start >= self.max_length
-            return since >= self.spacing or reached_end
+            if self._start is None:  # the first view beat the first /odom sample: count from that sample on
+                return travelled >= self.spacing
+            assert self._travelled is not None
+            if self.max_length > 0 and travelled - self._start >= self.max_length:
+                return True
+            if heading is not None and self._heading is not None:
+                if abs(wrap_angle(heading - self._heading)) >= TURN_SNAPSHOT_ANGLE:
+                    return True
+            due = self._start + (math.floor((self._travelled - self._start) / self.spacing) + 1) * self.spacing
+            return travelled >= due and travelled - self._travelled >= self.spacing / 2
         change = float(np.linalg.norm(descriptor - self._descriptor))
         return change >= self.spacing * self.change_per_metre
 

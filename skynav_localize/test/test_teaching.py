@@ -43,8 +43,14 @@ def test_with_odometry_a_snapshot_every_spacing_metres(garden, tmp_path):
     travelled = path_length(drive.poses[:, :3])
     gaps = np.diff(travelled[kept])
     step = np.max(np.diff(travelled))
-    assert np.all(gaps >= 0.3) and np.all(gaps < 0.3 + step + 1e-9)
-    assert len(kept) == teacher.snapshots >= travelled[-1] / (0.3 + step)
+    assert step < 0.15  # views come more often than half a spacing: the rule is not starved
+    # the first view past each multiple of the spacing from the first snapshot, at least half a spacing apart: the
+    # mean spacing is the spacing, not the spacing plus the camera's step on average
+    marks = np.floor((travelled[kept] - travelled[kept[0]]) / 0.3)
+    assert np.all(np.diff(marks) >= 1) and np.all(gaps >= 0.15) and np.all(gaps < 0.3 + step + 1e-9)
+    passed = np.floor((travelled[np.array(kept[1:]) - 1] - travelled[kept[0]]) / 0.3)
+    assert np.all(passed < marks[1:])  # the view before each snapshot had not reached its mark yet
+    assert len(kept) == teacher.snapshots == int((travelled[kept[-1]] - travelled[kept[0]]) // 0.3) + 1
     assert teacher.route_length == pytest.approx(travelled[kept[-1]] - travelled[kept[0]])
     assert teacher.finish() == tmp_path / 'garden.db'
     with MapStore.open(tmp_path / 'garden.db') as store:
@@ -122,8 +128,14 @@ def test_a_view_ahead_of_its_odometry_uses_the_extrapolated_path_length(garden, 
             teacher.add_odometry(int(drive.stamps[k - 1]) + 10_000_000, drive.poses[k - 1])
         if teacher.offer(int(stamp), drive.coefficients[k]):
             kept.append(k)
-    gaps = np.diff(path_length(drive.poses[:, :3])[kept])[1:]  # the first snapshot has no odometry yet
-    assert np.all(gaps >= 0.3 - 0.01) and np.all(gaps < 0.41)
+    travelled = path_length(drive.poses[:, :3])
+    kept = kept[1:]  # the first snapshot has no odometry yet: the marks count from the second
+    # each snapshot is the first view past its mark by its true path length (to 1 cm): a view that took the last
+    # sample's length instead of extrapolating would come one view late, when the view before had passed the mark
+    marks = np.floor((travelled[kept] - travelled[kept[0]]) / 0.3 + 0.01 / 0.3)
+    passed = np.floor((travelled[np.array(kept[1:]) - 1] - travelled[kept[0]]) / 0.3 - 0.01 / 0.3)
+    assert np.all(np.diff(marks) >= 1) and np.all(passed < marks[1:])
+    assert np.all(np.diff(travelled[kept]) >= 0.15 - 0.01)
 
 
 def test_after_a_first_view_without_odometry_the_spacing_counts_from_the_first_sample(garden, tmp_path):
@@ -135,7 +147,13 @@ def test_after_a_first_view_without_odometry_the_spacing_counts_from_the_first_s
     travelled = path_length(drive.poses[:, :3]) - path_length(drive.poses[:, :3])[1]  # from the first sample
     expected = [0]
     for k in range(1, len(drive.stamps)):
-        if travelled[k] - (travelled[expected[-1]] if len(expected) > 1 else 0.0) >= 0.5:
+        if len(expected) == 1:  # the first with odometry: half a metre from the first sample
+            taken = travelled[k] >= 0.5
+        else:  # then the first view past each mark half a metre apart from there (and a quarter from the last)
+            start, last = travelled[expected[1]], travelled[expected[-1]]
+            due = start + (np.floor((last - start) / 0.5) + 1) * 0.5
+            taken = travelled[k] >= due and travelled[k] - last >= 0.25
+        if taken:
             expected.append(k)
     assert kept == expected and len(kept) > 10
 
@@ -260,3 +278,22 @@ def test_without_odometry_the_commands_give_the_route_shape_and_the_view_change_
     true_distances = np.linalg.norm(truth[:, None] - truth[None], axis=2)
     distances = np.linalg.norm(shape[:, None] - shape[None], axis=2)
     assert np.max(np.abs(distances - true_distances)) < 0.05
+
+
+def test_a_point_turn_is_stored_where_the_robot_turns(garden, tmp_path):
+    # a mower at a lane's end turns a quarter turn where it stands: no travel, yet the route's corner is there
+    drive = garden['teach']
+    teacher = RouteTeacher(tmp_path / 'lawn.db', spacing=0.1)
+    headings = np.radians(np.r_[np.zeros(3), np.arange(1, 8) * 12.0, np.full(3, 84.0)])  # 12 degrees a frame
+    quaternions = Rotation.from_euler('z', headings[:, None]).as_quat()
+    kept = []
+    for k, quaternion in enumerate(quaternions):
+        stamp = 1_000_000_000 + k * 200_000_000
+        teacher.add_odometry(stamp, np.r_[2.0, 1.0, 0.0, quaternion])
+        if teacher.offer(stamp, drive.coefficients[k]):
+            kept.append(k)
+    assert kept == [0, 5, 8]  # the start, then at 30 degrees of turn or more since the last snapshot: 36 and 72
+    with MapStore.open(teacher.finish()) as store:
+        poses = store.descriptor_matrix(ODOM_POSE)
+    assert np.degrees(Rotation.from_quat(poses[:, 3:]).as_euler('xyz')[:, 2]) == pytest.approx([0, 36, 72])
+    np.testing.assert_allclose(poses[:, :2], [[2.0, 1.0]] * 3)

@@ -231,18 +231,24 @@ class TaughtRoute:
 
     @classmethod
     def from_poses(cls, poses: np.ndarray) -> TaughtRoute | None:
-        """Return the route of (N, 7) poses (x, y, z, qx, qy, qz, qw) of base_link; None if any pose is missing."""
+        """Return the route of (N, 7) poses (x, y, z, qx, qy, qz, qw) of base_link; None without two usable poses.
+
+        A snapshot without a pose (NaN, or a zero quaternion: one stored before the first /odom sample, say) takes
+        its position interpolated along the snapshot index between its neighbours' and the nearest one's heading.
+        """
         poses = np.asarray(poses, float)
-        if (
-            poses.ndim != 2
-            or poses.shape[1] != 7
-            or not len(poses)
-            or not np.all(np.isfinite(poses))
-            or np.any(np.linalg.norm(poses[:, 3:], axis=1) == 0)
-        ):
+        if poses.ndim != 2 or poses.shape[1] != 7:
             return None
-        x, y, z, w = poses[:, 3:].T
-        return cls(poses[:, :2].copy(), np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        usable = np.all(np.isfinite(poses), axis=1) & (np.linalg.norm(np.nan_to_num(poses[:, 3:]), axis=1) > 0)
+        known = np.flatnonzero(usable)
+        if len(known) < 2:
+            return None
+        index = np.arange(len(poses))
+        positions = np.column_stack([np.interp(index, known, poses[known, axis]) for axis in (0, 1)])
+        x, y, z, w = poses[known, 3:].T
+        headings = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+        nearest = known[np.argmin(np.abs(index[:, None] - known[None, :]), axis=1)]
+        return cls(positions, headings[np.searchsorted(known, nearest)])
 
     def __len__(self) -> int:
         return len(self.headings)

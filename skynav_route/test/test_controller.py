@@ -82,8 +82,24 @@ def test_taught_route_reads_headings_from_the_odometry_quaternions():
     assert route.turn(0, 99) == pytest.approx(3.0)  # beyond the end: the last snapshot's heading
     missing = yaw_poses(np.zeros((2, 2)), np.zeros(2))
     missing[1, 0] = np.nan
-    assert TaughtRoute.from_poses(missing) is None  # a snapshot taught without odometry: no shape
+    assert TaughtRoute.from_poses(missing) is None  # one snapshot with a pose: no shape
     assert TaughtRoute.from_poses(np.zeros((3, 5))) is None
+    assert TaughtRoute.from_poses(np.zeros((3, 7))) is None  # zero quaternions: no pose at all
+
+
+def test_snapshots_taught_without_a_pose_take_one_from_their_neighbours():
+    # the first view of a teach often beats the first /odom sample; one may drop out in between
+    positions = np.column_stack([np.arange(6) * 0.1, np.zeros(6)])
+    headings = np.array([0.0, 0.0, 0.2, 0.4, 0.4, 0.4])
+    poses = yaw_poses(positions, headings)
+    poses[0] = np.nan
+    poses[3, 3:] = 0.0
+    route = TaughtRoute.from_poses(poses)
+    assert route is not None and len(route) == 6
+    assert route.positions[3] == pytest.approx([0.3, 0.0])  # midway between its neighbours by index
+    assert route.positions[0] == pytest.approx([0.1, 0.0])  # before the first pose: held at it
+    assert route.headings[0] == pytest.approx(0.0) and route.headings[5] == pytest.approx(0.4)
+    assert route.headings[3] in (pytest.approx(0.2), pytest.approx(0.4))  # a neighbour's
 
 
 def test_locate_gives_the_nearest_point_of_the_route_and_the_signed_offset_from_it():

@@ -618,23 +618,48 @@ def teach_route(
     ros_args: list[str] | None = None,
     progress: Callable[[], None] | None = None,
 ) -> Teaching:
-    """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map.
+    """Drive `length` m of a planned free route by scripted teleoperation while a Teach goal records the map
+    (teach_drive); RuntimeError when the graph does not take the goal or the drive fails."""
+    spline, total = planned_route(world, route_seed, length)
+    start, ahead = spline(0.0), spline(0.3) - spline(0.0)
+    end = min(length, total - TELEOP_END)  # m along the planned path
+    reached = 0.0
+
+    def operator(pose: Pose2D) -> tuple[float, float] | None:
+        nonlocal reached
+        if reached >= end:
+            return None
+        linear, angular, reached = teleoperate(pose, spline, total, reached)
+        return linear, angular
+
+    first = Pose2D(float(start[0]), float(start[1]), float(np.arctan2(ahead[1], ahead[0])))
+    frames = int(TELEOP_FRAMES_PER_METRE * end)
+    return teach_drive(world, camera, hours, seed, map_path, first, operator, frames, base, ros_args, progress)
+
+
+def teach_drive(
+    world: World,
+    camera: EquidistantCamera,
+    hours: float,
+    seed: int,
+    map_path,
+    start: Pose2D,
+    operator: Callable[[Pose2D], tuple[float, float] | None],
+    max_frames: int,
+    base: Base = Base(),
+    ros_args: list[str] | None = None,
+    progress: Callable[[], None] | None = None,
+) -> Teaching:
+    """Let a scripted operator drive the mower from `start` while a Teach goal records the map at `map_path`.
 
     The graph (skyline, SH, localize: it serves /skynav/teach) runs in process; the mower publishes /clock, /odom
     (when its base has odometry) and its camera each frame and obeys the operator's commands on /cmd_vel
-    (skynav_sim.mower: slip, odometry noise), which the localize node hears too. At the route's end the operator
-    cancels the goal, which finishes the map (the usual end of teaching). RuntimeError when the graph does not take
-    the goal or the drive fails. `progress` is called once per camera frame.
+    (skynav_sim.mower: slip, odometry noise), which the localize node hears too. `operator` answers each true pose
+    with a command (m/s, rad/s), or None when the drive is done: then it cancels the goal, which finishes the map
+    (the usual end of teaching). RuntimeError when the graph does not take the goal, the drive hits an obstacle or
+    it takes more than `max_frames` frames. `progress` is called once per camera frame.
     """
-    spline, total = planned_route(world, route_seed, length)
-    start, ahead = spline(0.0), spline(0.3) - spline(0.0)
-    mower = Mower(
-        world,
-        Pose2D(float(start[0]), float(start[1]), float(np.arctan2(ahead[1], ahead[0]))),
-        np.random.default_rng([base.seed, seed, 5]),
-        base.slip,
-        base.odometry_noise,
-    )
+    mower = Mower(world, start, np.random.default_rng([base.seed, seed, 5]), base.slip, base.odometry_noise)
     simulation = Simulation(world, camera, hours, seed, output=base.camera, mount=base.mount)
     teaching = Teaching()
     arguments = [*base.ros_arguments(), *(ros_args or [])]
@@ -659,11 +684,12 @@ def teach_route(
             result = sent.result().get_result_async()
             # the first feedback (0 snapshots) says teaching has begun
             spin_until(executor, lambda: bool(teaching.feedback) or result.done(), GOAL_WAIT)
-            end = min(length, total - TELEOP_END)  # m along the planned path
-            reached, frames = 0.0, int(TELEOP_FRAMES_PER_METRE * end)
-            while reached < end and not result.done():
-                if len(teaching.stamps) >= frames:
-                    raise RuntimeError(f'the scripted operator did not finish the {end:.1f} m route in {frames} frames')
+            while not result.done():
+                command = operator(mower.pose)
+                if command is None:
+                    break
+                if len(teaching.stamps) >= max_frames:
+                    raise RuntimeError(f'the scripted operator did not finish its drive in {max_frames} frames')
                 stamp = simulation.stamp()
                 graph.advance(stamp)
                 robot.publish_clock(stamp)
@@ -674,8 +700,7 @@ def teach_route(
                 teaching.stamps.append(stamp)
                 teaching.poses.append(np.array([mower.pose.x, mower.pose.y, mower.pose.heading]))
                 executor.spin_once(timeout_sec=0)
-                linear, angular, reached = teleoperate(mower.pose, spline, total, reached)
-                joystick = fill_velocity_command(TwistStamped(), stamp, linear, angular)
+                joystick = fill_velocity_command(TwistStamped(), stamp, *command)
                 graph.publish(CMD_VEL, joystick)
                 mower.drive(*robot.command(stamp), FRAME_PERIOD)
                 if progress is not None:
