@@ -56,7 +56,7 @@ def seconds_per_call(function: Callable[[], object], min_seconds: float = MIN_SE
 def build_map(path: Path, count: int, degree: int, rng: np.random.Generator):
     """Write a map of `count` random snapshots with the baseline's raw-UV descriptor; return it opened."""
     from skynav_core.maps import MapStore, Snapshot
-    from skynav_localize.baselines import RAW_UV_SIZE
+    from skynav_localize.eval.baselines import RAW_UV_SIZE
     from skynav_localize.mapping import build_map
 
     size = (degree + 1) ** 2

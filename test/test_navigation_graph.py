@@ -30,7 +30,7 @@ from skynav_core.names import (
     UV_IMAGE,
 )
 from skynav_core.recording.bag import open_bag
-from skynav_localize.evaluation import correct_matches
+from skynav_localize.eval.evaluation import correct_matches
 from skynav_testing import run_skynav, start_skynav
 
 BAGS = Path(__file__).parents[1] / 'bags'

@@ -2,7 +2,7 @@
 """What every evaluation command shares: the choice of methods, the checks of its arguments, its text tables.
 
 Each stage keeps one registry of its methods, in the order its tables list them (localization:
-skynav_localize.localizer.METHODS, compass: skynav_compass.eval.methods.METHODS, homing:
+skynav_localize.eval.baselines.EVALUATED_METHODS, compass: skynav_compass.eval.methods.METHODS, homing:
 skynav_warping.eval.methods.METHODS, skyline: skynav_skyline.methods.METHODS). `skynav eval
 localization|compass|homing` and `skynav skyline eval` take --methods, check their numbers and folders and print
 their tables through the helpers here, so a method is offered, refused and listed alike everywhere. A refused

@@ -1,24 +1,27 @@
 # SPDX-License-Identifier: Apache-2.0
 """Place recognition against one map with one named method: online (query by query) and offline (whole sequence).
 
-Methods (METHODS): skynav's rotation-invariant SH descriptors, single frame and with SeqSLAM sequences
-('amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'), and the baselines, named for what they are
-('raw-uv' and 'seqslam-raw-uv': SeqSLAM's patch-normalised down-sampled UV image without and with sequences;
-'bow-orb': bag of ORB words with tf-idf). All of them go through the same distances -> matching -> acceptance path.
-skynav's descriptors are derived from the map's coefficients when a Localizer loads it (unless the map stores
-current ones); the baselines' must be stored in the map (`skynav map build --baselines`).
+Methods (METHODS, what the product ships): skynav's rotation-invariant SH descriptors, single frame and with
+SeqSLAM sequences ('amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'). The baselines they are measured
+against ('raw-uv' and 'seqslam-raw-uv': SeqSLAM's patch-normalised down-sampled UV image without and with sequences;
+'bow-orb': bag of ORB words with tf-idf) live in the laboratory, skynav_localize.eval.baselines, which registers them
+here (register) when loaded; the node never loads it. All of them go through the same distances -> matching ->
+acceptance path. skynav's descriptors are derived from the map's coefficients when a Localizer loads it (unless the
+map stores current ones); the baselines' must be stored in the map (`skynav map build --baselines`), and their
+method describes UV images (ImageDescriptors).
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from skynav_core.maps import MapError, MapStore
-from skynav_localize import baselines
 from skynav_localize.descriptors import DESCRIPTOR_VERSION, DescriptorIndex, describe, descriptor_distance
 from skynav_localize.errors import LocalizeError
 from skynav_localize.mapping import stored_settings
@@ -47,6 +50,21 @@ from skynav_localize.matching import (
 from skynav_sh.product import message_sky_share, shows_skyline
 
 
+class ImageDescriptors(Protocol):
+    """How a method that reads UV images (a baseline) describes them: the map's snapshots and each query."""
+
+    def missing(self, store: MapStore) -> str:
+        """Return what a non-empty map lacks for the descriptors ('' if nothing)."""
+        ...
+
+    def prepare(
+        self, store: MapStore, settings: Mapping, circle: np.ndarray | None
+    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """Return a non-empty map's (N, D) descriptor matrix and the function that describes one query's UV image
+        (settings: the map's descriptor settings; circle: the image circle, bool image, or None)."""
+        ...
+
+
 @dataclass(frozen=True)
 class Method:
     """A place-recognition method: which descriptor, which distance, single frame or sequence, default acceptance."""
@@ -59,6 +77,7 @@ class Method:
     acceptance: Acceptance  # default acceptance test (thresholds: see METHODS below)
     baseline: bool  # a peer method, not skynav's own
     dtype: type = np.float64  # of the descriptor matrix during queries
+    images: ImageDescriptors | None = None  # how a method of source 'uv' describes the images
 
     @property
     def label(self) -> str:
@@ -106,9 +125,9 @@ class Method:
 # (the sequence alone would cost the views just back from a detour: recall on the bundled detour drive 0.74). The
 # wrong matches on garching were of places with displaced ratios of 2.7-6 (median of that map 1.4, of garden seed
 # 21's 0.76; a random walk's 1.05, 95 % of its snapshots at most 2.0).
-# Baselines, where correct and off-route ratios overlap, keep precision 1 on the pairs: raw UV 0.85, SeqSLAM raw UV
-# 0.8, BoW ORB 0.45; they are SeqSLAM and a bag of words as their authors describe them, without the view test.
-# A real camera and route should have them re-learned (evaluation.threshold_at_full_precision on a labelled drive).
+# The baselines' thresholds: skynav_localize.eval.baselines.
+# A real camera and route should have them re-learned (eval.evaluation.threshold_at_full_precision on a labelled
+# drive).
 #: SH degree of skynav's place descriptors: the acceptance thresholds were calibrated at this degree, and a map or
 #: view of a higher degree (the compass needs 32 for skylines near the horizon) is cut to it.
 DESCRIPTOR_DEGREE = 16
@@ -136,21 +155,28 @@ METHODS: dict[str, Method] = {
             'bispectrum', 'bispectrum', 'euclidean', False, 'sh', Acceptance(SH_SINGLE_MAX_RATIO), False, np.float32
         ),
         Method('bispectrum-seq', 'bispectrum', 'euclidean', True, 'sh', SH_SEQUENCE_ACCEPTANCE, False, np.float32),
-        Method('raw-uv', 'raw_uv', 'sad', False, 'uv', Acceptance(0.85), True, np.float32),
-        Method('seqslam-raw-uv', 'raw_uv', 'sad', True, 'uv', Acceptance(0.8), True, np.float32),
-        Method('bow-orb', 'bow-orb', 'cosine', False, 'uv', Acceptance(0.45), True, np.float32),
     )
 }
-OUR_METHODS = tuple(name for name, m in METHODS.items() if not m.baseline)
-BASELINE_METHODS = tuple(name for name, m in METHODS.items() if m.baseline)
+OUR_METHODS = tuple(METHODS)
+#: The peer methods registered from the laboratory (skynav_localize.eval.baselines), by name.
+_PEERS: dict[str, Method] = {}
+
+
+def register(*methods: Method) -> None:
+    """Make peer methods known to method() and Localizer (the laboratory's; METHODS stays what the product ships)."""
+    for peer in methods:
+        if peer.name in METHODS:
+            raise LocalizeError(f"method {peer.name!r} is one of skynav's own")
+        _PEERS[peer.name] = peer
 
 
 def method(name: str) -> Method:
-    """Return the method of a name; ValueError listing the known ones otherwise."""
+    """Return the method of a name (skynav's or a registered peer's); LocalizeError listing the known ones otherwise."""
+    known = {**METHODS, **_PEERS}
     try:
-        return METHODS[name]
+        return known[name]
     except KeyError:
-        raise LocalizeError(f'unknown localization method {name!r}; expected one of {", ".join(METHODS)}') from None
+        raise LocalizeError(f'unknown localization method {name!r}; expected one of {", ".join(known)}') from None
 
 
 BASELINES_HINT = 'build the map with `skynav map build --baselines`'
@@ -159,18 +185,9 @@ BASELINES_HINT = 'build the map with `skynav map build --baselines`'
 def missing_descriptors(store: MapStore, method_name: str) -> str:
     """Return what a map lacks for a method ('' if nothing): skynav's derive theirs, baselines need theirs stored."""
     wanted = method(method_name)
-    if not wanted.baseline or len(store) == 0:
+    if wanted.images is None or len(store) == 0:
         return ''
-    stored = set(store.descriptor_names())
-    if wanted.descriptor == 'raw_uv' and 'raw_uv' not in stored:
-        return "raw UV descriptors ('raw_uv')"
-    if (
-        wanted.descriptor == 'bow-orb'
-        and 'orb' not in stored
-        and not ('bow-orb' in stored and baselines.BowVocabulary.load(store) is not None)
-    ):
-        return "ORB descriptors ('orb') or their vocabulary"
-    return ''
+    return wanted.images.missing(store)
 
 
 @dataclass(frozen=True)
@@ -242,7 +259,7 @@ class Localizer:
             if self.method.baseline:
                 raise MapError(f'{store.path}: damaged map ({exc})') from None
             self.settings = {}
-        self.vocabulary: baselines.BowVocabulary | None = None
+        self._describe_image: Callable[[np.ndarray], np.ndarray] | None = None  # a baseline's, once the map is loaded
         self._featureless_snapshots: dict[tuple[float | None, str], np.ndarray] = {}
         self.index = DescriptorIndex(self._map_descriptors(), self.method.metric, self.method.dtype)
         self._buffer = SequenceBuffer(self.sequence) if self.method.sequence else None
@@ -284,20 +301,10 @@ class Localizer:
                 f'{store.path}: method {self.method.name!r} needs {missing}, which this map does not '
                 f'hold ({BASELINES_HINT})'
             )
-        if name == 'raw_uv':
-            return store.descriptor_matrix('raw_uv')
-        # bow-orb: the stored vocabulary and vectors, or a vocabulary trained now from the stored ORB features
-        self.vocabulary = baselines.BowVocabulary.load(store)
-        if self.vocabulary is not None and stored:
-            return store.descriptor_matrix('bow-orb')
-        orb = store.descriptor_list('orb')
-        try:
-            self.vocabulary = baselines.BowVocabulary.train(orb)
-        except baselines.NoFeatures:
-            raise MapError(
-                f'{store.path}: method bow-orb needs ORB features, and no snapshot of this map has any'
-            ) from None
-        return self.vocabulary.vectors(orb)
+        if self.method.images is None:
+            raise LocalizeError(f'method {self.method.name!r}: no way to describe its {name!r} descriptors')
+        matrix, self._describe_image = self.method.images.prepare(store, self.settings, self.circle)
+        return matrix
 
     def describe(self, coefficients: np.ndarray | None = None, uv: np.ndarray | None = None) -> np.ndarray:
         """Return the method's descriptor (D,) of one query: SH coefficients, or the UV image for the baselines."""
@@ -307,12 +314,8 @@ class Localizer:
             return describe(self.method.descriptor, coefficients, self.degree)
         if uv is None:
             raise LocalizeError(f'method {self.method.name!r} needs the UV image')
-        if self.method.descriptor == 'raw_uv':
-            size = tuple(self.settings.get('raw_uv_size', baselines.RAW_UV_SIZE))
-            return baselines.raw_uv_descriptor(uv, size, int(self.settings.get('raw_uv_patch', baselines.RAW_UV_PATCH)))
-        features = int(self.settings.get('orb_features', baselines.ORB_FEATURES))
-        assert self.vocabulary is not None  # loaded or trained along with the map's bow-orb descriptors
-        return self.vocabulary.vector(baselines.orb_descriptors(uv, self.circle, features))
+        assert self._describe_image is not None  # prepared along with the map's descriptors
+        return self._describe_image(uv)
 
     def describe_all(self, coefficients: np.ndarray | None = None, uvs: np.ndarray | None = None) -> np.ndarray:
         """Return the descriptors (Q, D) of a query sequence: coefficients (Q, n) or UV images (Q, H, W)."""

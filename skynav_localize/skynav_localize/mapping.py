@@ -4,7 +4,7 @@
 A map holds what the product uses: each snapshot's SH coefficients (and pose). skynav's descriptors (amplitude
 spectrum, bispectrum) are derived from them when a Localizer loads the map. The baselines' descriptors (down-sampled
 UV image, ORB features and their vocabulary) are stored only on request (`skynav map build --baselines`, for the
-evaluations); nothing in building a map depends on them. A map build goes:
+evaluations; skynav_localize.eval.baselines makes them); nothing in building a map depends on them. A map build goes:
 
     store = create_map(path, name, L, created_from=bag)           # or build_map(...) for one atomic write
     selector = SnapshotSelector()
@@ -17,7 +17,7 @@ evaluations); nothing in building a map depends on them. A map build goes:
 
 create_map/build_map record descriptor_settings() in the map, so a Localizer knows whether stored SH descriptors
 (a map may still hold them) are current (else it derives them from the coefficients) and describes baseline queries
-the same way.
+the same way (baseline_descriptors, finish_baselines: skynav_localize.eval.baselines).
 """
 
 from __future__ import annotations
@@ -30,14 +30,15 @@ from typing import Any
 import numpy as np
 
 from skynav_core.maps import MapStore, Snapshot
-from skynav_localize import baselines
-from skynav_localize.descriptors import DESCRIPTOR_VERSION, describe
-from skynav_localize.errors import LocalizeError
+from skynav_localize.descriptors import DESCRIPTOR_VERSION
 
-#: skynav's descriptors: derived from the coefficients (stored only if a caller asks snapshot_descriptors for them).
+#: skynav's descriptors: derived from the coefficients (stored only if a caller asks for them: eval.baselines).
 SH_DESCRIPTOR_NAMES = ('amplitude', 'bispectrum')
-#: The baselines' descriptors of a UV image, stored per snapshot by `skynav map build --baselines`.
-IMAGE_DESCRIPTOR_NAMES = ('raw_uv', 'orb')
+# The settings the baselines' descriptors are made with (skynav_localize.eval.baselines takes them from here), recorded
+# in every map so that their queries are described as its snapshots were.
+RAW_UV_SIZE = (32, 24)  # px (width, height) of the down-sampled fish-eye image
+RAW_UV_PATCH = 4  # px, side of the normalisation patches of the down-sampled image
+ORB_FEATURES = 500  # features per image
 SETTINGS_KEY = 'descriptor_settings'  # map meta key: JSON of the settings the stored descriptors were made with
 DEFAULT_MIN_TRAVEL = 0.1  # m of travel between snapshots
 DEFAULT_MIN_CHANGE = 0.05  # amplitude-descriptor distance (dimensionless) that counts as a changed view
@@ -55,9 +56,9 @@ def descriptor_settings() -> dict:
     """Return the settings the descriptors of this library are made with (stored in a map's meta)."""
     return {
         'descriptor_version': DESCRIPTOR_VERSION,
-        'raw_uv_size': list(baselines.RAW_UV_SIZE),
-        'raw_uv_patch': baselines.RAW_UV_PATCH,
-        'orb_features': baselines.ORB_FEATURES,
+        'raw_uv_size': list(RAW_UV_SIZE),
+        'raw_uv_patch': RAW_UV_PATCH,
+        'orb_features': ORB_FEATURES,
     }
 
 
@@ -80,58 +81,6 @@ def stored_settings(meta: Mapping[str, str]) -> dict:
         ):
             raise ValueError(f'meta {SETTINGS_KEY!r}: {key} {str(value)[:40]} is not usable')
     return settings
-
-
-def snapshot_descriptors(
-    coefficients: np.ndarray,
-    max_degree: int,
-    uv: np.ndarray | None = None,
-    circle: np.ndarray | None = None,
-    names: Iterable[str] | None = None,
-) -> dict[str, np.ndarray]:
-    """Return one snapshot's descriptors by name: SH ones from coefficients, 'raw_uv' and 'orb' from the UV image."""
-    if names is None:
-        names = SH_DESCRIPTOR_NAMES + (IMAGE_DESCRIPTOR_NAMES if uv is not None else ())
-    out: dict[str, np.ndarray] = {}
-    for name in names:
-        if name in SH_DESCRIPTOR_NAMES:
-            out[name] = describe(name, coefficients, max_degree)
-        elif name in IMAGE_DESCRIPTOR_NAMES:
-            if uv is None:
-                raise LocalizeError(f'descriptor {name!r} needs the UV image')
-            out.update(baseline_descriptors(uv, circle, (name,)))
-        else:
-            raise LocalizeError(
-                f'unknown descriptor {name!r}; expected one of '
-                f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}'
-            )
-    return out
-
-
-def baseline_descriptors(
-    uv: np.ndarray, circle: np.ndarray | None = None, names: Iterable[str] = IMAGE_DESCRIPTOR_NAMES
-) -> dict[str, np.ndarray]:
-    """Return the baselines' descriptors of one snapshot's UV image: 'raw_uv' and 'orb' (inside the image circle)."""
-    return {
-        name: baselines.raw_uv_descriptor(uv) if name == 'raw_uv' else baselines.orb_descriptors(uv, circle)
-        for name in names
-    }
-
-
-def finish_baselines(store: MapStore) -> list[str]:
-    """Train what the baselines need once every snapshot is stored (the ORB vocabulary); return a line per one left out.
-
-    A teach drive without a single ORB feature (all sky, an open field, all ground) has no vocabulary: the bag of
-    words is left out (its 'orb' rows removed) and says so in one line; the map is complete without it.
-    """
-    if 'orb' not in store.descriptor_names():
-        return []
-    try:
-        baselines.train_bow(store)
-    except baselines.NoFeatures:
-        store.remove_descriptors('orb')
-        return ['bow-orb: no ORB features in the teach drive; its descriptors are left out']
-    return []
 
 
 class SnapshotSelector:

@@ -147,9 +147,9 @@ def render_route():
 
 
 def accepted_figures(store, views, tolerance: float, acceptance=None):
-    """Return the evaluation (skynav_localize.evaluation) of the default method's accepted matches of a drive's views
-    against a map, a match correct within `tolerance` m."""
-    from skynav_localize.evaluation import evaluate
+    """Return the evaluation (skynav_localize.eval.evaluation) of the default method's accepted matches of a drive's
+    views against a map, a match correct within `tolerance` m."""
+    from skynav_localize.eval.evaluation import evaluate
     from skynav_localize.localizer import Localizer
 
     coefficients = np.stack([v.coefficients for v in views.views])

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapStore
-from skynav_localize.baselines import (
+from skynav_localize.descriptors import distance_matrix
+from skynav_localize.eval.baselines import (
     RAW_UV_PATCH,
     RAW_UV_SIZE,
     BowVocabulary,
@@ -18,7 +19,6 @@ from skynav_localize.baselines import (
     raw_uv_descriptor,
     train_bow,
 )
-from skynav_localize.descriptors import distance_matrix
 from skynav_localize.matching import single_frame
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapError, MapStore, partial_path
+from skynav_localize.eval import baselines  # noqa: F401  (registers the baselines' methods, bow-orb among them)
 from skynav_localize.localizer import Localizer
 from skynav_testing import one_line_error, run_skynav
 

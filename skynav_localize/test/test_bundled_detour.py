@@ -21,7 +21,7 @@ import pytest
 
 from skynav_core.maps import MapStore
 from skynav_core.views import recording_views
-from skynav_localize.evaluation import evaluate
+from skynav_localize.eval.evaluation import evaluate
 from skynav_localize.localizer import OUR_METHODS, SH_SEQUENCE_MAX_RATIO, Localizer
 from skynav_localize.matching import Acceptance
 from skynav_testing import run_skynav

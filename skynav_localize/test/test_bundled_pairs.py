@@ -14,7 +14,8 @@ import pytest
 
 from skynav_core.maps import MapStore
 from skynav_core.views import recording_views
-from skynav_localize.evaluation import evaluate
+from skynav_localize.eval import baselines  # noqa: F401  (registers the baselines' methods)
+from skynav_localize.eval.evaluation import evaluate
 from skynav_localize.localizer import Localizer
 from skynav_testing import run_skynav
 

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from skynav_core.maps import MapStore, Snapshot
-from skynav_localize.baselines import train_bow
-from skynav_localize.evaluation import evaluate, format_table
-from skynav_localize.localizer import METHODS, OUR_METHODS, Localizer
-from skynav_localize.mapping import build_map, snapshot_descriptors
+from skynav_localize.eval.baselines import EVALUATED_METHODS, snapshot_descriptors, train_bow
+from skynav_localize.eval.evaluation import evaluate, format_table
+from skynav_localize.localizer import OUR_METHODS, Localizer
+from skynav_localize.mapping import build_map
 
 TARGET_RECALL_AT_FULL_PRECISION = 0.9  # the project's target for amplitude-spectrum matching with sequences
 TOLERANCE = 1.0  # m, the evaluation's default
@@ -66,7 +66,7 @@ def turned(recording, angle: float) -> tuple[np.ndarray, np.ndarray]:
 def run_all(store, recording, coefficients, images):
     """Return the result of every method on one query drive."""
     results = {}
-    for name in METHODS:
+    for name in EVALUATED_METHODS:
         matches = Localizer(store, name, circle=recording.circle).match_sequence(coefficients, images)
         results[name] = evaluate(
             name, matches.index, matches.score, recording.poses[:, :3], store.positions(), TOLERANCE, matches.accepted

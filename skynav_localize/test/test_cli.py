@@ -13,7 +13,7 @@ import numpy as np
 
 from skynav_core.maps import MapStore
 from skynav_core.views import recording_views
-from skynav_localize.evaluation import evaluate
+from skynav_localize.eval.evaluation import evaluate
 from skynav_localize.localizer import METHODS, Localizer
 from skynav_testing import run_skynav
 

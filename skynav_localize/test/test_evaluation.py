@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from skynav_localize.evaluation import (
+from skynav_localize.eval.evaluation import (
     compare,
     correct_matches,
     evaluate,

@@ -3,15 +3,19 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 from skynav_core.maps import ODOM_POSE, MapError, MapStore
-from skynav_localize.localizer import BASELINE_METHODS, METHODS, OUR_METHODS, Localizer, method
-from skynav_localize.mapping import SnapshotSelector, create_map, snapshot_descriptors
+from skynav_localize.eval.baselines import BASELINE_METHODS, EVALUATED_METHODS, snapshot_descriptors
+from skynav_localize.localizer import METHODS, OUR_METHODS, Localizer, method, register
+from skynav_localize.mapping import SnapshotSelector, create_map
 from skynav_localize.matching import Acceptance
 
 DEGREE = 10
@@ -142,10 +146,22 @@ def test_empty_map_and_missing_baseline_data(tmp_path, route):
 
 def test_method_table_is_honest():
     assert set(OUR_METHODS) == {'amplitude', 'amplitude-seq', 'bispectrum', 'bispectrum-seq'}
+    assert tuple(METHODS) == OUR_METHODS  # the product's registry: what the node may run, no baseline
     assert set(BASELINE_METHODS) == {'raw-uv', 'seqslam-raw-uv', 'bow-orb'}
-    assert all(METHODS[name].source == 'uv' for name in BASELINE_METHODS)
-    assert METHODS['seqslam-raw-uv'].sequence and not METHODS['bow-orb'].sequence
-    assert METHODS['raw-uv'].label == 'raw-uv (baseline)'
+    assert tuple(EVALUATED_METHODS) == OUR_METHODS + BASELINE_METHODS
+    assert all(EVALUATED_METHODS[name].source == 'uv' for name in BASELINE_METHODS)
+    assert EVALUATED_METHODS['seqslam-raw-uv'].sequence and not EVALUATED_METHODS['bow-orb'].sequence
+    assert EVALUATED_METHODS['raw-uv'].label == 'raw-uv (baseline)'
+    assert method('bow-orb') is EVALUATED_METHODS['bow-orb']  # registered by the laboratory
+    with pytest.raises(ValueError, match="'amplitude' is one of skynav's own"):
+        register(dataclasses.replace(METHODS['amplitude'], baseline=True))
+
+
+def test_the_localize_node_loads_no_baseline_and_no_evaluation():
+    code = 'import sys, skynav_localize.node; print(sorted(m for m in sys.modules if m.startswith("skynav_")))'
+    loaded = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True).stdout
+    assert 'skynav_localize.localizer' in loaded
+    assert 'skynav_localize.eval' not in loaded
 
 
 def test_snapshot_selector_by_travel_and_by_view_change():

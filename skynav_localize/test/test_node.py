@@ -15,7 +15,7 @@ from skynav_core.names import LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.recording.bag import RawMessage
 from skynav_core.views import recording_views
-from skynav_localize.evaluation import correct_matches
+from skynav_localize.eval.evaluation import correct_matches
 from skynav_localize.matching import MOTION_SLACK
 from skynav_testing import run_skynav
 
@@ -53,7 +53,7 @@ def test_on_route_views_are_accepted_and_off_route_views_are_not(garden_map):
 def test_off_the_route_the_node_accepts_nothing(garden_map):
     # the bundled detour drive leaves the garden route for a loop up to 4.3 m away and comes back: every accepted
     # match must be within 1 m of the view's true place, and nine in ten views on the route must be accepted
-    from skynav_localize.evaluation import evaluate
+    from skynav_localize.eval.evaluation import evaluate
 
     views = recording_views(BAGS / 'synthetic_garden_detour.mcap', images=False).views
     with in_process([SPEC], ['-p', f'map:={garden_map}']) as graph:

@@ -20,7 +20,17 @@ from rclpy.parameter import Parameter
 from skynav_core.actions import error_name
 from skynav_core.goals import SERVER_SETTLE
 from skynav_core.maps import ODOM_POSE, MapStore
-from skynav_core.names import CLOCK, CMD_VEL, LOCALIZATION_MATCH, ODOM, SKYLINE_SH, TEACH_ACTION
+from skynav_core.names import (
+    BASE_FRAME,
+    CAMERA_FRAME,
+    CLOCK,
+    CMD_VEL,
+    LOCALIZATION_MATCH,
+    ODOM,
+    ODOM_FRAME,
+    SKYLINE_SH,
+    TEACH_ACTION,
+)
 from skynav_testing import CanceledGoalHandle, on_executor_thread, run_without_waiting, wait_until
 
 TIMEOUT = 30.0  # s for discovery and results under load
@@ -76,13 +86,13 @@ class Operator:
             if odometry:
                 message = Odometry()
                 message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
-                message.header.frame_id, message.child_frame_id = 'odom', 'base_link'
+                message.header.frame_id, message.child_frame_id = ODOM_FRAME, BASE_FRAME
                 p, q = message.pose.pose.position, message.pose.pose.orientation
                 p.x, p.y, p.z, q.x, q.y, q.z, q.w = (float(v) for v in recording.poses[k])
                 self.odometry.publish(message)
             view = ShCoefficients(max_degree=16, coefficients=recording.coefficients[k].tolist(), fill='zero')
             view.header.stamp.sec, view.header.stamp.nanosec = divmod(stamp, 10**9)
-            view.header.frame_id = 'camera_link'
+            view.header.frame_id = CAMERA_FRAME
             view.field_of_view = float(np.radians(200))
             self.views.publish(view)
             if commands is not None:

@@ -238,7 +238,7 @@ def test_an_overexposed_or_underexposed_frame_gets_no_mask_and_is_counted():
 
     from sensor_msgs.msg import CameraInfo
 
-    from skynav_skyline.dataset import labelled_frames
+    from skynav_skyline.eval.dataset import labelled_frames
 
     bag = Path(__file__).resolve().parents[2] / 'bags' / 'synthetic_garden_repeat.mcap'
     frame = next(iter(labelled_frames(bag)))

@@ -141,7 +141,7 @@ def skyline_summary(recording: Path, run_bag: Path, sheet: Path, compare_learned
     from skynav_core.images import image_to_array, stamp_ns
     from skynav_core.recording.bag import open_bag
     from skynav_skyline.classify import classification_rate
-    from skynav_skyline.dataset import labelled_frames
+    from skynav_skyline.eval.dataset import labelled_frames
     from skynav_skyline.geometry import SkylineGeometry
     from skynav_skyline.parameters import defaults, skyline_params
     from skynav_skyline.segment import SkylineSegmenter
@@ -257,7 +257,7 @@ def localization_summary(recording: Path, poses: dict, run_bag: Path, map_file: 
     from skynav_core.images import stamp_ns
     from skynav_core.maps import MapStore
     from skynav_core.recording.bag import open_bag
-    from skynav_localize.evaluation import correct_matches, plot_matches_along_route
+    from skynav_localize.eval.evaluation import correct_matches, plot_matches_along_route
 
     with open_bag(run_bag) as bag:
         matches = [bag.deserialize(raw) for raw in bag.messages([LOCALIZATION_MATCH])]

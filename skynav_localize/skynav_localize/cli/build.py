@@ -72,7 +72,8 @@ def build(args: argparse.Namespace) -> int:
     from skynav_core.views import recording_views
 
     from ..descriptors import describe
-    from ..mapping import SnapshotSelector, baseline_descriptors, build_map, finish_baselines
+    from ..eval.baselines import baseline_descriptors, finish_baselines
+    from ..mapping import SnapshotSelector, build_map
 
     if args.out.exists() and not args.overwrite:
         raise CliError(f'{args.out} exists already; choose another name or pass --overwrite')

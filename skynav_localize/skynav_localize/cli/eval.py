@@ -27,7 +27,7 @@ HELP = 'precision-recall of localization methods against ground truth'
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Add the arguments of `skynav eval localization`."""
-    from ..localizer import METHODS
+    from ..eval.baselines import EVALUATED_METHODS as METHODS
 
     parser.add_argument('bags', nargs='+', metavar='BAG', help='repeat drives with /ground_truth/pose')
     add_skip_damaged(parser)
@@ -62,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.evaluation import check_methods, check_positive, check_recordings, plots_folder
     from skynav_core.maps import MapError
 
-    from ..localizer import BASELINES_HINT, METHODS, missing_descriptors
+    from ..eval.baselines import EVALUATED_METHODS as METHODS
+    from ..localizer import BASELINES_HINT, missing_descriptors
 
     check_methods(args.methods, METHODS)
     check_positive(args.tolerance, '--tolerance')
@@ -133,8 +134,9 @@ def evaluate_bag(
     from skynav_core.maps import MapError
     from skynav_core.views import recording_views
 
-    from ..evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
-    from ..localizer import METHODS, Localizer
+    from ..eval.baselines import EVALUATED_METHODS as METHODS
+    from ..eval.evaluation import correct_matches, evaluate, format_table, plot_matches_along_route, plot_pr_curves
+    from ..localizer import Localizer
 
     needs_images = any(METHODS[name].source == 'uv' for name in methods)
     recording = recording_views(bag, ros_args, images=needs_images)

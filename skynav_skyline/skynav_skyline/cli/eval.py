@@ -102,7 +102,7 @@ def evaluate(paths, configurations):
     from skynav_core.recording.bag import open_bag
 
     from ..classify import classification_rate
-    from ..dataset import count_frames, labelled_frames
+    from ..eval.dataset import count_frames, labelled_frames
     from ..features import extract_features
     from ..geometry import SkylineGeometry
     from ..segment import SkylineSegmenter
@@ -147,7 +147,7 @@ def report(rates: dict, values: dict) -> str:
     """Return the tables of classification rates (%) as text."""
     import numpy as np
 
-    from ..dataset import TIME_LABELS
+    from ..eval.dataset import TIME_LABELS
 
     rates = {key: frames for key, frames in rates.items() if frames}  # colour rows: colour frames only
     first = max(rates.values(), key=len)

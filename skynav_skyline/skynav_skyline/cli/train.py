@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from skynav_core.cli import CliError
 
     from ..classify import learn_global
-    from ..dataset import count_frames, labelled_frames
+    from ..eval.dataset import count_frames, labelled_frames
     from ..features import extract_features
     from ..parameters import PARAMETERS
     from ..segment import METHODS

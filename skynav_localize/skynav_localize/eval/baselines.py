@@ -10,21 +10,31 @@
   feature votes for its nearest word (Euclidean distance in bit space); tf-idf weights with the idf of the map's
   snapshots, unit norm; distance: cosine distance 1 - cos. 1024 words measured better than 256 or 64 on the
   bundled synthetic pairs (recall@1 at 1 m 1.0 / 1.0 against 0.98 / 0.88 with 256), so the baseline gets them.
+
+Importing this module registers the baselines' methods (BASELINE_METHODS: 'raw-uv', 'seqslam-raw-uv', 'bow-orb') with
+the Localizer (localizer.register); EVALUATED_METHODS is every method `skynav eval localization` offers, skynav's
+first. It also makes and finishes the baselines' descriptors of a map (`skynav map build --baselines`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 from scipy.sparse import csr_matrix
 
+from skynav_core.maps import MapError, MapStore
+from skynav_localize.descriptors import describe
 from skynav_localize.errors import LocalizeError
+from skynav_localize.localizer import METHODS, Method, register
+from skynav_localize.mapping import ORB_FEATURES as ORB_FEATURES  # features per image
+from skynav_localize.mapping import RAW_UV_PATCH as RAW_UV_PATCH  # px, side of the down-sampled image's patches
+from skynav_localize.mapping import RAW_UV_SIZE as RAW_UV_SIZE  # px (width, height) of the down-sampled image
+from skynav_localize.mapping import SH_DESCRIPTOR_NAMES
+from skynav_localize.matching import Acceptance
 
-RAW_UV_SIZE = (32, 24)  # px (width, height) of the down-sampled fish-eye image
-RAW_UV_PATCH = 4  # px, side of the normalisation patches of the down-sampled image
-ORB_FEATURES = 500  # features per image
 ORB_CIRCLE_MARGIN = 8  # px kept free inside the image circle's edge (its contour is the same in every image)
 BOW_WORDS = 1024  # visual words of the vocabulary
 BOW_MAX_SAMPLES = 10000  # ORB descriptors (at most) that train the vocabulary
@@ -193,3 +203,122 @@ def train_bow(store, size: int = BOW_WORDS, seed: int = 0) -> BowVocabulary:
     vocabulary = BowVocabulary.train(store.descriptor_list('orb'), size, seed)
     vocabulary.save(store)
     return vocabulary
+
+
+#: The baselines' descriptors of a UV image, stored per snapshot by `skynav map build --baselines`.
+IMAGE_DESCRIPTOR_NAMES = ('raw_uv', 'orb')
+
+
+def snapshot_descriptors(
+    coefficients: np.ndarray,
+    max_degree: int,
+    uv: np.ndarray | None = None,
+    circle: np.ndarray | None = None,
+    names: Iterable[str] | None = None,
+) -> dict[str, np.ndarray]:
+    """Return one snapshot's descriptors by name: SH ones from coefficients, 'raw_uv' and 'orb' from the UV image."""
+    if names is None:
+        names = SH_DESCRIPTOR_NAMES + (IMAGE_DESCRIPTOR_NAMES if uv is not None else ())
+    out: dict[str, np.ndarray] = {}
+    for name in names:
+        if name in SH_DESCRIPTOR_NAMES:
+            out[name] = describe(name, coefficients, max_degree)
+        elif name in IMAGE_DESCRIPTOR_NAMES:
+            if uv is None:
+                raise LocalizeError(f'descriptor {name!r} needs the UV image')
+            out.update(baseline_descriptors(uv, circle, (name,)))
+        else:
+            raise LocalizeError(
+                f'unknown descriptor {name!r}; expected one of '
+                f'{", ".join(SH_DESCRIPTOR_NAMES + IMAGE_DESCRIPTOR_NAMES)}'
+            )
+    return out
+
+
+def baseline_descriptors(
+    uv: np.ndarray, circle: np.ndarray | None = None, names: Iterable[str] = IMAGE_DESCRIPTOR_NAMES
+) -> dict[str, np.ndarray]:
+    """Return the baselines' descriptors of one snapshot's UV image: 'raw_uv' and 'orb' (inside the image circle)."""
+    return {name: raw_uv_descriptor(uv) if name == 'raw_uv' else orb_descriptors(uv, circle) for name in names}
+
+
+def finish_baselines(store: MapStore) -> list[str]:
+    """Train what the baselines need once every snapshot is stored (the ORB vocabulary); return a line per one left out.
+
+    A teach drive without a single ORB feature (all sky, an open field, all ground) has no vocabulary: the bag of
+    words is left out (its 'orb' rows removed) and says so in one line; the map is complete without it.
+    """
+    if 'orb' not in store.descriptor_names():
+        return []
+    try:
+        train_bow(store)
+    except NoFeatures:
+        store.remove_descriptors('orb')
+        return ['bow-orb: no ORB features in the teach drive; its descriptors are left out']
+    return []
+
+
+class RawUvDescriptors:
+    """SeqSLAM's raw UV descriptors of the map's snapshots (stored) and of the queries, as the map's were made."""
+
+    def missing(self, store: MapStore) -> str:
+        """Return what a non-empty map lacks ('' if nothing)."""
+        return '' if 'raw_uv' in store.descriptor_names() else "raw UV descriptors ('raw_uv')"
+
+    def prepare(
+        self, store: MapStore, settings: Mapping, circle: np.ndarray | None
+    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """Return the map's raw UV descriptors and the function that describes a query's UV image."""
+        size = tuple(settings.get('raw_uv_size', RAW_UV_SIZE))
+        patch = int(settings.get('raw_uv_patch', RAW_UV_PATCH))
+        return store.descriptor_matrix('raw_uv'), lambda uv: raw_uv_descriptor(uv, size, patch)
+
+
+class BowOrbDescriptors:
+    """The bag of ORB words: the map's stored vocabulary and vectors, or a vocabulary trained now from its ORB
+    features; a query's tf-idf vector of its ORB features (inside the image circle)."""
+
+    def missing(self, store: MapStore) -> str:
+        """Return what a non-empty map lacks ('' if nothing)."""
+        stored = set(store.descriptor_names())
+        if 'orb' not in stored and not ('bow-orb' in stored and BowVocabulary.load(store) is not None):
+            return "ORB descriptors ('orb') or their vocabulary"
+        return ''
+
+    def prepare(
+        self, store: MapStore, settings: Mapping, circle: np.ndarray | None
+    ) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+        """Return the map's tf-idf vectors and the function that describes a query's UV image."""
+        vocabulary = BowVocabulary.load(store)
+        if vocabulary is not None and 'bow-orb' in store.descriptor_names():
+            matrix = store.descriptor_matrix('bow-orb')
+        else:
+            orb = store.descriptor_list('orb')
+            try:
+                vocabulary = BowVocabulary.train(orb)
+            except NoFeatures:
+                raise MapError(
+                    f'{store.path}: method bow-orb needs ORB features, and no snapshot of this map has any'
+                ) from None
+            matrix = vocabulary.vectors(orb)
+        features = int(settings.get('orb_features', ORB_FEATURES))
+        trained = vocabulary
+        return matrix, lambda uv: trained.vector(orb_descriptors(uv, circle, features))
+
+
+# Baselines, where correct and off-route ratios overlap, keep precision 1 on the pairs: raw UV 0.85, SeqSLAM raw UV
+# 0.8, BoW ORB 0.45; they are SeqSLAM and a bag of words as their authors describe them, without the view test.
+# A real camera and route should have them re-learned (evaluation.threshold_at_full_precision on a labelled drive).
+_RAW_UV, _BOW_ORB = RawUvDescriptors(), BowOrbDescriptors()
+PEER_METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method('raw-uv', 'raw_uv', 'sad', False, 'uv', Acceptance(0.85), True, np.float32, _RAW_UV),
+        Method('seqslam-raw-uv', 'raw_uv', 'sad', True, 'uv', Acceptance(0.8), True, np.float32, _RAW_UV),
+        Method('bow-orb', 'bow-orb', 'cosine', False, 'uv', Acceptance(0.45), True, np.float32, _BOW_ORB),
+    )
+}
+register(*PEER_METHODS.values())
+BASELINE_METHODS = tuple(PEER_METHODS)
+#: Every method `skynav eval localization` offers: skynav's (the node's), then the baselines.
+EVALUATED_METHODS: dict[str, Method] = {**METHODS, **PEER_METHODS}
