@@ -21,7 +21,10 @@ by tens of degrees where the scene is poor); the filter averages it over metres 
 *cross-track offset* (m, left positive) and the route's direction there, so that a match a few decimetres ahead
 on a bend bends neither. The steering law is Stanley's in spirit: head along the route, turned towards it by
 atan(offset / `approach`), the route's curvature over `route_lead` snapshots fed forward, with a proportional
-turn-rate law and the speed falling as cos(error). A map without the teach's odometry (built from a recording
+turn-rate law and the speed falling as cos(error). *Point turns* (a lawn's lane ends, where the teach turned in
+place: `TaughtRoute.point_turns`) are driven as taught: the robot slows to arrive on the corner at rest (no more
+than sqrt(2 a d) at d m before it), feels no curvature forward across it (so it cuts no corner) and turns there in
+place while its heading error exceeds IN_PLACE_ERROR, then drives the next leg. A map without the teach's odometry (built from a recording
 without /odom) has no shape to place the robot on: there the robot steers along the sum of the route's direction
 (the snapshot's forward axis R^T e_x, the first row of R, in the current view) and the home vector weighted by
 `homing_gain` times its confidence.
@@ -52,6 +55,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -72,6 +76,11 @@ GATE_SIGMAS = 3.0  # a home vector whose line of sight is further than this many
 LOCATE_WINDOW = 10  # snapshots either side of the last nearest one where the nearest point of the route is sought
 # deg: a compass yaw not marked confident is steered on only within this of the predicted or the home vector's heading
 COMPASS_AGREEMENT_DEG = 20.0
+POINT_TURN_STEP = math.radians(20.0)  # rad: two snapshots turned this much or more from each other...
+POINT_TURN_RADIUS = 0.15  # m: ...on a tighter radius than this are a point turn (the teach turned where it stood)
+IN_PLACE_ERROR = math.radians(30.0)  # rad: at a point turn, a heading error beyond this is turned away in place
+CORNER_LOOKAHEAD = 30  # snapshots ahead (3 m at 0.1 m spacing) where the next point turn is sought
+TIES = 1e-6  # m: nearest points of the route closer than this to each other are the same point (a corner)
 
 
 @dataclass(frozen=True)
@@ -253,6 +262,37 @@ class TaughtRoute:
     def __len__(self) -> int:
         return len(self.headings)
 
+    @cached_property
+    def along(self) -> np.ndarray:
+        """Return each snapshot's distance (m) along the route from the first."""
+        return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.positions, axis=0), axis=1))])
+
+    @cached_property
+    def point_turns(self) -> np.ndarray:
+        """Return the point turns (corners where the teach turned in place) as (K, 2) snapshot indices: where each
+        begins and ends. A point turn is a run of snapshots each turned by POINT_TURN_STEP or more from the last on
+        a radius under POINT_TURN_RADIUS m."""
+        steps = np.linalg.norm(np.diff(self.positions, axis=0), axis=1)
+        turns = np.abs(np.angle(np.exp(1j * np.diff(self.headings))))
+        sharp = np.r_[False, (turns >= POINT_TURN_STEP) & (steps < POINT_TURN_RADIUS * turns), False]
+        edges = np.flatnonzero(np.diff(sharp.astype(np.int8)))  # run k of sharp steps: edges[2k]..edges[2k+1]-1
+        return edges.reshape(-1, 2)
+
+    def in_point_turn(self, along: float) -> bool:
+        """Return whether fractional snapshot index `along` lies within a point turn or on the chord that leaves it."""
+        turns = self.point_turns
+        return bool(np.any((turns[:, 0] <= along) & (along < turns[:, 1] + 1)))
+
+    def corner_ahead(self, along: float, within: int = CORNER_LOOKAHEAD) -> tuple[int, float] | None:
+        """Return the snapshot where the first point turn after fractional snapshot index `along` begins (within
+        `within` snapshots) and its distance (m) along the route; None if there is none."""
+        starts = self.point_turns[:, 0]
+        k = int(np.searchsorted(starts, along, side='right'))
+        if k == len(starts) or starts[k] > along + within:
+            return None
+        here = float(np.interp(along, np.arange(len(self)), self.along))
+        return int(starts[k]), max(float(self.along[starts[k]]) - here, 0.0)
+
     def curvature(self, origin: int, span: int) -> float:
         """Return the route's mean curvature (1/m, left positive) over `span` snapshots from `origin` on (0 if none)."""
         index = min(origin + max(span, 1), len(self) - 1)
@@ -284,7 +324,9 @@ def locate(route: TaughtRoute, position: np.ndarray, near: int) -> Placement:
     length2 = np.einsum('ij,ij->i', chord, chord)
     share = np.clip(np.einsum('ij,ij->i', position - start, chord) / np.maximum(length2, 1e-12), 0.0, 1.0)
     nearest = start + share[:, None] * chord
-    k = int(np.argmin(np.linalg.norm(position - nearest, axis=1)))
+    distance = np.linalg.norm(position - nearest, axis=1)
+    # at a corner several chords meet in one nearest point: the last of them, the way the route goes on from there
+    k = int(np.flatnonzero(distance <= distance.min() + TIES)[-1])
     if length2[k] > 1e-12:
         heading = math.atan2(chord[k, 1], chord[k, 0])
     else:  # the teach stood still between two snapshots: its own heading there
@@ -493,7 +535,16 @@ class RouteFollower:
         relative = wrap_angle(heading - place.heading)  # the robot's heading from the route's (rad)
         error = wrap_angle(-math.atan2(place.offset, settings.approach) - relative)
         command = pursue(error, self.limits.max_speed, self.limits, settings)
-        command.angular += command.linear * route.curvature(int(place.along), settings.route_lead)
+        if abs(error) > IN_PLACE_ERROR and route.in_point_turn(place.along):  # the route turns here: so does the robot
+            command.linear = 0.0
+        lead, corner = settings.route_lead, route.corner_ahead(place.along)
+        if corner is not None:
+            # a point turn ahead: arrive there slow enough to stop on it, and feel no curvature forward across it (the
+            # robot turns where the route does, in place, rather than cutting the corner)
+            lead = min(lead, corner[0] - int(place.along))
+            command.linear = min(command.linear, math.sqrt(2 * self.limits.max_acceleration * corner[1]))
+        if lead > 0:
+            command.angular += command.linear * route.curvature(int(place.along), lead)
         return command
 
     def _answer(self, command: Command, view: View, outcome: str = GOING) -> Step:

@@ -235,6 +235,73 @@ def test_without_the_routes_shape_the_home_vector_pulls_the_steering_by_its_conf
     assert steps[-1].command.angular == pytest.approx(min(1.5 * math.pi / 4, 2 * 0.4))  # within the turn acceleration
 
 
+def lawn_route(length: float = 3.0, gap: float = 0.4, spacing: float = 0.1) -> TaughtRoute:
+    """Return two lanes of a lawn along x, `gap` m apart, joined by two point turns as a teach stores them (a
+    snapshot every 36 degrees of the turn where the robot stood) and the gap across, `spacing` m between snapshots."""
+    out = np.arange(0.0, length + 1e-9, spacing)
+    across = np.arange(spacing, gap + 1e-9, spacing)
+    positions = np.vstack(
+        [
+            np.column_stack([out, np.zeros_like(out)]),
+            [[length, 0.0]] * 2,
+            np.column_stack([np.full_like(across, length), across]),
+            [[length, gap]] * 2,
+            np.column_stack([out[::-1][1:], np.full(len(out) - 1, gap)]),
+        ]
+    )
+    headings = np.r_[np.zeros(len(out)), np.radians([36, 72]), np.full(len(across), math.pi / 2)]
+    headings = np.r_[headings, np.radians([126, 162]), np.full(len(out) - 1, math.pi)]
+    return TaughtRoute.from_poses(yaw_poses(positions, headings))
+
+
+def test_a_lawns_point_turns_are_found_where_the_teach_turned_in_place():
+    route = lawn_route()
+    # both ends of the gap across, nowhere else: from the lane's last snapshot to the last turned where it stood
+    np.testing.assert_allclose(route.positions[route.point_turns[:, 0]], [[3.0, 0.0], [3.0, 0.4]], atol=1e-9)
+    assert np.degrees(route.headings[route.point_turns[:, 1]]) == pytest.approx([72.0, 162.0])
+    assert route.in_point_turn(route.point_turns[0, 0] + 0.5) and not route.in_point_turn(10.0)
+    index, distance = route.corner_ahead(10.0)  # 1 m along the first lane
+    assert route.positions[index] == pytest.approx([3.0, 0.0]) and distance == pytest.approx(2.0)
+    assert straight_route().corner_ahead(0.0) is None and arc_route().point_turns.size == 0  # a bend is no corner
+    assert route.corner_ahead(40.0) is None  # past both corners
+
+
+def test_follower_turns_in_place_at_a_lawns_corners_and_keeps_to_its_lane():
+    route = lawn_route()
+    follower = RouteFollower(0, len(route) - 1, LIMITS, Settings(), route)
+    position, heading = route.positions[0].copy(), 0.0
+    path, in_place = [position.copy()], []
+    for frame in range(600):
+        nearest = int(np.argmin(np.linalg.norm(route.positions - position, axis=1)))
+        view = follow_view(frame, nearest, route.headings[nearest] - heading)
+        target = min(nearest + 6, len(route) - 1)
+        to_target = route.positions[target] - position
+        if np.linalg.norm(to_target) > 1e-6:
+            view.home_direction = unit(math.atan2(to_target[1], to_target[0]) - heading)
+            view.home_index, view.home_residual = target, 0.5
+        step = follower.step(view)
+        if step.outcome:
+            break
+        view.odometry = None
+        heading += step.command.angular * FRAME / 1e9
+        position = position + step.command.linear * FRAME / 1e9 * unit(heading)[:2]
+        path.append(position.copy())
+        in_place.append(abs(step.command.linear) < 0.02 and abs(step.command.angular) > 0.3)
+    assert step.outcome == REACHED
+    path = np.array(path)
+    # never off the route's polyline by more than a few centimetres: no corner cut, no drift towards the other lane
+    chords = np.stack([route.positions[:-1], route.positions[1:]], axis=1)
+    start, chord = chords[:, 0], chords[:, 1] - chords[:, 0]
+    length2 = np.maximum(np.sum(chord**2, axis=1), 1e-12)
+    share = np.clip(np.einsum('nij,ij->ni', path[:, None] - start, chord) / length2, 0, 1)
+    off = np.min(np.linalg.norm(path[:, None] - (start + share[..., None] * chord), axis=2), axis=1)
+    assert off.max() < 0.05
+    # it turned where it stood at both corners (some frames each), and drove the second lane back
+    turning = np.array(in_place)
+    assert turning.sum() >= 6 and abs(wrap_angle(heading - math.pi)) < math.radians(10)
+    assert path[-1][1] == pytest.approx(0.4, abs=0.05) and path[-1][0] < 0.3
+
+
 def test_limits_bound_speed_turn_rate_and_their_changes():
     previous = Command(0.1, 0.0)
     assert limit(Command(5.0, 5.0), previous, 0.1, LIMITS) == Command(pytest.approx(0.15), pytest.approx(0.4))

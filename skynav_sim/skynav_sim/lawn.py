@@ -50,7 +50,7 @@ class Lawn:
         """Return the pattern's corners (2 lanes, 2) in driving order: each lane's start and end."""
         along = np.array([math.cos(self.heading), math.sin(self.heading)])
         across = self.side * np.array([-along[1], along[0]])
-        points = []
+        points: list[np.ndarray] = []
         for lane in range(self.lanes):
             start = np.asarray(self.origin, float) + lane * self.gap * across
             ends = (start, start + self.length * along)
@@ -197,5 +197,6 @@ def coverage(taught: np.ndarray, repeats: list[np.ndarray], width: float = CUT_W
             repeated |= grid.swath(path, width)
     uncut = taught_swath & ~repeated
     share = float((taught_swath & repeated).sum() / max(int(taught_swath.sum()), 1))
-    widest = 2.0 * float(distance_transform_edt(uncut).max()) * grid.cell if uncut.any() else 0.0
+    # a band n cells wide has cells (n + 1) / 2 cells from the nearest cut or untaught one at its middle
+    widest = (2.0 * float(distance_transform_edt(uncut).max()) - 1.0) * grid.cell if uncut.any() else 0.0
     return Coverage(share, widest, taught_swath, repeated, grid)
