@@ -189,7 +189,7 @@ def test_an_actions_feedback_is_echoed_and_not_recorded(tmp_path, ros_context):
     from skynav_core.ros import message_class
     from skynav_testing import start_skynav, wait_text
 
-    topic = '/skynav/teach/_action/feedback'
+    topic = f'{TEACH_ACTION}/_action/feedback'
     feedback_type = message_class('skynav_msgs/action/Teach_FeedbackMessage')
     node = Node('teach_feedback_source', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)

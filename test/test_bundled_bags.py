@@ -12,6 +12,7 @@ from rosbags.rosbag2 import Reader
 
 from skynav_core.camera import EquidistantCamera
 from skynav_core.names import (
+    CAMERA_FRAME,
     COLOUR_CAMERA_INFO,
     COLOUR_COMPRESSED,
     GREEN_IMAGE,
@@ -67,9 +68,9 @@ def test_bundled_bag(path):
             stamps.setdefault(message.topic, []).append(stamp)
             assert message.log_time == stamp
             if message.topic.endswith('image_raw'):
-                assert data.encoding in ('mono8', 'mono16', '32FC1') and data.header.frame_id == 'camera_link'
+                assert data.encoding in ('mono8', 'mono16', '32FC1') and data.header.frame_id == CAMERA_FRAME
             if message.topic.endswith('compressed'):
-                assert data.format == 'rgb8; jpeg compressed bgr8' and data.header.frame_id == 'camera_link'
+                assert data.format == 'rgb8; jpeg compressed bgr8' and data.header.frame_id == CAMERA_FRAME
             if message.topic == GROUND_TRUTH_MASK:
                 assert data.encoding == 'mono8' and set(np.unique(data.data)) <= {0, 255}
             if message.topic.endswith('camera_info'):

@@ -9,7 +9,7 @@ import time
 
 import yaml
 
-from skynav_core.names import LOCALIZATION_MATCH, UV_IMAGE
+from skynav_core.names import CAMERA_FRAME, LOCALIZATION_MATCH, UV_IMAGE
 from skynav_testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
 
 
@@ -32,7 +32,7 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
         candidate_indices=list(range(40)),
         candidate_distances=[0.5, 1.5],
     )
-    message.header.frame_id = 'camera_link'
+    message.header.frame_id = CAMERA_FRAME
     message.snapshot_stamp.sec = 1234
     echo = start_skynav('echo', LOCALIZATION_MATCH, '--once')
     deadline = time.monotonic() + 60
@@ -46,7 +46,7 @@ def test_echo_prints_a_custom_message_as_yaml(ros_context):
     printed = documents[0]
     assert printed['map_name'] == 'garden' and printed['index'] == 42 and printed['accepted'] is True
     assert printed['distance'] == 0.125 and printed['snapshot_stamp'] == {'sec': 1234, 'nanosec': 0}
-    assert printed['header']['frame_id'] == 'camera_link'
+    assert printed['header']['frame_id'] == CAMERA_FRAME
     # 40 candidates: the first 16 and a note of the rest.
     assert printed['candidate_indices'][:16] == list(range(16))
     assert printed['candidate_indices'][16] == '... 24 more, 40 in all'

@@ -39,7 +39,7 @@ from skynav_bringup.cli import main
 from skynav_core import views
 from skynav_core.graph import in_process, type_name
 from skynav_core.maps import MapError, MapStore, _meta_crc
-from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
+from skynav_core.names import CAMERA_FRAME, COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.recording.bag import RawMessage, open_bag
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
@@ -239,7 +239,7 @@ def sh_messages(count: int) -> list[ShCoefficients]:
             field_of_view=float(view.field_of_view),
         )
         message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp, 10**9)
-        message.header.frame_id = 'camera_link'
+        message.header.frame_id = CAMERA_FRAME
         messages.append(message)
     return messages
 

@@ -12,7 +12,15 @@ import pytest
 
 from skynav_core.camera import EquidistantCamera
 from skynav_core.images import fill_image, image_to_array, stamp_ns
-from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, GROUND_TRUTH_MASK, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
+from skynav_core.names import (
+    CAMERA_FRAME,
+    DIAGNOSTICS,
+    GREEN_IMAGE,
+    GROUND_TRUTH_MASK,
+    SKYLINE_MASK,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.recording.bag import open_bag
 from skynav_skyline.classify import classification_rate
 from skynav_testing import start_skynav
@@ -98,14 +106,14 @@ def test_replayed_recording_gives_masks_that_match_ground_truth(graph_node):
     circle = camera.image_circle()
     rates = []
     for stamp, message in masks.items():
-        assert message.encoding == 'mono8' and message.header.frame_id == 'camera_link'
+        assert message.encoding == 'mono8' and message.header.frame_id == CAMERA_FRAME
         mask = image_to_array(message)
         assert set(np.unique(mask)) <= {0, 255} and not mask[~circle].any()
         rates.append(classification_rate(mask, truths[stamp], circle))
     assert np.mean(rates) >= MEAN_RATE_BOUND and min(rates) >= WORST_RATE_BOUND, rates
 
 
-def _image(encoding, pixels, stamp, frame='camera_link'):
+def _image(encoding, pixels, stamp, frame=CAMERA_FRAME):
     from sensor_msgs.msg import Image
 
     if encoding == 'rgb8':  # not an encoding of the contract: built by hand

@@ -23,7 +23,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from skynav_bringup.cli.view import layout_file
 from skynav_bringup.viewer import Viewer
 from skynav_core.images import stamp_ns
-from skynav_core.names import SKYLINE_SH, VIZ_CONFIDENCE, VIZ_MARKERS, VIZ_OVERLAY, VIZ_STATE
+from skynav_core.names import SKYLINE_SH, TEACH_ACTION, VIZ_CONFIDENCE, VIZ_MARKERS, VIZ_OVERLAY, VIZ_STATE
 from skynav_core.recording.bag import open_bag
 from skynav_testing import messages_equal, start_skynav, wait_text
 
@@ -137,7 +137,7 @@ def test_a_topic_that_cannot_be_forwarded_is_told_once_and_the_others_are_served
         ('/unknown', ['nowhere_msgs/msg/Nothing']),
         ('/crafted', ['../msg/Evil']),
         ('/twice', ['std_msgs/msg/Float64', 'std_msgs/msg/Int32']),
-        ('/skynav/teach/_action/feedback', ['skynav_msgs/action/Teach_FeedbackMessage']),
+        (f'{TEACH_ACTION}/_action/feedback', ['skynav_msgs/action/Teach_FeedbackMessage']),
         (VIZ_CONFIDENCE, ['std_msgs/msg/Float64']),
     ]
     monkeypatch.setattr(node, 'get_topic_names_and_types', lambda: graph)

@@ -13,7 +13,7 @@ import pytest
 from skynav_bringup.cli import main
 from skynav_core.camera import EquidistantCamera
 from skynav_core.camera_yaml import camera_from_url
-from skynav_core.names import COLOUR_COMPRESSED, COLOUR_IMAGE, ODOM, UV_IMAGE
+from skynav_core.names import CAMERA_FRAME, COLOUR_COMPRESSED, COLOUR_IMAGE, ODOM, UV_IMAGE
 from skynav_sim.checkerboard import BoardRenderer, Checkerboard, calibration_poses, synthetic_fisheye
 from skynav_testing import one_line_error, run_skynav
 
@@ -61,7 +61,7 @@ def _write_recording(path: Path, images: list[np.ndarray]) -> Path:
         writer.add_topic(ODOM, 'nav_msgs/msg/Odometry')  # another topic, not images: left alone
         for index, image in enumerate(images):
             stamp = 1_700_000_000 * 10**9 + index * 500_000_000
-            header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](*divmod(stamp, 10**9)), 'camera_link')
+            header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](*divmod(stamp, 10**9)), CAMERA_FRAME)
             height, width, _ = image.shape
             message = T['sensor_msgs/msg/Image'](header, height, width, 'rgb8', 0, width * 3, image.ravel())
             writer.write(COLOUR_IMAGE, stamp, store.serialize_cdr(message, 'sensor_msgs/msg/Image'))

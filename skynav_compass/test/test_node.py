@@ -24,7 +24,7 @@ from skynav_compass.eval.dataset import true_rotation
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
-from skynav_core.names import COMPASS_ORIENTATION, LOCALIZATION_MATCH, SKYLINE_SH
+from skynav_core.names import CAMERA_FRAME, COMPASS_ORIENTATION, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.recording.bag import RawMessage
 from skynav_core.views import recording_views
@@ -66,7 +66,7 @@ def sh_message(view, field_of_view, stamp=None, coefficients=None, max_degree=No
         field_of_view=float(field_of_view),
     )
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp if stamp is None else stamp, 10**9)
-    message.header.frame_id = 'camera_link'
+    message.header.frame_id = CAMERA_FRAME
     return message
 
 
@@ -98,7 +98,7 @@ def run_views(graph, recording, views):
     estimates = []
     for view in views:
         [estimate] = feed(graph, sh_message(view, recording.camera.field_of_view))
-        assert stamp_ns(estimate.header) == view.stamp and estimate.header.frame_id == 'camera_link'
+        assert stamp_ns(estimate.header) == view.stamp and estimate.header.frame_id == CAMERA_FRAME
         estimates.append(estimate)
     return estimates
 

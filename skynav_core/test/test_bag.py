@@ -7,7 +7,7 @@ import mcap.reader
 import pytest
 from rosbags.rosbag2 import Reader
 
-from skynav_core.names import SKYLINE_SH, UV_IMAGE
+from skynav_core.names import CAMERA_FRAME, SKYLINE_SH, UV_IMAGE
 from skynav_core.process.environment import share_directory
 from skynav_core.recording.bag import BagError, BagWriter, open_bag
 from skynav_core.recording.typestore import typestore
@@ -112,7 +112,7 @@ def test_closes_with_data_even_after_an_error(tmp_path):
     with pytest.raises(RuntimeError), BagWriter(path) as writer:
         writer.add_topic(UV_IMAGE, 'sensor_msgs/msg/Image')
         image = sh['sensor_msgs/msg/Image'](
-            sh['std_msgs/msg/Header'](sh['builtin_interfaces/msg/Time'](1, 0), 'camera_link'),
+            sh['std_msgs/msg/Header'](sh['builtin_interfaces/msg/Time'](1, 0), CAMERA_FRAME),
             1,
             1,
             'mono8',

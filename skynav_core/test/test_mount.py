@@ -21,6 +21,7 @@ from skynav_core.mount import (
     mount_rpy_deg,
     rotation_to_base,
 )
+from skynav_core.names import BASE_FRAME, CAMERA_FRAME
 from skynav_core.rotations import (
     as_quaternion,
     home_direction,
@@ -117,10 +118,10 @@ def test_one_static_transform_from_base_link_to_camera_link_is_the_mount():
     mount = mount_from_rpy_deg([2.0, -4.0, 90.0])
     transforms = StaticTransforms()
     assert transforms.mount() is None
-    assert transforms.add(TFMessage(transforms=[transform('/base_link', 'camera_link', mount)])) == []
+    assert transforms.add(TFMessage(transforms=[transform(f'/{BASE_FRAME}', CAMERA_FRAME, mount)])) == []
     np.testing.assert_allclose(transforms.mount(), mount, atol=1e-12)
     # the latest transform of a frame replaces the one before (a robot_state_publisher started again)
-    transforms.add(TFMessage(transforms=[transform('base_link', 'camera_link', np.eye(3))]))
+    transforms.add(TFMessage(transforms=[transform(BASE_FRAME, CAMERA_FRAME, np.eye(3))]))
     np.testing.assert_allclose(transforms.mount(), np.eye(3), atol=1e-12)
 
 
@@ -128,18 +129,18 @@ def test_a_chain_and_a_tree_of_a_urdf_give_the_mount_once_linked():
     rng = np.random.default_rng(3)
     footprint_base, base_mast, mast_camera, footprint_arm = Rotation.random(4, random_state=rng).as_matrix()
     transforms = StaticTransforms()
-    transforms.add(TFMessage(transforms=[transform('mast_link', 'camera_link', mast_camera)]))
+    transforms.add(TFMessage(transforms=[transform('mast_link', CAMERA_FRAME, mast_camera)]))
     assert transforms.mount() is None  # the camera's tree does not reach base_link yet
-    transforms.add(TFMessage(transforms=[transform('base_link', 'mast_link', base_mast)]))
+    transforms.add(TFMessage(transforms=[transform(BASE_FRAME, 'mast_link', base_mast)]))
     np.testing.assert_allclose(transforms.mount(), base_mast @ mast_camera, atol=1e-12)
     # camera on a frame of the robot's root, base_link below that root too: the mount goes up and down the tree
     tree = StaticTransforms()
     tree.add(
         TFMessage(
             transforms=[
-                transform('base_footprint', 'base_link', footprint_base),
+                transform('base_footprint', BASE_FRAME, footprint_base),
                 transform('base_footprint', 'arm_link', footprint_arm),
-                transform('arm_link', 'camera_link', mast_camera),
+                transform('arm_link', CAMERA_FRAME, mast_camera),
             ]
         )
     )
@@ -148,12 +149,12 @@ def test_a_chain_and_a_tree_of_a_urdf_give_the_mount_once_linked():
 
 def test_unusable_transforms_are_refused_one_line_each_and_the_rest_kept():
     transforms = StaticTransforms()
-    bad = transform('base_link', 'laser', np.eye(3))
+    bad = transform(BASE_FRAME, 'laser', np.eye(3))
     bad.transform.rotation.w = 2.0
-    nan = transform('base_link', 'imu', np.eye(3))
+    nan = transform(BASE_FRAME, 'imu', np.eye(3))
     nan.transform.rotation.x = float('nan')
-    itself = transform('camera_link', 'camera_link', np.eye(3))
-    good = transform('base_link', 'camera_link', yaw_matrix(1.0))
+    itself = transform(CAMERA_FRAME, CAMERA_FRAME, np.eye(3))
+    good = transform(BASE_FRAME, CAMERA_FRAME, yaw_matrix(1.0))
     problems = transforms.add(TFMessage(transforms=[bad, nan, itself, good]))
     assert len(problems) == 3 and all('\n' not in p for p in problems)
     assert 'unit length' in problems[0] and 'not finite' in problems[1] and 'no two frames' in problems[2]
@@ -162,7 +163,7 @@ def test_unusable_transforms_are_refused_one_line_each_and_the_rest_kept():
 
 def test_transforms_that_loop_are_refused():
     transforms = StaticTransforms()
-    links = [('a', 'b'), ('b', 'a'), ('a', 'camera_link')]
+    links = [('a', 'b'), ('b', 'a'), ('a', CAMERA_FRAME)]
     transforms.add(TFMessage(transforms=[transform(parent, child, np.eye(3)) for parent, child in links]))
     with pytest.raises(ValueError, match='loop'):
         transforms.mount()
@@ -180,8 +181,8 @@ def test_the_vendored_tf2_msgs_is_the_real_type():
     # and its bytes are those other tools read
     from rclpy.serialization import serialize_message
 
-    message = TFMessage(transforms=[transform('base_link', 'camera_link', yaw_matrix(0.5))])
+    message = TFMessage(transforms=[transform(BASE_FRAME, CAMERA_FRAME, yaw_matrix(0.5))])
     read = get_typestore(Stores.ROS2_JAZZY).deserialize_cdr(serialize_message(message), 'tf2_msgs/msg/TFMessage')
     (only,) = read.transforms
-    assert only.header.frame_id == 'base_link' and only.child_frame_id == 'camera_link'
+    assert only.header.frame_id == BASE_FRAME and only.child_frame_id == CAMERA_FRAME
     assert only.transform.rotation.z == pytest.approx(math.sin(0.25)) and only.transform.translation.z == 0.3

@@ -5,6 +5,7 @@ import math
 
 import yaml
 
+from skynav_core.names import CAMERA_FRAME
 from skynav_core.recording.msgyaml import to_plain, to_yaml
 from skynav_testing import sample_messages
 
@@ -18,7 +19,7 @@ def test_fields_in_definition_order_and_nested():
     data = yaml.safe_load(text)
     assert list(data) == ['header', 'snapshot_index', 'rotation', 'residual', 'confidence', 'confident']
     assert data['confidence'] == 0.9 and data['confident'] is True
-    assert data['header']['frame_id'] == 'camera_link'
+    assert data['header']['frame_id'] == CAMERA_FRAME
     assert set(data['rotation']) == {'x', 'y', 'z', 'w'}
     assert '__msgtype__' not in text
 

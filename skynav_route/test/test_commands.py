@@ -15,7 +15,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from skynav_core.maps import Snapshot
-from skynav_core.names import CMD_VEL
+from skynav_core.names import BASE_FRAME, CMD_VEL
 from skynav_localize.mapping import build_map
 from skynav_testing import one_line_error, run_skynav, start_skynav
 
@@ -93,7 +93,7 @@ def test_follow_without_camera_frames_is_stopped_by_the_watchdog(route_map, list
     assert one_line_error(err) and 'STALE_INPUT' in err, err
     assert len(commands) == 1  # no frame, so no command but the stop
     assert commands[0].twist.linear.x == 0.0 and commands[0].twist.angular.z == 0.0
-    assert commands[0].header.frame_id == 'base_link'
+    assert commands[0].header.frame_id == BASE_FRAME
 
 
 def test_ctrl_c_cancels_and_the_robot_stops_and_shutdown_stops_it_too(route_map, listener):

@@ -25,7 +25,9 @@ from skynav_core.graph import in_process
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
 from skynav_core.names import (
+    BASE_FRAME,
     BUMPER,
+    CAMERA_FRAME,
     CLOCK,
     CMD_VEL,
     COMPASS_ORIENTATION,
@@ -118,7 +120,7 @@ class Driver:
         commands, heard = len(self.commands), len(self.feedback)
         for topic, message in messages:
             message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-            message.header.frame_id = 'camera_link'
+            message.header.frame_id = CAMERA_FRAME
             self.graph.publish(topic, message)
         if len(self.commands) > commands:  # its feedback comes before the next frame (the client drops late ones)
             self.spin_until(lambda: len(self.feedback) > heard, 10.0)
@@ -171,7 +173,7 @@ def test_one_stamped_command_per_frame_while_active_and_a_zero_command_on_cancel
             assert [stamp_ns(c.header) for c in driver.commands] == stamps  # exactly one per frame, its stamp
             for command in driver.commands:
                 t = command.twist
-                assert command.header.frame_id == 'base_link'
+                assert command.header.frame_id == BASE_FRAME
                 assert (t.linear.y, t.linear.z, t.angular.x, t.angular.y) == (0.0, 0.0, 0.0, 0.0)
             assert driver.commands[-1].twist.linear.x > 0.1  # it drives
             assert driver.commands[-1].twist.angular.z < 0  # towards the route, which runs to the right
@@ -373,7 +375,7 @@ def test_a_goal_without_a_map_aborts_no_map(tmp_path, route_map):
             driver.close()
 
 
-def mount_transform(rpy_deg, parent='base_link', child='camera_link'):
+def mount_transform(rpy_deg, parent=BASE_FRAME, child=CAMERA_FRAME):
     """Return a tf2_msgs/TFMessage of one transform parent -> child turned by roll, pitch, yaw (deg)."""
     from geometry_msgs.msg import TransformStamped
     from tf2_msgs.msg import TFMessage
@@ -423,7 +425,7 @@ def test_tf_static_wins_over_the_mount_parameter(route_map):
         driver = Driver(graph)
         try:
             static = mount_transform([0.0, 0.0, -90.0], 'mast_link')
-            static.transforms.append(mount_transform([0.0, 0.0, 0.0], 'base_link', 'mast_link').transforms[0])
+            static.transforms.append(mount_transform([0.0, 0.0, 0.0], BASE_FRAME, 'mast_link').transforms[0])
             assert home_turn(driver, static) < -0.5
             assert driver.node.rejected == {}
             np.testing.assert_allclose(driver.node.mount[:, 0], [0.0, -1.0, 0.0], atol=1e-12)
@@ -670,7 +672,7 @@ def test_the_live_node_publishes_the_velocity_type_cmd_vel_stamped_asks_for(rout
         assert CMD_VEL not in topics
         assert type(commands[0]) is kind and is_zero(commands[0])
         if stamped:
-            assert stamp_ns(commands[0].header) == START and commands[0].header.frame_id == 'base_link'
+            assert stamp_ns(commands[0].header) == START and commands[0].header.frame_id == BASE_FRAME
     finally:
         executor.shutdown()
         listener.destroy_node()
@@ -722,7 +724,7 @@ def imu_at(stamp, tilt_deg):
     from sensor_msgs.msg import Imu
 
     imu = Imu()
-    imu.header.frame_id = 'base_link'
+    imu.header.frame_id = BASE_FRAME
     imu.header.stamp.sec, imu.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
     imu.orientation.x, imu.orientation.w = math.sin(math.radians(tilt_deg) / 2), math.cos(math.radians(tilt_deg) / 2)
     return imu

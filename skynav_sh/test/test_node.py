@@ -9,7 +9,7 @@ from rclpy.serialization import serialize_message
 from skynav_core.camera import EquidistantCamera
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import fill_image
-from skynav_core.names import COLOUR_CAMERA_INFO, SKYLINE_MASK, SKYLINE_SH, UV_CAMERA_INFO
+from skynav_core.names import CAMERA_FRAME, COLOUR_CAMERA_INFO, SKYLINE_MASK, SKYLINE_SH, UV_CAMERA_INFO
 from skynav_core.nodes import NodeSpec
 from skynav_core.recording.bag import RawMessage
 from skynav_sh.fisheye import FisheyeTransform
@@ -54,7 +54,7 @@ def test_mask_in_library_coefficients_out():
     assert np.allclose(message.coefficients, expected, rtol=0, atol=1e-12)
     assert message.field_of_view == np.float32(CAMERA.field_of_view)
     assert message.header.stamp.sec * 10**9 + message.header.stamp.nanosec == T0
-    assert message.header.frame_id == 'camera_link'
+    assert message.header.frame_id == CAMERA_FRAME
 
 
 def test_bad_masks_are_rejected_and_counted():

@@ -18,7 +18,14 @@ from skynav_core.colour import (
     decode_image,
     linear_to_srgb,
 )
-from skynav_core.names import COLOUR_CAMERA_INFO, COLOUR_COMPRESSED, COLOUR_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE
+from skynav_core.names import (
+    CAMERA_FRAME,
+    COLOUR_CAMERA_INFO,
+    COLOUR_COMPRESSED,
+    COLOUR_IMAGE,
+    GROUND_TRUTH_MASK,
+    GROUND_TRUTH_POSE,
+)
 from skynav_core.recording.bag import open_bag
 from skynav_core.recording.typestore import typestore
 from skynav_sim import recording
@@ -166,7 +173,7 @@ def test_the_signal_is_the_exposed_radiance_within_photon_and_read_noise(colour_
 def _image(pixels, encoding):
     """Return a rosbags sensor_msgs/Image of pixels, as a recording holds it."""
     T = typestore().types
-    header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](0, 0), 'camera_link')
+    header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](0, 0), CAMERA_FRAME)
     return recording.image_message(T, header, pixels, encoding)
 
 
@@ -206,7 +213,7 @@ def test_compressed_frames_decode_to_the_signal(colour_view, codec, bits):
     signal = ColourSensor().capture(view.rgb(), view.inside, np.random.default_rng(4))
     format_text, data = compressed(signal, codec, 95, bits)
     T = typestore().types
-    header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](0, 0), 'camera_link')
+    header = T['std_msgs/msg/Header'](T['builtin_interfaces/msg/Time'](0, 0), CAMERA_FRAME)
     message = recording.compressed_message(T, header, format_text, data)
     decoded = decode_compressed(message)
     assert format_text == f'rgb{bits}; {codec} compressed bgr{bits}'
@@ -252,7 +259,7 @@ def test_a_compressed_colour_recording_has_the_contract_topics_and_says_what_cam
     stamps = {t: [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in ms] for t, ms in messages.items()}
     assert all(s == stamps[COLOUR_CAMERA_INFO] for s in stamps.values()) and len(stamps[COLOUR_CAMERA_INFO]) == 10
     frame, info = messages[COLOUR_COMPRESSED][0], messages[COLOUR_CAMERA_INFO][0]
-    assert frame.format == 'rgb8; jpeg compressed bgr8' and frame.header.frame_id == 'camera_link'
+    assert frame.format == 'rgb8; jpeg compressed bgr8' and frame.header.frame_id == CAMERA_FRAME
     assert decode_compressed(frame).shape == (info.height, info.width, 3) == (72, 96, 3)
 
 

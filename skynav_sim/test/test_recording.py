@@ -8,7 +8,15 @@ import pytest
 from scipy.ndimage import binary_erosion
 
 from skynav_core.camera import EquidistantCamera, angles_from_directions
-from skynav_core.names import GREEN_IMAGE, GROUND_TRUTH_MASK, GROUND_TRUTH_POSE, UV_CAMERA_INFO, UV_IMAGE
+from skynav_core.names import (
+    CAMERA_FRAME,
+    GREEN_IMAGE,
+    GROUND_TRUTH_MASK,
+    GROUND_TRUTH_POSE,
+    MAP_FRAME,
+    UV_CAMERA_INFO,
+    UV_IMAGE,
+)
 from skynav_core.recording.bag import open_bag
 from skynav_sim.materials import GREEN_RANGE, UV_RANGE
 from skynav_sim.render import Renderer
@@ -68,7 +76,7 @@ def test_recording_has_the_contract_topics(tmp_path):
     )
     assert (uv.encoding, uv.width, uv.height, uv.step) == ('mono8', 96, 72, 96)
     assert mask.encoding == 'mono8' and set(np.unique(mask.data)) <= {0, 255}
-    assert uv.header.frame_id == 'camera_link' and per_topic[GROUND_TRUTH_POSE][0].header.frame_id == 'map'
+    assert uv.header.frame_id == CAMERA_FRAME and per_topic[GROUND_TRUTH_POSE][0].header.frame_id == MAP_FRAME
     camera = EquidistantCamera.from_camera_info(info)
     assert camera.field_of_view == pytest.approx(np.radians(200), abs=1e-9)
 

@@ -11,8 +11,10 @@ from skynav_core.graph import in_process
 from skynav_core.images import fill_image
 from skynav_core.maps import MapStore
 from skynav_core.names import (
+    CAMERA_FRAME,
     HOME_VECTOR,
     LOCALIZATION_MATCH,
+    MAP_FRAME,
     SKYLINE_MASK,
     UV_CAMERA_INFO,
     UV_IMAGE,
@@ -33,7 +35,7 @@ VIZ_TOPICS = (VIZ_MARKERS, VIZ_OVERLAY, VIZ_CONFIDENCE, VIZ_STATE)
 
 def stamped(message, stamp: int):
     """Stamp a message (ns) in camera_link; return it."""
-    return viz.header_of(message, stamp, 'camera_link')
+    return viz.header_of(message, stamp, CAMERA_FRAME)
 
 
 def image(stamp: int, pixels: np.ndarray) -> Image:
@@ -89,7 +91,7 @@ def test_a_frame_is_published_once_it_is_complete_in_any_order(graph):
     assert first[VIZ_STATE][0] == Int32(data=2)
     markers = {m.ns: m for m in first[VIZ_MARKERS][0].markers}
     assert markers['matched'].points[0].x == 1.0 and markers['target'].points[0].x == 2.0
-    assert markers['snapshots'].header.frame_id == 'map' and len(markers['snapshots'].points) == 4
+    assert markers['snapshots'].header.frame_id == MAP_FRAME and len(markers['snapshots'].points) == 4
     home_arrow = markers['home_vector'].points
     assert (home_arrow[0].x, home_arrow[1].x) == (1.0, 2.0)  # from the match, along +x of snapshot 2 (1 m)
     assert first[VIZ_OVERLAY][0].format == 'jpeg' and first[VIZ_OVERLAY][0].header.stamp.sec == 1

@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 from skynav_core.graph import in_process, type_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import Snapshot
-from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
+from skynav_core.names import CAMERA_FRAME, COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_SH
 from skynav_core.nodes import NodeSpec
 from skynav_core.recording.bag import RawMessage
 from skynav_core.rotations import as_matrix
@@ -95,7 +95,7 @@ def sh_message(view, field_of_view, stamp=None, coefficients=None, max_degree=No
         field_of_view=float(field_of_view),
     )
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(view.stamp if stamp is None else stamp, 10**9)
-    message.header.frame_id = 'camera_link'
+    message.header.frame_id = CAMERA_FRAME
     return message
 
 
@@ -144,7 +144,7 @@ def check_home_vectors(views, home_vectors, index, snapshot):
     assert [stamp_ns(h.header) for h in home_vectors] == [v.stamp for v in views if v.stamp != snapshot.stamp]
     for home in home_vectors:
         q = home.rotation
-        assert home.header.frame_id == 'camera_link' and home.snapshot_index == index
+        assert home.header.frame_id == CAMERA_FRAME and home.snapshot_index == index
         assert np.linalg.norm(direction(home)) == pytest.approx(1.0)
         assert np.linalg.norm([q.x, q.y, q.z, q.w]) == pytest.approx(1.0)
         assert 0.0 <= home.residual <= 1.0
@@ -258,7 +258,7 @@ def compass_estimate(stamp, rotation, confident):
     """A compass estimate of the view stamped `stamp` (ns): rotation R (scipy Rotation), marked `confident` or not."""
     message = CompassEstimate(snapshot_index=0, residual=0.1, confidence=0.9 if confident else 0.1, confident=confident)
     message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
-    message.header.frame_id = 'camera_link'
+    message.header.frame_id = CAMERA_FRAME
     x, y, z, w = rotation.as_quat()
     message.rotation.x, message.rotation.y, message.rotation.z, message.rotation.w = (
         float(x),
