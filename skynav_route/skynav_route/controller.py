@@ -24,10 +24,10 @@ atan(offset / `approach`), the route's curvature over `route_lead` snapshots fed
 turn-rate law and the speed falling as cos(error). *Point turns* (a lawn's lane ends, where the teach turned in
 place: `TaughtRoute.point_turns`) are driven as taught: the robot slows to arrive on the corner at rest (no more
 than sqrt(2 a d) at d m before it), feels no curvature forward across it (so it cuts no corner) and turns there in
-place while its heading error exceeds IN_PLACE_ERROR, then drives the next leg. A map without the teach's odometry (built from a recording
-without /odom) has no shape to place the robot on: there the robot steers along the sum of the route's direction
-(the snapshot's forward axis R^T e_x, the first row of R, in the current view) and the home vector weighted by
-`homing_gain` times its confidence.
+place while its heading error exceeds IN_PLACE_ERROR, then drives the next leg. A map without the teach's odometry
+(built from a recording without /odom) has no shape to place the robot on: there the robot steers along the sum
+of the route's direction (the snapshot's forward axis R^T e_x, the first row of R, in the current view) and the
+home vector weighted by `homing_gain` times its confidence.
 
 Homing (`Homer`): turn towards the home vector and drive; slow down by half whenever it points behind (home was
 passed); arrived when the home vector stays unsure for `arrived_frames` frames in a row (the views agree: nothing
