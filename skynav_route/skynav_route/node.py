@@ -64,6 +64,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Bool
 
+from skynav_core.actions import error_name
 from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
 from skynav_core.motion import fill_twist, fill_velocity_command
@@ -96,6 +97,7 @@ from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, Vie
 from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal, TimeLimit
 from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
+from .progress import ProgressError, RouteProgress, now, write_progress
 
 INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
 WATCHDOG_PERIOD = 0.1  # s of the node's clock
@@ -142,6 +144,7 @@ class RouteNode(SkynavNode):
         self.bumped = False  # the bumper's latest word: in contact
         self.stop_reasons: dict[str, str] = {}  # what engages the emergency stop now (INPUT_STOP, TILT_STOP): why
         self.emergency_stops = 0  # times it was engaged
+        self.progress_unsaved = 0  # follow goals whose progress record could not be written beside the map
         self.tilted_since: int | None = None  # ns, IMU stamp since which the robot leans over max_tilt_deg
         self.newest: dict[str, int] = {}  # per frame input topic, its newest stamp (ns) since the time restarted
         self.peer_clients: dict[str, AsyncParameterClient] = {}
@@ -399,6 +402,7 @@ class RouteNode(SkynavNode):
         status = super().diagnostic_status()
         status.values.append(KeyValue(key='emergency_stop', value=str(self.emergency_stop).lower()))
         status.values.append(KeyValue(key='emergency_stops', value=str(self.emergency_stops)))
+        status.values.append(KeyValue(key='progress_unsaved', value=str(self.progress_unsaved)))
         if self.emergency_stop:
             status.level = max(status.level, DiagnosticStatus.WARN)
             status.message = f'emergency stop engaged; {status.message}'
@@ -511,7 +515,20 @@ class RouteNode(SkynavNode):
             await self.configure_peers(goals.UNTRACKED)
         result.reached_index = max(controller.matched, -1)
         lost = goals.unplaced(controller.matched, request.start_index)
-        return self.conclude(handle, result, outcome, active, codes, lost)
+        result = self.conclude(handle, result, outcome, active, codes, lost)
+        ended = outcome if outcome in (REACHED, CANCELED) else error_name(result)
+        reached, driven = result.reached_index, result.driven_length
+        self.record_progress(RouteProgress(path, count, request.start_index, end, reached, ended, driven, now()))
+        return result
+
+    def record_progress(self, progress: RouteProgress) -> None:
+        """Store where a follow goal got to beside its map (skynav_route.progress), for `skynav follow --resume`; a
+        record that cannot be written is logged and counted (progress_unsaved), and the goal's result stands."""
+        try:
+            write_progress(progress)
+        except ProgressError as exc:
+            self.progress_unsaved += 1
+            self.get_logger().warning(f'{exc}: `skynav follow --resume` will not know where this goal ended')
 
     async def execute_home(self, handle: Any) -> Home.Result:
         """Drive to the place of the Home goal's snapshot."""

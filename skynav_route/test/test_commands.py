@@ -13,6 +13,7 @@ import pytest
 from geometry_msgs.msg import TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from skynav_route.progress import read_progress
 
 from skynav_core.maps import Snapshot
 from skynav_core.names import BASE_FRAME, CMD_VEL
@@ -94,6 +95,10 @@ def test_follow_without_camera_frames_is_stopped_by_the_watchdog(route_map, list
     assert len(commands) == 1  # no frame, so no command but the stop
     assert commands[0].twist.linear.x == 0.0 and commands[0].twist.angular.z == 0.0
     assert commands[0].header.frame_id == BASE_FRAME
+    # the node recorded where the goal ended beside the map, for `skynav follow --resume`
+    progress = read_progress(route_map)
+    assert (progress.outcome, progress.reached_index, progress.start_index) == ('STALE_INPUT', -1, -1)
+    assert (progress.end_index, progress.snapshots, progress.map_path) == (SNAPSHOTS - 1, SNAPSHOTS, str(route_map))
 
 
 def test_ctrl_c_cancels_and_the_robot_stops_and_shutdown_stops_it_too(route_map, listener):

@@ -6,6 +6,10 @@ velocity command per camera frame on /cmd_vel. The progress line shows the match
 the progress from --from to --to, the confidence and the state (localizing, following, recovering,
 stopping). Ctrl-C cancels the goal and the robot stops. Exit code 0 when the route's end was reached, 1 with
 the error code's name (LOST, NO_MAP, STALE_INPUT, TIMEOUT, BAD_INDEX, ...) otherwise.
+
+With --resume the goal carries on where the last follow goal on that map ended (canceled, LOST, an emergency stop,
+...): from its last snapshot passed to its end, as the route node recorded beside the map (MAP.progress.yaml,
+skynav_route.progress), so that lanes already mowed are not mowed again.
 """
 
 from __future__ import annotations
@@ -34,6 +38,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
         'default: wherever localization places the robot)',
     )
     parser.add_argument('--to', dest='end', type=int, default=-1, metavar='J', help='end snapshot (default: the last)')
+    parser.add_argument(
+        '--resume',
+        action='store_true',
+        help='carry on from where the last follow goal on MAP ended (its record beside the map), to its end',
+    )
     parser.add_argument('--max-speed', type=float, default=0.0, metavar='M/S', help="speed limit (default: the node's)")
     parser.add_argument('--wait', type=float, default=10.0, metavar='S', help='wait this long for the server (10 s)')
     add_namespace(parser)
@@ -48,6 +57,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.start < -1 or args.end < -1:
         raise CliError('--from and --to must be snapshot indices (or -1)', exit_code=2)
+    if args.resume:
+        resumed = resume(args)
+        if resumed is None:
+            return 0
+        args.start, args.end = resumed
     goal = FollowRoute.Goal(
         map_path=str(args.map.resolve()) if args.map else '',
         start_index=args.start,
@@ -70,3 +84,53 @@ def run(args: argparse.Namespace) -> int:
     result = goal_result(outcome)
     print(f'reached the end: snapshot {result.reached_index}, driven {result.driven_length:.2f} m')
     return 0
+
+
+def resume(args: argparse.Namespace) -> tuple[int, int] | None:
+    """Return the (start, end) snapshots that carry on from the last follow goal on the map; None if it had reached
+    its end (nothing to resume). CliError where there is nothing to resume from."""
+    import time
+
+    from skynav_core.cli import CliError
+    from skynav_core.maps import MapError, MapStore
+
+    from ..progress import ProgressError, progress_path, read_progress
+
+    if args.map is None:
+        raise CliError('--resume needs the map: skynav follow MAP.db --resume', exit_code=2)
+    if args.start != -1:
+        raise CliError('--resume starts where the last goal ended: leave out --from', exit_code=2)
+    try:
+        progress = read_progress(args.map)
+    except ProgressError as exc:
+        raise CliError(f'cannot resume: {exc}', exit_code=2) from None
+    if progress is None:
+        raise CliError(
+            f'nothing to resume: no follow goal on {args.map} has ended yet ({progress_path(args.map).name} is '
+            'missing); start one with --from',
+            exit_code=2,
+        )
+    try:
+        with MapStore.open(args.map) as store:
+            count = len(store)
+    except MapError as exc:
+        raise CliError(str(exc), exit_code=2) from None
+    if count != progress.snapshots:
+        raise CliError(
+            f'cannot resume: {args.map} has {count} snapshots, the last goal ran on {progress.snapshots} (the map was '
+            'taught again since); start with --from',
+            exit_code=2,
+        )
+    when = time.strftime('%Y-%m-%d %H:%M', time.localtime(progress.ended_at))
+    end = progress.end_index if args.end < 0 else args.end
+    if progress.finished and end <= progress.reached_index:
+        print(f'nothing to resume: the last goal on {args.map.name} reached its end, snapshot {end} ({when})')
+        return None
+    start = progress.resume_from()
+    if start > end:
+        raise CliError(f'cannot resume: the last goal passed snapshot {start}, beyond --to {end}', exit_code=2)
+    print(
+        f'resuming: the last goal ended {progress.outcome} at snapshot {progress.reached_index} ({when}); '
+        f'following snapshots {start}..{end}'
+    )
+    return start, end
