@@ -44,7 +44,7 @@ class Mutation:
 MUTATIONS = (
     Mutation(
         'map-commit-on-failure',
-        'skynav_core/skynav_core/maps.py',
+        'skynav_core/skynav_core/maps/writer.py',
         """            except BaseException:
                 self._db.execute('ROLLBACK')""",
         """            except BaseException:
@@ -136,7 +136,7 @@ MUTATIONS = (
     ),
     Mutation(
         'map-error-over-lines',
-        'skynav_core/skynav_core/maps.py',
+        'skynav_core/skynav_core/maps/reader.py',
         "result = [line for row in db.execute(f'PRAGMA {pragma}(3)') for line in row[0].splitlines()]",
         "result = [row[0] for row in db.execute(f'PRAGMA {pragma}(3)')]",
         ('skynav_localize/test/test_node.py::test_map_info_refuses_foreign_and_corrupt_files',),
