@@ -89,6 +89,7 @@ from skynav_core.names import (
 from skynav_core.namespaces import relative
 from skynav_core.node import SkynavNode
 from skynav_core.ros import run_node
+from skynav_core.route_progress import ProgressError, RouteProgress, now, write_progress
 from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
@@ -97,7 +98,6 @@ from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, Vie
 from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal, TimeLimit
 from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
-from .progress import ProgressError, RouteProgress, now, write_progress
 
 INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
 WATCHDOG_PERIOD = 0.1  # s of the node's clock
@@ -522,8 +522,8 @@ class RouteNode(SkynavNode):
         return result
 
     def record_progress(self, progress: RouteProgress) -> None:
-        """Store where a follow goal got to beside its map (skynav_route.progress), for `skynav follow --resume`; a
-        record that cannot be written is logged and counted (progress_unsaved), and the goal's result stands."""
+        """Store where a follow goal got to beside its map (skynav_core.route_progress) for `skynav follow --resume`;
+        a record that cannot be written is logged and counted (progress_unsaved), and the goal's result stands."""
         try:
             write_progress(progress)
         except ProgressError as exc:

@@ -13,10 +13,10 @@ import pytest
 from geometry_msgs.msg import TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from skynav_route.progress import read_progress
 
 from skynav_core.maps import Snapshot
 from skynav_core.names import BASE_FRAME, CMD_VEL
+from skynav_core.route_progress import read_progress
 from skynav_localize.mapping import build_map
 from skynav_testing import one_line_error, run_skynav, start_skynav
 

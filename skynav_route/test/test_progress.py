@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""Where the last follow goal on a map got to (skynav_route.progress) and `skynav follow --resume`, which carries on
-from there."""
+"""Where the last follow goal on a map got to (skynav_core.route_progress) and `skynav follow --resume`, which
+carries on from there."""
 
 import argparse
 from pathlib import Path
@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import yaml
 from skynav_route.cli.follow import resume
-from skynav_route.progress import ProgressError, RouteProgress, progress_path, read_progress, write_progress
 
 from skynav_core.cli import CliError
 from skynav_core.maps import Snapshot
+from skynav_core.route_progress import ProgressError, RouteProgress, progress_path, read_progress, write_progress
 from skynav_localize.mapping import build_map
 
 SNAPSHOTS = 40

@@ -277,11 +277,13 @@ def drive_goal(
     progress: Callable[[], None] | None = None,
     odometry: bool = True,
     mount: np.ndarray | None = None,
+    cancel_at: int | None = None,
 ) -> Run:
     """Send one goal to the route node and let the mower drive until its result (or `max_frames`); return the run.
 
     `progress` is called once per camera frame; without `odometry` the base publishes no /odom; a `mount` (3, 3)
-    is published on /tf_static before the goal.
+    is published on /tf_static before the goal; once the feedback's matched snapshot reaches `cancel_at` the goal is
+    canceled (a user's Ctrl-C).
     """
     robot = graph.nodes[-1]
     assert isinstance(robot, SimMowerNode)  # the last node of the graph this module builds
@@ -312,6 +314,9 @@ def drive_goal(
 
         for _ in range(max_frames):
             if result.done():
+                break
+            if cancel_at is not None and feedback and feedback[-1].matched_index >= cancel_at:
+                run.stopped = 'canceled'
                 break
             stamp = simulation.stamp()
             graph.advance(stamp)
@@ -349,6 +354,7 @@ def drive_goal(
             cancel = handle.cancel_goal_async()
             spin_until(executor, cancel.done, RESULT_WAIT)
             spin_until(executor, result.done, RESULT_WAIT)
+            run.result = result.result().result if result.done() else None
         run.confidences = [float(f.confidence) for f in feedback]
         run.feedback = feedback
         run.commands = len(robot.commands)
@@ -527,13 +533,14 @@ def follow_route(
     clouds: float = 0.0,
     progress: Callable[[], None] | None = None,
     start_index: int = 0,
+    cancel_at: int | None = None,
 ) -> tuple[Run, np.ndarray]:
     """Follow the route of a map from `start` with a FollowRoute goal from snapshot `start_index` (-1: wherever
     localization places the robot) to its last snapshot.
 
     Returns the run and the route (snapshot places x, y of base_link in m: from the map's camera_link poses unless
     `route` gives the true ones of a taught map; for scoring only, the loop never sees them). The sky has `clouds`
-    cover; `progress` is called once per camera frame.
+    cover; `progress` is called once per camera frame; the goal is canceled once it passes snapshot `cancel_at`.
     """
     if route is None:
         with MapStore.open(map_path) as store:
@@ -562,6 +569,7 @@ def follow_route(
             progress,
             base.odometry,
             base.published_mount,
+            cancel_at,
         )
     return run, route
 

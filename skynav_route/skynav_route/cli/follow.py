@@ -9,7 +9,7 @@ the error code's name (LOST, NO_MAP, STALE_INPUT, TIMEOUT, BAD_INDEX, ...) other
 
 With --resume the goal carries on where the last follow goal on that map ended (canceled, LOST, an emergency stop,
 ...): from its last snapshot passed to its end, as the route node recorded beside the map (MAP.progress.yaml,
-skynav_route.progress), so that lanes already mowed are not mowed again.
+skynav_core.route_progress), so that lanes already mowed are not mowed again.
 """
 
 from __future__ import annotations
@@ -93,8 +93,7 @@ def resume(args: argparse.Namespace) -> tuple[int, int] | None:
 
     from skynav_core.cli import CliError
     from skynav_core.maps import MapError, MapStore
-
-    from ..progress import ProgressError, progress_path, read_progress
+    from skynav_core.route_progress import ProgressError, progress_path, read_progress
 
     if args.map is None:
         raise CliError('--resume needs the map: skynav follow MAP.db --resume', exit_code=2)
