@@ -25,7 +25,9 @@ def drive_lawn(lawn: Lawn, slip: float = 0.0, frames: int = 5000) -> tuple[np.nd
     """Let the operator drive `lawn` on an empty park; return the positions, headings and frames turned in place."""
     world = generate('park', 5)
     corners = lawn.corners()
-    start = Pose2D(float(corners[0][0]), float(corners[0][1]), lawn.heading + 0.3)  # turned off the first lane: a point turn first
+    start = Pose2D(
+        float(corners[0][0]), float(corners[0][1]), lawn.heading + 0.3
+    )  # turned off the first lane: a point turn first
     mower = Mower(world, start, np.random.default_rng(1), slip=slip, odometry_noise=0.0)
     operator = LaneOperator(lawn)
     positions, headings, in_place = [mower.pose.position], [mower.pose.heading], 0

@@ -213,6 +213,10 @@ def mow(args, style: str, seed: int, camera, teach_hours: float, hours: float) -
         error=error,
         duration=sum(len(r.path) - 1 for r in runs) * FRAME_PERIOD,
     )
+    np.savez(
+        folder / 'paths.npz', taught=np.array(teaching.poses), route=route,
+        **{f'repeat{k}': np.column_stack([r.path, r.headings]) for k, r in enumerate(runs)},
+    )  # fmt: skip
     draw_lawn(folder.parent / f'{style}_seed{seed}_mow.png', taught_path, paths, cut, score)
     return score
 
@@ -293,6 +297,9 @@ def draw_lawn(path: Path, taught, paths, cut, score: MowScore) -> None:
     for k, driven in enumerate(paths):
         label = 'repeat' if len(paths) == 1 else ('repeat, until interrupted' if k == 0 else 'repeat, resumed')
         axes.plot(*driven.T, '-', color=('#1565c0', '#6a1b9a')[k % 2], linewidth=1.0, label=label)
+    axes.plot(*taught[0], 's', color='k', markersize=7, label='taught start')
+    axes.plot(*taught[-1], '*', color='gold', markeredgecolor='k', markersize=14, label='taught end')
+    axes.plot(*paths[0][0], 's', color='#1565c0', markersize=7, label='repeat start')
     if len(paths) > 1:
         axes.plot(*paths[1][0], 'o', color='#6a1b9a', markersize=7, label='resumed here')
     axes.set_aspect('equal')
