@@ -74,7 +74,7 @@ class Lawn:
 
 
 def place_lawn(
-    world: World, lanes: int, length: float, gap: float = LANE_GAP, tries: int = 2000, seed: int = 0
+    world: World, lanes: int, length: float, gap: float = LANE_GAP, tries: int = 20000, seed: int = 0
 ) -> Lawn | None:
     """Return a lawn of that many lanes that fits in `world` (free with a margin), None if none was found."""
     rng = np.random.default_rng([seed, lanes, round(length * 100), round(gap * 1000)])

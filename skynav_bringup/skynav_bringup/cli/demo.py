@@ -14,7 +14,9 @@ Each step prints the command it runs, so every result can be reproduced by hand:
   4. the whole story in the simulator: a scripted operator drives the simulated mower along a route
      while a Teach goal records its map (`skynav sim teach`);
   5. then the nodes drive the mower along that taught route on their own, from 0.3 m beside its start
-     and at another time of day (`skynav sim follow`), with a plot.
+     and at another time of day (`skynav sim follow`), with a plot;
+  6. a small lawn: two lanes joined by point turns taught, then mowed again at another time of day, stopped half
+     way and resumed where it stopped (`skynav eval mow`), with a plot of both swaths.
 
 Outputs go to the folder given with --out (default out/demo); earlier outputs there are replaced.
 Everything the demo shows is computed from synthetic recordings.
@@ -45,6 +47,7 @@ HOMING_NEAR = 0.5  # m: home vectors to a snapshot nearer than this are reported
 HOMING_MISS = 30.0  # deg: a home vector off by more than this is a miss
 SIM_SEED = 1  # the synthetic garden world the simulator's route is taught in
 SIM_LENGTH = 8.0  # m of route taught in the simulator
+LAWN_LANES, LAWN_LENGTH = 2, 2.5  # the demo's lawn: lanes of m, a cutting width apart (docs/lawn.md)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -123,6 +126,11 @@ def run(args: argparse.Namespace) -> int:
         '5. the nodes drive the mower along the taught route, from 0.3 m beside its start, in the morning',
         ['skynav', 'sim', 'follow', str(taught / 'teach.yaml'), '--map', str(taught / 'teach.db')]
         + ['--offset', '0.3', '--time', 'morning', '--out', str(args.out)],
+    )
+    step(
+        '6. a lawn: two lanes with point turns taught, then mowed again in the morning, stopped half way and resumed',
+        ['skynav', 'eval', 'mow', '--worlds', 'garden', '--seeds', str(SIM_SEED), '--lanes', str(LAWN_LANES)]
+        + ['--length', f'{LAWN_LENGTH:g}', '--out', str(args.out / 'lawn')],
     )
     print(f'\nskynav demo: done; outputs in {args.out}/ (all from synthetic recordings)')
     return 0 if rates else 1
