@@ -213,10 +213,9 @@ def mow(args, style: str, seed: int, camera, teach_hours: float, hours: float) -
         error=error,
         duration=sum(len(r.path) - 1 for r in runs) * FRAME_PERIOD,
     )
-    np.savez(
-        folder / 'paths.npz', taught=np.array(teaching.poses), route=route,
-        **{f'repeat{k}': np.column_stack([r.path, r.headings]) for k, r in enumerate(runs)},
-    )  # fmt: skip
+    arrays = {'taught': np.array(teaching.poses), 'route': route}
+    arrays.update({f'repeat{k}': np.column_stack([r.path, r.headings]) for k, r in enumerate(runs)})
+    np.savez(folder / 'paths.npz', **arrays)  # x, y (m) and heading (rad) per frame, map frame
     draw_lawn(folder.parent / f'{style}_seed{seed}_mow.png', taught_path, paths, cut, score)
     return score
 
