@@ -215,7 +215,8 @@ def mow(args, style: str, seed: int, camera, teach_hours: float, hours: float) -
     )
     arrays = {'taught': np.array(teaching.poses), 'route': route}
     arrays.update({f'repeat{k}': np.column_stack([r.path, r.headings]) for k, r in enumerate(runs)})
-    np.savez(folder / 'paths.npz', **arrays)  # x, y (m) and heading (rad) per frame, map frame
+    # x, y (m) and heading (rad) per frame, map frame; numpy's stubs take a **kwargs array for its allow_pickle flag
+    np.savez(folder / 'paths.npz', **arrays)  # type: ignore[arg-type]
     draw_lawn(folder.parent / f'{style}_seed{seed}_mow.png', taught_path, paths, cut, score)
     return score
 
