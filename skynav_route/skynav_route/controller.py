@@ -281,7 +281,8 @@ class TaughtRoute:
     def in_point_turn(self, along: float) -> bool:
         """Return whether fractional snapshot index `along` lies within a point turn or on the chord that leaves it."""
         turns = self.point_turns
-        return bool(np.any((turns[:, 0] <= along) & (along < turns[:, 1] + 1)))
+        k = int(np.searchsorted(turns[:, 0], along, side='right')) - 1  # the last turn that begins at or before it
+        return bool(k >= 0 and along < turns[k, 1] + 1)
 
     def corner_ahead(self, along: float, within: int = CORNER_LOOKAHEAD) -> tuple[int, float] | None:
         """Return the snapshot where the first point turn after fractional snapshot index `along` begins (within
@@ -290,7 +291,9 @@ class TaughtRoute:
         k = int(np.searchsorted(starts, along, side='right'))
         if k == len(starts) or starts[k] > along + within:
             return None
-        here = float(np.interp(along, np.arange(len(self)), self.along))
+        before = min(max(int(along), 0), len(self) - 1)  # the place's chord: no work over the whole route per frame
+        after = min(before + 1, len(self) - 1)
+        here = float(self.along[before] + (along - before) * (self.along[after] - self.along[before]))
         return int(starts[k]), max(float(self.along[starts[k]]) - here, 0.0)
 
     def curvature(self, origin: int, span: int) -> float:
