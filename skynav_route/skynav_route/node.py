@@ -1,9 +1,9 @@
 # SPDX-License-Identifier: Apache-2.0
 """The route node: serves /skynav/follow_route and /skynav/home and drives the robot through /cmd_vel.
 
-Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and,
-when a robot has them, /odom, /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED,
-as skynav does not drive around objects), /emergency_stop (std_msgs/Bool, see below) and /tf_static (base_link ->
+Subscribes /skyline/sh (the frame clock), /localization/match, /compass/orientation, /homing/home_vector and, when a
+robot has them, /odom, /bumper (std_msgs/Bool, true on contact: the goal stops and aborts with BLOCKED, as skynav
+does not drive around objects), /emergency_stop (std_msgs/Bool, skynav_route.safety) and /tf_static (base_link ->
 camera_link, over the parameter camera_mount_rpy_deg: the compass rotation and home vector are turned into
 base_link, skynav_route.inputs); publishes /cmd_vel (geometry_msgs/TwistStamped in base_link; a bare
 geometry_msgs/Twist with `cmd_vel_stamped` false, for bases that take that) as docs/interfaces.md ("Driving", "On a
@@ -13,59 +13,35 @@ inputs, shutdown); nothing while idle. It never reads /ground_truth/*. Every nam
 namespace (`-r __ns:=/robot1` serves /robot1/skynav/follow_route and publishes /robot1/cmd_vel); /cmd_vel is
 remapped as any topic (`-r cmd_vel:=/base/cmd_vel`).
 
-Emergency stop: when /emergency_stop says true, the node publishes a zero command at once and an active goal aborts
-with EMERGENCY_STOP; then nothing is published (no goal is active) until a new goal comes, and a goal that comes
-while the stop is still true is refused with EMERGENCY_STOP and never moves. An IMU (/camera/imu, sensor_msgs/Imu,
-optional) that shows the robot leaning more than `max_tilt_deg` from the vertical for TILT_HOLD s (by its stamps)
-stops it the same way, until it is level again (inputs.imu_tilt; the IMU frame's rotation in base_link from
-/tf_static, base_link's own axes while it gives none). A lift that does not tilt the robot is not seen. The stops
-are counted in /diagnostics (emergency_stops; emergency_stop says whether it is engaged, and the status is WARN
-while it is).
-
-A frame is processed when its home vector comes (warping is the last stage), or, when none comes, once a view
-`frame_wait` s newer arrives on /skyline/sh (in the in-process graph, where every node has answered a view before
-the next subscriber hears it, at the frame's own /skyline/sh). The command comes from skynav_route.controller.
-
-For each goal it sets the compass and warping nodes' snapshot choice through their parameters (following: the
-compass against the match, the warping node `lookahead` snapshots ahead; homing: both against the goal's index),
-localize's `tracking` while it follows the route (each view sought near the last accepted match, the first ones
-near the goal's start_index when it names one; off again when the goal ends) and, for a goal naming another map,
-the `map` of localize, compass and warping.
+A frame is processed when its home vector comes, or, when none comes, once a view `frame_wait` s newer arrives
+(skynav_route.frames); the command comes from skynav_route.controller. The emergency stop, the IMU's tilt and the
+bumper stop a goal whatever it commands (skynav_route.safety). For each goal the node sets the compass, warping and
+localize nodes' parameters (skynav_route.peers).
 
 The watchdog (a timer live, /clock in the in-process graph) stops the robot and aborts with STALE_INPUT when no
 frame was processed for `input_timeout` s, and with TIMEOUT when the goal ran longer than its time limit:
 `goal_timeout` s plus `goal_time_factor` times the time its distance takes at its speed limit (skynav_route.goals:
 the route's length from the map, `home_distance` for a Home goal). Both measure `elapsed_ns()`, the time passed on
 the node's clock with its jumps left out, so a clock that starts late (sim time before the first /clock) or jumps
-(a recording replayed with its own clock) fires neither; a frame input stamped over `max_stamp_jump_s` before the
-newest of its topic restarts the frames' time (the frames kept by stamp are forgotten; a stage that lags restarts
-nothing). Waiting for the compass and warping nodes to take a goal's settings (`peer_timeout`) is a wait on the
-other nodes, measured in steady (wall) time: it ends even while sim time stands still. A goal canceled before its
-execution began never drives (a client cancels a goal whose answer it did not get: skynav_core.goals).
+(a recording replayed with its own clock) fires neither (frame inputs whose stamps jump back restart the frames'
+time: skynav_route.frames). A goal canceled before its execution began never drives (a client cancels a goal whose
+answer it did not get: skynav_core.goals).
 """
 
 from __future__ import annotations
 
-import math
-import time
 from typing import Any
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.action import ActionServer, CancelResponse
-from rclpy.clock import Clock as RosClock
-from rclpy.clock import ClockType
-from rclpy.parameter import Parameter as RosParameter
-from rclpy.parameter_client import AsyncParameterClient
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Bool
 
 from skynav_core.actions import error_name
-from skynav_core.images import stamp_ns
 from skynav_core.maps import MapError, MapStore
 from skynav_core.motion import fill_twist, fill_velocity_command
 from skynav_core.mount import frame_name
@@ -94,16 +70,15 @@ from skynav_msgs.action import FollowRoute, Home
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 
 from . import goals
-from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute, View
+from .controller import REACHED, Command, Homer, RouteFollower, TaughtRoute
+from .frames import Frames
 from .goals import BLOCKED, CANCELED, EMERGENCY, SHUTDOWN, STALE, TIMED_OUT, ActiveGoal, TimeLimit
-from .inputs import TILT_HOLD, frame_view, imu_tilt
 from .parameters import PARAMETERS, check, limits, settings
+from .peers import Peers
+from .safety import Safety
 
-INPUT_STOP, TILT_STOP = 'input', 'tilt'  # what may engage the emergency stop
 WATCHDOG_PERIOD = 0.1  # s of the node's clock
-KEPT_FRAMES = 8  # recent frames whose match and compass estimate are kept, by stamp
 LAST_WORD_WAIT = 1.0  # s the zero command at shutdown may take to be acknowledged before the publisher goes
-PEER_POLL = 0.05  # s of steady time between looks at whether another node answered
 
 
 def twist(stamp: int, command: Command, stamped: bool = True) -> TwistStamped | Twist:
@@ -135,27 +110,18 @@ class RouteNode(SkynavNode):
         super().__init__(ROUTE_NODE, **kwargs)
         self.declare_table(PARAMETERS)
         self.active: ActiveGoal | None = None
-        self.matches: dict[int, PlaceMatch] = {}
-        self.compass: dict[int, CompassEstimate] = {}
-        self.homes: dict[int, HomeVector] = {}
-        self.last_frame = -1  # stamp (ns) of the last frame processed
-        self.odom: np.ndarray | None = None  # latest base_link position in odom (x, y), m
-        self.odom_at_frame: np.ndarray | None = None
-        self.bumped = False  # the bumper's latest word: in contact
-        self.stop_reasons: dict[str, str] = {}  # what engages the emergency stop now (INPUT_STOP, TILT_STOP): why
-        self.emergency_stops = 0  # times it was engaged
+        self.frames = Frames(self.stamp_jumped, self.reject)
+        self.safety = Safety(self.get_logger(), lambda: self.active is not None, self.stop_emergency)
+        self.peers = Peers(self)
         self.progress_unsaved = 0  # follow goals whose progress record could not be written beside the map
-        self.tilted_since: int | None = None  # ns, IMU stamp since which the robot leans over max_tilt_deg
-        self.newest: dict[str, int] = {}  # per frame input topic, its newest stamp (ns) since the time restarted
-        self.peer_clients: dict[str, AsyncParameterClient] = {}
-        self.steady_clock = RosClock(clock_type=ClockType.STEADY_TIME)  # for waits on other nodes
+        frames = self.frames
         self.input(SKYLINE_SH, ShCoefficients, self.on_view)
-        self.input(LOCALIZATION_MATCH, PlaceMatch, lambda m: self._keep(LOCALIZATION_MATCH, self.matches, m))
-        self.input(COMPASS_ORIENTATION, CompassEstimate, lambda m: self._keep(COMPASS_ORIENTATION, self.compass, m))
+        self.input(LOCALIZATION_MATCH, PlaceMatch, lambda m: frames.keep(LOCALIZATION_MATCH, frames.matches, m))
+        self.input(COMPASS_ORIENTATION, CompassEstimate, lambda m: frames.keep(COMPASS_ORIENTATION, frames.compass, m))
         self.input(HOME_VECTOR, HomeVector, self.on_home_vector)
-        self.input(ODOM, Odometry, self.on_odom)
+        self.input(ODOM, Odometry, frames.on_odom)
         self.input(BUMPER, Bool, self.on_bumper)
-        self.input(EMERGENCY_STOP, Bool, self.on_emergency_stop)
+        self.input(EMERGENCY_STOP, Bool, lambda m: self.safety.on_emergency_stop(bool(m.data)))
         self.input(IMU, Imu, self.on_imu)
         self.listen_for_mount()
         self.servers = [
@@ -180,134 +146,49 @@ class RouteNode(SkynavNode):
             raise ValueError('cmd_vel_stamped is read at start-up only: restart the node to change it')
         self.values, self.settings = values, settings(values)
 
-    # --- inputs ---------------------------------------------------------------------------------
+    @property
+    def emergency_stops(self) -> int:
+        """Return how often the emergency stop was engaged."""
+        return self.safety.stops
 
-    def frame_input(self, topic: str, stamp: int) -> None:
-        """Take the stamp (ns) of a frame's input on `topic`: one over max_stamp_jump_s before the newest of its topic
-        restarts the frames' time (stamp_jumped, reset_time: a camera clock that jumped back, a recording played
-        again), or its frames would be refused as late. Each topic is compared with itself, so a stage that lags
-        (home vectors a second behind the views) restarts nothing; a jump forward needs no restart."""
-        newest = self.newest.get(topic, -1)
-        if stamp < newest - self.max_stamp_jump_ns:
-            self.stamp_jumped(stamp, newest)
-        self.newest[topic] = max(self.newest.get(topic, -1), stamp)
+    # --- inputs ---------------------------------------------------------------------------------
 
     def reset_time(self) -> None:
         """Forget the frames kept by stamp and the last frame answered: the frames' time restarted."""
         super().reset_time()
-        self.matches.clear()
-        self.compass.clear()
-        self.homes.clear()
-        self.last_frame = -1
-        self.newest.clear()
-
-    def _keep(self, topic: str, kept: dict[int, Any], message: Any) -> None:
-        """Keep a frame's message of `topic` by stamp (the last KEPT_FRAMES frames)."""
-        stamp = stamp_ns(message.header)
-        self.frame_input(topic, stamp)
-        kept[stamp] = message
-        while len(kept) > KEPT_FRAMES:
-            del kept[min(kept)]
-
-    def on_odom(self, message: Odometry) -> None:
-        """Remember the latest odometry position (m, frame odom)."""
-        p = message.pose.pose.position
-        if math.isfinite(p.x) and math.isfinite(p.y):
-            self.odom = np.array([p.x, p.y])
-        else:
-            self.reject('non_finite', 'an /odom pose is not finite')
+        self.frames.reset()
 
     def on_bumper(self, message: Bool) -> None:
         """Remember whether the bumper is in contact; contact stops the active goal (BLOCKED)."""
-        self.bumped = bool(message.data)
-        if self.bumped and self.active is not None:
+        self.safety.bumped = bool(message.data)
+        if self.safety.bumped and self.active is not None:
             self.stop_blocked()
 
-    @property
-    def emergency_stop(self) -> bool:
-        """Return whether the emergency stop is engaged (by its input or the IMU's tilt)."""
-        return bool(self.stop_reasons)
-
-    def engage(self, cause: str, reason: str | None) -> None:
-        """Engage the emergency stop for `cause` (INPUT_STOP, TILT_STOP) because of `reason` (None: release it).
-        Engaged, it stops the robot at once and aborts the active goal (EMERGENCY_STOP); goals are refused while it
-        stays engaged."""
-        if reason is None:
-            if self.stop_reasons.pop(cause, None) is not None and not self.stop_reasons:
-                self.get_logger().info('emergency stop released: a new goal may drive')
-            return
-        if cause not in self.stop_reasons:
-            self.emergency_stops += 1
-            doing = 'the robot stops and the goal aborts' if self.active is not None else 'no goal drives'
-            self.get_logger().error(
-                f'emergency stop engaged ({reason}): {doing} (EMERGENCY_STOP) until it is released and a new goal '
-                'comes; counted in /diagnostics as emergency_stops'
-            )
-        self.stop_reasons[cause] = reason
-        if self.active is not None:
-            self.stop_emergency()
-
-    def on_emergency_stop(self, message: Bool) -> None:
-        """Take the emergency stop input's word: true engages the stop, false releases it."""
-        self.engage(INPUT_STOP, goals.EMERGENCY_INPUT if message.data else None)
-
     def on_imu(self, message: Imu) -> None:
-        """Engage the emergency stop while the IMU shows the robot leaning over max_tilt_deg for TILT_HOLD s."""
-        limit = self.values['max_tilt_deg']
-        if limit <= 0:
+        """Take an IMU reading for the tilt stop (skynav_route.safety), its frame in base_link by /tf_static."""
+        if self.values['max_tilt_deg'] <= 0:
             return
         try:
             rotation = self.static_transforms.rotation(BASE_FRAME, frame_name(message.header.frame_id) or BASE_FRAME)
         except ValueError:  # the transforms loop: rejected where they came in
             rotation = None
-        tilt = imu_tilt(message, np.eye(3) if rotation is None else rotation)
-        if tilt is None:
+        if not self.safety.on_imu(message, rotation, self.values['max_tilt_deg']):
             self.reject('non_finite', f'an {IMU} message has no usable orientation nor acceleration')
-            return
-        stamp, degrees = stamp_ns(message.header), math.degrees(tilt)
-        if degrees <= limit:
-            self.tilted_since = None
-            self.engage(TILT_STOP, None)
-            return
-        if self.tilted_since is None or stamp < self.tilted_since:
-            self.tilted_since = stamp
-        if stamp - self.tilted_since >= TILT_HOLD * 1e9:
-            self.engage(TILT_STOP, f'the robot leans {degrees:.0f} deg from the vertical, over max_tilt_deg {limit:g}')
 
     def on_home_vector(self, message: HomeVector) -> None:
         """Process the frame of a home vector (warping is the last stage); one for a frame done already is late."""
-        self._keep(HOME_VECTOR, self.homes, message)
-        stamp = stamp_ns(message.header)
-        if stamp <= self.last_frame:
-            self.reject('late', 'a home vector came after its frame was answered without it')
-            return
-        self.process(stamp)
+        stamp = self.frames.home_vector(message)
+        if stamp is not None:
+            self.process(stamp)
 
     def on_view(self, message: ShCoefficients) -> None:
         """Process the frames before this view that got no home vector (in-process: this one too)."""
-        stamp = stamp_ns(message.header)
-        self.frame_input(SKYLINE_SH, stamp)
         wait = 0 if self.router is not None else int(self.values['frame_wait'] * 1e9)
-        waiting = [
-            s for s in set(self.matches) | set(self.compass) if self.last_frame < s <= stamp - wait and s < stamp
-        ]
-        if self.router is not None and stamp > self.last_frame:
-            waiting.append(stamp)
-        if waiting:
-            self.process(max(waiting))
+        stamp = self.frames.due(message, wait, self.router is not None)
+        if stamp is not None:
+            self.process(stamp)
 
     # --- driving --------------------------------------------------------------------------------
-
-    def view(self, stamp: int) -> View:
-        """Return what the controller knows of the frame stamped `stamp`, in base_link (the camera's mount)."""
-        match, compass, home = self.matches.get(stamp), self.compass.get(stamp), self.homes.get(stamp)
-        view = frame_view(stamp, match, compass, home, self.mount)
-        view.home_expected = self.home_vectors_come()
-        if self.odom is not None:
-            previous = self.odom_at_frame if self.odom_at_frame is not None else self.odom
-            view.odometry = float(np.linalg.norm(self.odom - previous))
-            self.odom_at_frame = self.odom.copy()
-        return view
 
     def home_vectors_come(self) -> bool:
         """Return whether some node publishes home vectors (live: a publisher of the topic; in process: a node of the
@@ -320,21 +201,18 @@ class RouteNode(SkynavNode):
 
     def process(self, stamp: int) -> None:
         """Answer one camera frame with one command while a goal is active; nothing while idle."""
-        if stamp <= self.last_frame:  # a jump in the frames' time restarted it already (frame_input)
-            self.reject('out_of_order', f'frame stamped {stamp} is not newer than the last one')
-            return
-        previous, self.last_frame = self.last_frame, stamp
+        previous = self.frames.answer(stamp)
         goal = self.active
-        if goal is None:
+        if previous is None or goal is None:
             return
-        if self.emergency_stop:  # engaged (a goal never starts while it is: this is a second guard)
+        if self.safety.engaged:  # engaged (a goal never starts while it is: this is a second guard)
             self.stop_emergency(stamp)
             return
-        if self.bumped:  # pressed since before the goal began
+        if self.safety.bumped:  # pressed since before the goal began
             self.stop_blocked(stamp)
             return
         with self.processing(stamp):
-            view = self.view(stamp)
+            view = self.frames.view(stamp, self.mount, self.home_vectors_come())
             step = goal.controller.step(view)
             goal.last_frame = self.elapsed_ns()
             goal.started = goal.last_frame if goal.started is None else goal.started
@@ -363,7 +241,7 @@ class RouteNode(SkynavNode):
     def stop_emergency(self, stamp: int | None = None) -> None:
         """Stop the robot on the emergency stop and end the goal with EMERGENCY_STOP (the zero command as stop's)."""
         if self.active is not None:
-            self.active.stop_reason = '; '.join(self.stop_reasons.values())
+            self.active.stop_reason = self.safety.reason()
         self.stop(stamp)
         self.finish(EMERGENCY, stopped=True)
 
@@ -400,10 +278,10 @@ class RouteNode(SkynavNode):
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return the node's status with the emergency stop's: engaged (WARN while it is) and how often."""
         status = super().diagnostic_status()
-        status.values.append(KeyValue(key='emergency_stop', value=str(self.emergency_stop).lower()))
+        status.values.append(KeyValue(key='emergency_stop', value=str(self.safety.engaged).lower()))
         status.values.append(KeyValue(key='emergency_stops', value=str(self.emergency_stops)))
         status.values.append(KeyValue(key='progress_unsaved', value=str(self.progress_unsaved)))
-        if self.emergency_stop:
+        if self.safety.engaged:
             status.level = max(status.level, DiagnosticStatus.WARN)
             status.message = f'emergency stop engaged; {status.message}'
         return status
@@ -439,34 +317,9 @@ class RouteNode(SkynavNode):
         return count, route, length, str(path)
 
     async def configure_peers(self, settings: dict[str, dict[str, Any]]) -> None:
-        """Set parameters of other nodes ({node: {name: value}}); a node that does not answer is logged and skipped."""
-        if not self.values['configure_peers']:
-            return
-        for name, values in settings.items():
-            # a plain node name: its parameter services are sought in this node's namespace
-            client = self.peer_clients.get(name)
-            if client is None:  # one per node, kept for later goals
-                client = self.peer_clients[name] = AsyncParameterClient(self, name)
-            deadline = time.monotonic() + self.values['peer_timeout']  # steady: sim time may stand still
-            while not client.services_are_ready() and time.monotonic() < deadline:
-                await self.pause(PEER_POLL)
-            if not client.services_are_ready():
-                self.get_logger().warning(f'node {name} does not answer: its settings for this goal were not set')
-                continue
-            future = client.set_parameters([RosParameter(k, value=v) for k, v in values.items()])
-            while not future.done() and time.monotonic() < deadline:
-                await self.pause(PEER_POLL)
-            failed = [r.reason for r in future.result().results if not r.successful] if future.done() else ['no answer']
-            if failed:
-                self.get_logger().warning(f'node {name} refused the settings of this goal: {"; ".join(failed)}')
-
-    async def pause(self, seconds: float) -> None:
-        """Wait `seconds` of steady (wall) time inside a goal's execution without blocking the executor (a timer on
-        the node's clock would never fire while sim time stands still)."""
-        future = Future()
-        timer = self.create_timer(seconds, lambda: future.done() or future.set_result(True), clock=self.steady_clock)
-        await future
-        self.destroy_timer(timer)
+        """Set parameters of other nodes ({node: {name: value}}) unless configure_peers is off (skynav_route.peers)."""
+        if self.values['configure_peers']:
+            await self.peers.configure(settings, self.values['peer_timeout'])
 
     async def run_goal(
         self, kind: Any, handle: Any, controller: RouteFollower | Homer, peers: dict, time_limit: TimeLimit
@@ -486,9 +339,8 @@ class RouteNode(SkynavNode):
     async def execute_follow(self, handle: Any) -> FollowRoute.Result:
         """Drive along the route of a FollowRoute goal."""
         request, result, codes = handle.request, FollowRoute.Result(), FollowRoute.Result
-        if self.emergency_stop:
-            reasons = '; '.join(self.stop_reasons.values())
-            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(reasons)))
+        if self.safety.engaged:
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(self.safety.reason())))
         try:
             count, route, length, path = self.open_map(request.map_path)
         except MapError as exc:
@@ -500,14 +352,8 @@ class RouteNode(SkynavNode):
         goal_limits = limits(self.values, request.max_speed)
         controller = RouteFollower(request.start_index, end, goal_limits, self.settings, route)
         peers = goals.follow_peers(self.values['map'], path, self.values['lookahead'], request.start_index)
-        time_limit = goals.follow_time_limit(
-            length,
-            request.start_index,
-            end,
-            goal_limits.max_speed,
-            self.values['goal_timeout'],
-            self.values['goal_time_factor'],
-        )
+        timing = self.values['goal_timeout'], self.values['goal_time_factor']
+        time_limit = goals.follow_time_limit(length, request.start_index, end, goal_limits.max_speed, *timing)
         outcome, active = await self.run_goal(FollowRoute, handle, controller, peers, time_limit)
         if active is None:
             return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
@@ -533,9 +379,8 @@ class RouteNode(SkynavNode):
     async def execute_home(self, handle: Any) -> Home.Result:
         """Drive to the place of the Home goal's snapshot."""
         request, result, codes = handle.request, Home.Result(), Home.Result
-        if self.emergency_stop:
-            reasons = '; '.join(self.stop_reasons.values())
-            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(reasons)))
+        if self.safety.engaged:
+            return self.refuse(handle, result, (codes.EMERGENCY_STOP, goals.emergency_refusal(self.safety.reason())))
         try:
             count, _, _, path = self.open_map(request.map_path)
         except MapError as exc:
@@ -546,12 +391,8 @@ class RouteNode(SkynavNode):
         goal_limits = limits(self.values, request.max_speed)
         controller = Homer(request.index, goal_limits, self.settings)
         peers = goals.home_peers(self.values['map'], path, request.index)
-        time_limit = goals.home_time_limit(
-            self.values['home_distance'],
-            goal_limits.max_speed,
-            self.values['goal_timeout'],
-            self.values['goal_time_factor'],
-        )
+        timing = self.values['goal_timeout'], self.values['goal_time_factor']
+        time_limit = goals.home_time_limit(self.values['home_distance'], goal_limits.max_speed, *timing)
         outcome, active = await self.run_goal(Home, handle, controller, peers, time_limit)
         if active is None:
             return self.refuse(handle, result, (codes.BUSY, 'another follow or home goal is running'))
