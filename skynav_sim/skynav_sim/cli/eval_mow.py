@@ -195,7 +195,10 @@ def mow(args, style: str, seed: int, camera, teach_hours: float, hours: float) -
     last = runs[-1]
     paths = [np.array(r.path) for r in runs]
     cut = coverage(taught_path, paths, args.cut)
-    error = np.concatenate([cross_track(p, route)[0] for p in paths])
+    # each goal's error against the route from where it started (a resumed goal from the snapshot it resumed at):
+    # searched from the route's start, the resumed drive's first feet would lie on the lanes already mowed
+    starts = [0, *([max(resumed - 5, 0)] if len(paths) > 1 else [])]
+    error = np.concatenate([cross_track(p, route[first:])[0] for p, first in zip(paths, starts)])
     end = float(np.linalg.norm(paths[-1][-1] - route[-1]))
     score = MowScore(
         world=style,
