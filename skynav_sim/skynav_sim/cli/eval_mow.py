@@ -308,7 +308,7 @@ def draw_lawn(path: Path, taught, paths, cut, score: MowScore) -> None:
     axes.set_aspect('equal')
     axes.set_xlabel('x (m)')
     axes.set_ylabel('y (m)')
-    axes.legend(loc='upper right')
+    axes.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0))  # beside the lawn: it hides no start or end
     reached = 'reached the end' if score.reached else f'did NOT reach the end ({score.ended})'
     axes.set_title(
         f'SYNTHETIC {score.world} world, seed {score.seed}: {score.lanes} lanes {score.gap:g} m apart, {reached}\n'
