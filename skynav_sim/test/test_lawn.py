@@ -96,3 +96,18 @@ def test_a_path_interrupted_and_resumed_counts_as_one():
     halves = [np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[3.0, 0.0], [6.0, 0.0]])]
     assert coverage(taught, halves).share == pytest.approx(1.0)
     assert coverage(taught, halves[:1]).widest_uncut == pytest.approx(CUT_WIDTH, abs=0.02)  # half the lane uncut
+
+
+@pytest.mark.parametrize(
+    'extra, complaint',
+    [
+        (['--lanes', '0'], '--lanes must be within'),
+        (['--gap', '0.01'], '--gap and --cut'),
+        (['--interrupt', '1.5'], '--interrupt must be a share'),
+    ],
+)
+def test_eval_mow_refuses_a_malformed_lawn_in_one_line(extra, complaint, tmp_path):
+    from skynav_testing import one_line_error, run_skynav
+
+    result = run_skynav('eval', 'mow', '--out', str(tmp_path), *extra)
+    assert result.returncode == 2 and one_line_error(result.stderr) and complaint in result.stderr, result.stderr
