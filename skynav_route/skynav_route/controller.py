@@ -256,8 +256,10 @@ class TaughtRoute:
         positions = np.column_stack([np.interp(index, known, poses[known, axis]) for axis in (0, 1)])
         x, y, z, w = poses[known, 3:].T
         headings = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-        nearest = known[np.argmin(np.abs(index[:, None] - known[None, :]), axis=1)]
-        return cls(positions, headings[np.searchsorted(known, nearest)])
+        # each snapshot takes the heading of the nearest one with a pose (its own, where it has one)
+        after = np.clip(np.searchsorted(known, index), 1, len(known) - 1)
+        nearer = np.where(index - known[after - 1] <= known[after] - index, after - 1, after)
+        return cls(positions, headings[nearer])
 
     def __len__(self) -> int:
         return len(self.headings)
@@ -273,7 +275,7 @@ class TaughtRoute:
         begins and ends. A point turn is a run of snapshots each turned by POINT_TURN_STEP or more from the last on
         a radius under POINT_TURN_RADIUS m."""
         steps = np.linalg.norm(np.diff(self.positions, axis=0), axis=1)
-        turns = np.abs(np.angle(np.exp(1j * np.diff(self.headings))))
+        turns = np.abs(wrap_angle(np.diff(self.headings)))
         sharp = np.r_[False, (turns >= POINT_TURN_STEP) & (steps < POINT_TURN_RADIUS * turns), False]
         edges = np.flatnonzero(np.diff(sharp.astype(np.int8)))  # run k of sharp steps: edges[2k]..edges[2k+1]-1
         return edges.reshape(-1, 2)
@@ -299,7 +301,7 @@ class TaughtRoute:
     def curvature(self, origin: int, span: int) -> float:
         """Return the route's mean curvature (1/m, left positive) over `span` snapshots from `origin` on (0 if none)."""
         index = min(origin + max(span, 1), len(self) - 1)
-        length = float(np.sum(np.linalg.norm(np.diff(self.positions[origin : index + 1], axis=0), axis=1)))
+        length = float(self.along[index] - self.along[origin])
         return self.turn(origin, index) / length if length > 1e-9 else 0.0
 
     def turn(self, origin: int, index: int) -> float:

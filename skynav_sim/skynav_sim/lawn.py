@@ -46,10 +46,14 @@ class Lawn:
     gap: float = LANE_GAP
     side: int = 1  # +1: the next lane lies to the left of the first lane's direction, -1: to the right
 
+    def axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the unit (x, y) directions along the lanes (the first lane's) and across them (to the next lane)."""
+        along = np.array([math.cos(self.heading), math.sin(self.heading)])
+        return along, self.side * np.array([-along[1], along[0]])
+
     def corners(self) -> np.ndarray:
         """Return the pattern's corners (2 lanes, 2) in driving order: each lane's start and end."""
-        along = np.array([math.cos(self.heading), math.sin(self.heading)])
-        across = self.side * np.array([-along[1], along[0]])
+        along, across = self.axes()
         points: list[np.ndarray] = []
         for lane in range(self.lanes):
             start = np.asarray(self.origin, float) + lane * self.gap * across
@@ -65,8 +69,7 @@ class Lawn:
     def fits(self, world: World, margin: float = LAWN_MARGIN, step: float = 0.1) -> bool:
         """Return whether the lawn and `margin` m of ground around it are free in `world`."""
         # the rectangle around the lanes, turned with them: sample it on a grid of `step` m
-        along = np.array([math.cos(self.heading), math.sin(self.heading)])
-        across = self.side * np.array([-along[1], along[0]])
+        along, across = self.axes()
         u = np.arange(-margin, self.length + margin + step, step)
         v = np.arange(-margin, (self.lanes - 1) * self.gap + margin + step, step)
         grid = np.asarray(self.origin, float) + u[:, None, None] * along + v[None, :, None] * across
