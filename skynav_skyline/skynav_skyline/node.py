@@ -39,7 +39,7 @@ from skynav_skyline.exposure import ExposureError
 
 from .geometry import SkylineGeometry
 from .parameters import NODE_PARAMETERS, PARAMETERS, colour_params, skyline_params
-from .segment import SkylineSegmenter
+from .segment import FitCheckSchedule, SkylineSegmenter
 
 
 class SkylineNode(SkynavNode):
@@ -76,6 +76,7 @@ class SkylineNode(SkynavNode):
         if values['pair_tolerance_ms'] < 0:
             raise SkylineError('pair_tolerance_ms must not be negative')
         self.pairer = StampPairer(('uv', 'green'), int(values['pair_tolerance_ms'] * 1e6), on_drop=self.drop_unpaired)
+        self.fit_checks = FitCheckSchedule(values['fit_check_period'], self.params.max_disagreement)
         fov = math.radians(values['field_of_view_deg'])
         self.camera_input.configure(values['camera'], values['camera_info_url'], fov)
         self.segmenter = self.colour_segmenter = None  # rebuilt for the next frame
@@ -151,13 +152,16 @@ class SkylineNode(SkynavNode):
             return
         if self.segmenter is None:
             self.segmenter = SkylineSegmenter(self.geometry(), self.params)
-        segmenter = self.segmenter
-        self.publish_mask(
-            stamp,
-            lambda: segmenter.segment(
-                uv[0], None if green is None else green[0], uv[1], None if green is None else green[1]
-            ),
-        )
+        segmenter, check = self.segmenter, self.fit_checks.due()
+
+        def segment() -> np.ndarray:
+            mask = segmenter.segment(
+                uv[0], None if green is None else green[0], uv[1], None if green is None else green[1], check
+            )
+            self.fit_checks.done(segmenter.disagreement)
+            return mask
+
+        self.publish_mask(stamp, segment)
 
     def segment_colour(self, stamp: int, rgb: np.ndarray) -> None:
         """Publish the mask of one colour exposure (uint16 linear RGB)."""

@@ -71,6 +71,11 @@ NODE_PARAMETERS = {
     **CAMERA_PARAMETERS,
     'field_of_view_deg': Parameter(0.0, 'narrow the field of view to this full angle (deg); 0: whole image circle'),
     'pair_tolerance_ms': Parameter(2.0, 'UV and green frames this close in stamp form a pair (ms)'),
+    'fit_check_period': Parameter(
+        10,
+        'run the fit check (max_disagreement) on one UV/green exposure in this many, and on each one while the last '
+        'check came near its bound (1: every exposure)',
+    ),
 }
 
 

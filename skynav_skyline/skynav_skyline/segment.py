@@ -17,7 +17,8 @@ threshold learned on some camera's recordings) may not fit the camera at
 hand. With a finite `max_disagreement` each image is segmented by its own
 discriminant too, and where the two masks disagree on more than that share of
 the image circle the discriminant's is taken: the learned thresholds do not
-fit this image.
+fit this image. A stream of exposures may skip the check on some
+(`segment`'s check_fit; FitCheckSchedule says which get it).
 
 Exposure check. A frame more than half saturated, or nine tenths dark, in the image circle is refused
 (exposure.ExposureError): the saturated-is-sky and dark-is-ground rules, not the image, would decide its mask.
@@ -297,6 +298,33 @@ def above_sector_thresholds(contrast: np.ndarray, layout: SectorLayout, threshol
     return above
 
 
+class FitCheckSchedule:
+    """Which exposures of a stream get the fit check: one in `period`, and each one while the last check came near
+    the bound (disagreement above half of `max_disagreement`).
+
+    The check asks whether the learned thresholds fit the camera at hand in this light, which changes over seconds,
+    not from one frame to the next; checking every exposure costs about twice the segmentation itself.
+    """
+
+    def __init__(self, period: int, max_disagreement: float) -> None:
+        """Check one exposure in `period` (1: every one) against the fit check's bound."""
+        if period < 1:
+            raise SkylineError(f'the fit check period must be at least 1 exposure, got {period}')
+        self.period, self.watch = int(period), 0.5 * max_disagreement
+        self.wait = 0  # exposures until the next check
+
+    def due(self) -> bool:
+        """Return whether the next exposure gets the check."""
+        return self.wait <= 0
+
+    def done(self, disagreement: float | None) -> None:
+        """Note an exposure's check (its disagreement; None: it had none)."""
+        if disagreement is None:
+            self.wait -= 1
+        else:
+            self.wait = 0 if disagreement > self.watch else self.period - 1
+
+
 class SkylineSegmenter:
     """Sky/ground segmentation for one camera geometry; build once, call per frame."""
 
@@ -331,6 +359,7 @@ class SkylineSegmenter:
             self._row.sectors(p.sectors)  # precompute now, not on the first frame
         # the learned thresholds give way to the image's own discriminant where they do not fit the camera
         self._fit_check: SkylineSegmenter | None = None
+        self.disagreement: float | None = None  # share of the circle the last checked pair's masks disagree on
         if p.checks_fit:
             self._fit_check = SkylineSegmenter(
                 self.geometry, replace(p, method=DISCRIMINANT, max_disagreement=math.inf)
@@ -429,10 +458,19 @@ class SkylineSegmenter:
         )
 
     def segment(
-        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+        self,
+        uv: np.ndarray,
+        green: np.ndarray | None,
+        encoding_uv: str,
+        encoding_green: str | None = None,
+        check_fit: bool = True,
     ) -> np.ndarray:
-        """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair."""
-        return self._scatter(self._run_row(uv, green, encoding_uv, encoding_green).mask, GROUND)
+        """Return the skyline mask (uint8: 255 sky, 0 ground and outside the image circle) of one image pair.
+
+        check_fit: run the fit check on this pair (when the settings have one); its share of disagreement is
+        kept in `disagreement` (None: not checked).
+        """
+        return self._scatter(self._run_row(uv, green, encoding_uv, encoding_green, check_fit).mask, GROUND)
 
     def segment_colour(self, rgb: np.ndarray) -> np.ndarray:
         """Return the skyline mask (uint8) of a colour frame: uint16 linear RGB (H, W, 3) as skynav_core.colour gives.
@@ -463,9 +501,15 @@ class SkylineSegmenter:
         return self._scatter(segmentation.mask, GROUND)
 
     def _run_row(
-        self, uv: np.ndarray, green: np.ndarray | None, encoding_uv: str, encoding_green: str | None = None
+        self,
+        uv: np.ndarray,
+        green: np.ndarray | None,
+        encoding_uv: str,
+        encoding_green: str | None = None,
+        check_fit: bool = True,
     ) -> Segmentation:
         """Return the segmentation of the image-circle pixels of an image pair, as one row (see classify_row)."""
+        self.disagreement = None
 
         def fallback() -> Segmentation:
             return self._threshold_row(uv, green, encoding_uv, encoding_green, self._fallback)
@@ -473,12 +517,12 @@ class SkylineSegmenter:
         if self.params.method != DISCRIMINANT:
             features = self._features_row(uv, green, encoding_uv, encoding_green, self.params)
             segmentation = self._threshold_features(features, self.params)
-            if self._fit_check is None:
+            if self._fit_check is None or not check_fit:
                 return segmentation
             # the check's settings differ in the method only: the same features serve its discriminant
             own = self._fit_check._discriminate_pair(features, lambda: segmentation)  # no model: nothing to check
-            disagreement = np.count_nonzero(own.mask != segmentation.mask) / max(own.mask.size, 1)
-            return own if disagreement > self.params.max_disagreement else segmentation
+            self.disagreement = np.count_nonzero(own.mask != segmentation.mask) / max(own.mask.size, 1)
+            return own if self.disagreement > self.params.max_disagreement else segmentation
         if not self.params.uses_green:
             # UV alone has no colour to tell bright ground from sky by (the discriminant on it was worse than the
             # learned threshold: 94.9 % against 98.5 % on the synthetic and landscape sets); it is the fallback

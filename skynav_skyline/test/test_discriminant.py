@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 
 from skynav_core.camera import EquidistantCamera
 from skynav_skyline.discriminant import MIN_EXEMPLARS, class_threshold, exemplars, fit
+from skynav_skyline.errors import SkylineError
 from skynav_skyline.geometry import SkylineGeometry
 from skynav_skyline.parameters import colour_params, skyline_params
-from skynav_skyline.segment import SkylineSegmenter
+from skynav_skyline.segment import FitCheckSchedule, SkylineSegmenter
 
 CAMERA = EquidistantCamera.for_field_of_view(160, 120, math.radians(200))
 
@@ -177,3 +178,78 @@ def test_learned_thresholds_give_way_to_the_discriminant_where_they_do_not_fit(u
         checked.segment(plain_uv, plain_green, 'mono16', 'mono16'),
         unchecked.segment(plain_uv, plain_green, 'mono16', 'mono16'),
     )
+
+
+def test_the_fit_check_runs_on_one_exposure_in_a_period_and_on_each_while_near_its_bound():
+    schedule = FitCheckSchedule(3, max_disagreement=0.2)
+    checked = []
+    for disagreement in [0.01, 0.01, 0.01, 0.01, 0.01, 0.01, 0.15, 0.3, 0.05, 0.05, 0.05]:
+        due = schedule.due()
+        checked.append(due)
+        schedule.done(disagreement if due else None)
+    # one in three, until a check comes above half the bound (0.15): then every one until one is well within it
+    assert checked == [True, False, False, True, False, False, True, True, True, False, False]
+    every = FitCheckSchedule(1, max_disagreement=0.2)
+    for _ in range(5):
+        assert every.due()
+        every.done(0.0)
+    with pytest.raises(SkylineError, match='at least 1'):
+        FitCheckSchedule(0, max_disagreement=0.2)
+
+
+def test_an_exposure_without_the_fit_check_keeps_the_learned_mask(upward_view):
+    """check_fit=False: the learned thresholds' mask and no disagreement; True: the check's share is kept."""
+    rgb, _ = upward_view
+    uv, green = (np.rint(rgb[..., k] * 65535).astype(np.uint16) for k in (2, 1))
+    geometry = SkylineGeometry.from_camera(CAMERA)
+    checked = SkylineSegmenter(geometry, skyline_params({}))
+    unchecked = SkylineSegmenter(geometry, skyline_params({'max_disagreement': math.inf}))
+    learned = unchecked.segment(uv, green, 'mono16', 'mono16')
+    assert np.array_equal(checked.segment(uv, green, 'mono16', 'mono16', check_fit=False), learned)
+    assert checked.disagreement is None
+    assert not np.array_equal(checked.segment(uv, green, 'mono16', 'mono16', check_fit=True), learned)
+    assert checked.disagreement > checked.params.max_disagreement
+
+
+def test_the_node_checks_the_fit_once_a_period_and_then_each_exposure_that_does_not_fit(upward_view):
+    """fit_check_period 3: plain exposures 0-3 keep the learned masks (checked: 0 and 3); the misfit exposures
+    from 4 keep the learned mask until the next check (6) hands over, and every one after it is checked."""
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from skynav_core.graph import in_process, type_name
+    from skynav_core.images import fill_image, image_to_array
+    from skynav_core.names import GREEN_IMAGE, SKYLINE_MASK, UV_CAMERA_INFO, UV_IMAGE
+    from skynav_core.nodes import NodeSpec
+    from skynav_core.recording.bag import RawMessage
+
+    def raw(topic, message, stamp):
+        message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, 10**9)
+        return RawMessage(topic, type_name(message), stamp, serialize_message(message))
+
+    rgb, truth = upward_view
+    misfit = [np.rint(rgb[..., k] * 65535).astype(np.uint16) for k in (2, 1)]
+    plain = np.where(truth, 0.6, 0.03) * np.random.default_rng(8).uniform(0.95, 1.05, truth.shape)
+    fitting = [np.rint(plain * 65535).astype(np.uint16), np.rint(plain * 0.8 * 65535).astype(np.uint16)]
+    geometry = SkylineGeometry.from_camera(CAMERA)
+    learned = SkylineSegmenter(geometry, skyline_params({'max_disagreement': math.inf}))
+    own = SkylineSegmenter(geometry, replace(skyline_params({}), method='discriminant'))
+    info = CameraInfo()
+    for key, value in CAMERA.camera_info_fields().items():
+        setattr(info, key, value)
+    spec = NodeSpec('skyline', 'skynav_skyline', 'skynav_skyline.node:SkylineNode')
+    exposures = [fitting] * 4 + [misfit] * 4
+    with in_process([spec], ['-p', 'fit_check_period:=3']) as graph:
+        graph.keep_outputs = True
+        t0 = 1_700_000_000 * 10**9
+        graph.feed(raw(UV_CAMERA_INFO, info, t0))
+        for k, (uv, green) in enumerate(exposures):
+            graph.feed(raw(UV_IMAGE, fill_image(Image(), uv, 'mono16'), t0 + k * 10**8))
+            graph.feed(raw(GREEN_IMAGE, fill_image(Image(), green, 'mono16'), t0 + k * 10**8))
+        masks = [image_to_array(o.message) for o in graph.outputs if o.topic == SKYLINE_MASK]
+    assert len(masks) == len(exposures)
+    expected = [learned.segment(*fitting, 'mono16', 'mono16')] * 4
+    expected += [learned.segment(*misfit, 'mono16', 'mono16')] * 2 + [own.segment(*misfit, 'mono16', 'mono16')] * 2
+    assert not np.array_equal(expected[4], expected[6])
+    for k, (mask, wanted) in enumerate(zip(masks, expected)):
+        assert np.array_equal(mask, wanted), f'exposure {k}'
