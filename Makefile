@@ -53,10 +53,11 @@ $(STAMPS)/packages: $(STAMPS)/msgs $(STAMPS)/tf2_msgs $(PY_PACKAGE_FILES)
 	@touch $@
 
 ## test: lint, format and type checks, then every test, unit and replay, with pytest's summary
-# Two workers (the CI machine has two cores); a test file stays on one worker, so its fixtures are built once.
+# Two workers (the CI machine has two cores); a test file stays on one worker, so its fixtures are built once;
+# files go out in the order conftest.py sorts them (the heavy ones first), not xdist's (most tests first).
 TEST_WORKERS ?= 2
 test: lint
-	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 ## lint: ruff's lint and format checks and mypy (configuration: ruff.toml, mypy.ini)
 lint: setup

@@ -45,6 +45,18 @@ def pytest_configure(config: pytest.Config) -> None:
     apply_ros_environment()
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Run the heavy test files first, longest first: two workers taking whole files (`make test`) then end
+    together, the many short files filling in last (with xdist's own order, fewest tests first, a lone
+    several-minute test could start last and run on while the other worker idles)."""
+
+    def weight(item: pytest.Item) -> float:
+        marker = item.get_closest_marker('heavy')
+        return -marker.args[0] if marker is not None else 0.0
+
+    items.sort(key=weight)  # stable: a file's tests stay together and in their order
+
+
 def pytest_report_header(config: pytest.Config) -> str:
     return f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID")}'
 

@@ -7,10 +7,13 @@ import sys
 import textwrap
 import time
 
+import pytest
 import yaml
 
 from skynav_core.names import CAMERA_FRAME, LOCALIZATION_MATCH, UV_IMAGE
 from skynav_testing import one_line_error, run_skynav, start_skynav, wait_text, write_sample_bag
+
+pytestmark = pytest.mark.heavy(50)
 
 
 def test_echo_prints_a_custom_message_as_yaml(ros_context):

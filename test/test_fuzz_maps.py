@@ -45,6 +45,8 @@ from skynav_core.recording.bag import RawMessage, open_bag
 from skynav_msgs.msg import CompassEstimate, HomeVector, PlaceMatch, ShCoefficients
 from skynav_testing import one_line_error, run_skynav
 
+pytestmark = pytest.mark.heavy(65)
+
 BAGS = Path(__file__).resolve().parents[1] / 'bags'
 BAG = BAGS / 'synthetic_garden_compass.mcap'  # short (31 exposures), with ground truth: map and queries alike
 FLIP_SEEDS = range(28)  # one flipped bit each

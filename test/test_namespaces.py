@@ -15,9 +15,13 @@ import signal
 import time
 from pathlib import Path
 
+import pytest
+
 from skynav_core.names import SKYLINE_SH
 from skynav_core.recording.bag import open_bag
 from skynav_testing import running, start_skynav, wait_text, write_first_frames
+
+pytestmark = pytest.mark.heavy(50)
 
 BAGS = Path(__file__).parents[1] / 'bags'
 DRIVES = {'robot1': 'synthetic_garden_repeat.mcap', 'robot2': 'synthetic_mineral_repeat.mcap'}

@@ -33,6 +33,8 @@ from skynav_core.recording.bag import open_bag
 from skynav_localize.eval.evaluation import correct_matches
 from skynav_testing import run_skynav, start_skynav
 
+pytestmark = pytest.mark.heavy(50)
+
 BAGS = Path(__file__).parents[1] / 'bags'
 # 5 Hz: the graph takes about 0.11 s of CPU a view (0.07 s of it the warping node's, bench/homing.py), so at the
 # recorded 10 Hz a machine busy with other work drops views and the test would measure its speed instead

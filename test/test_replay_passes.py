@@ -13,9 +13,13 @@ import signal
 import time
 from pathlib import Path
 
+import pytest
+
 from skynav_core.names import DIAGNOSTICS, GREEN_IMAGE, SKYLINE_SH, UV_CAMERA_INFO, UV_IMAGE
 from skynav_core.recording.bag import open_bag
 from skynav_testing import run_skynav, start_skynav
+
+pytestmark = pytest.mark.heavy(65)
 
 BAGS = Path(__file__).parents[1] / 'bags'
 CAMERA_TOPICS = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)

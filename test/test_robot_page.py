@@ -42,6 +42,8 @@ import pytest
 
 from skynav_testing import one_line_error, write_first_frames
 
+pytestmark = pytest.mark.heavy(135)
+
 ROOT = Path(__file__).parents[1]
 PAGE = ROOT / 'docs' / 'robot.md'
 BAGS = ROOT / 'bags'

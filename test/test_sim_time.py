@@ -13,12 +13,15 @@ from __future__ import annotations
 import signal
 from pathlib import Path
 
+import pytest
 import yaml
 
 from skynav_core.maps import MapStore
 from skynav_core.names import CLOCK, UV_IMAGE
 from skynav_core.recording.bag import BagWriter, open_bag
 from skynav_testing import running, start_skynav, wait_text, write_first_frames
+
+pytestmark = pytest.mark.heavy(40)
 
 BAGS = Path(__file__).parents[1] / 'bags'
 FRAMES = 40

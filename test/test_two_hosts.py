@@ -41,6 +41,8 @@ from skynav_core.process.network import DISCOVERY_SERVER_PORT
 from skynav_core.recording.bag import open_bag
 from skynav_testing import BAGS, messages_equal, run_skynav, skynav_command, write_first_frames
 
+pytestmark = pytest.mark.heavy(95)
+
 PROBE = Path(__file__).with_name('graph_probe.py')
 CAMERA = (UV_IMAGE, GREEN_IMAGE, UV_CAMERA_INFO)
 CROSSING = SKYLINE_SH  # what the robot sends the base station

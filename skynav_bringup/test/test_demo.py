@@ -16,9 +16,13 @@ import re
 from collections import Counter
 from pathlib import Path
 
+import pytest
+
 from skynav_core.names import COMPASS_ORIENTATION, HOME_VECTOR, LOCALIZATION_MATCH, SKYLINE_MASK, SKYLINE_SH
 from skynav_core.recording.bag import open_bag
 from skynav_testing import run_skynav
+
+pytestmark = pytest.mark.heavy(225)
 
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 OUTPUT_TOPICS = (SKYLINE_MASK, SKYLINE_SH, LOCALIZATION_MATCH, COMPASS_ORIENTATION, HOME_VECTOR)

@@ -22,6 +22,8 @@ import pytest
 from skynav_compass.eval.evaluation import RIGHT_DEG, error_statistics, roc_auc
 from skynav_compass.eval.recording import evaluate_recording
 
+pytestmark = pytest.mark.heavy(60)
+
 LANDSCAPES = ('garching', 'guereins', 'hurricane', 'geneva')
 SEED = 2
 COUNT = 20  # rotations, and as many moved views, per landscape

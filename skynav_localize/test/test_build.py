@@ -23,6 +23,8 @@ from skynav_localize.eval import baselines  # noqa: F401  (registers the baselin
 from skynav_localize.localizer import Localizer
 from skynav_testing import one_line_error, run_skynav
 
+pytestmark = pytest.mark.heavy(70)
+
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 BYTES_PER_SNAPSHOT = 4096  # the target: at most 4 kB per snapshot at L = 16 without the baselines
 FRAMES = 20  # of a featureless recording: 2 m of the garden drive

@@ -18,6 +18,8 @@ import pytest
 
 from skynav_localize.localizer import METHODS
 
+pytestmark = pytest.mark.heavy(55)
+
 COMMON = ('--world', 'garden', '--seed', '21', '--length', '8', '--size', '320x240', '--encoding', 'mono8')
 TEACH = ('--speed', '1.0', '--time', 'forenoon')
 BESIDE = ('--speed', '0.9', '--time', 'morning', '--clouds', '0.3', '--offset', '1.5', '--shake', '3', '--wobble', '25')

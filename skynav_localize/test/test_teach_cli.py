@@ -13,11 +13,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from skynav_core.maps import MapStore
 from skynav_core.names import GREEN_IMAGE, UV_CAMERA_INFO, UV_IMAGE
 from skynav_localize.cli.eval import positions_at
 from skynav_testing import claim_domain_id, one_line_error, run_skynav, running, start_skynav, wait_text
+
+pytestmark = pytest.mark.heavy(40)
 
 BAGS = Path(__file__).parents[2] / 'bags'
 TEACH = BAGS / 'synthetic_garden_teach.mcap'

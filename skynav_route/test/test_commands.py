@@ -20,6 +20,8 @@ from skynav_core.route_progress import read_progress
 from skynav_localize.mapping import build_map
 from skynav_testing import one_line_error, run_skynav, start_skynav
 
+pytestmark = pytest.mark.heavy(40)
+
 SNAPSHOTS = 12
 
 

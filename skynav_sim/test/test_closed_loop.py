@@ -15,6 +15,8 @@ import pytest
 
 from skynav_testing import one_line_error, run_skynav
 
+pytestmark = pytest.mark.heavy(250)
+
 BAGS = Path(__file__).resolve().parents[2] / 'bags'
 TEACH = BAGS / 'synthetic_garden_teach.mcap'
 

@@ -39,6 +39,8 @@ from skynav_sim.sky import RGB, TIMES_OF_DAY, UV_GREEN, Sky
 from skynav_sim.world import generate
 from skynav_testing import run_skynav
 
+pytestmark = pytest.mark.heavy(45)
+
 SMALL = ['--size', '96x72', '--length', '1.0', '--speed', '1.0']
 # A camera at a mower's camera height turned to look 10 degrees above the horizon: half its view is ground.
 SIDEWAYS = CameraPose(np.array([0.0, 0.0, CAMERA_HEIGHT]), Rotation.from_euler('y', 80, degrees=True))

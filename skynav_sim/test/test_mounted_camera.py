@@ -11,6 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from skynav_core.mount import mount_from_rpy_deg
 
+pytestmark = pytest.mark.heavy(185)
+
 
 @pytest.fixture(scope='module')
 def camera():

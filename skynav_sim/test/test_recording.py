@@ -25,6 +25,8 @@ from skynav_sim.sky import Sky
 from skynav_sim.world import generate
 from skynav_testing import one_line_error, run_skynav
 
+pytestmark = pytest.mark.heavy(40)
+
 SMALL = ['--size', '96x72', '--length', '1.0', '--speed', '1.0']
 
 

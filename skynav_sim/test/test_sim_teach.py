@@ -12,6 +12,8 @@ from skynav_localize.parameters import PARAMETERS
 from skynav_sim.closed_loop import truth_at
 from skynav_testing import one_line_error, run_skynav
 
+pytestmark = pytest.mark.heavy(45)
+
 LENGTH = 4.0  # m of route taught
 
 
