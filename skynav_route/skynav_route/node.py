@@ -131,8 +131,10 @@ class RouteNode(SkynavNode):
                 (Home, HOME_ACTION, self.execute_home),
             )
         ]
-        if self.router is None:
-            self.create_timer(WATCHDOG_PERIOD, self.watchdog)
+        self.watchdog_timer = None
+        if self.router is None:  # it ticks only while a goal runs: no wake-up of the executor for nothing
+            self.watchdog_timer = self.create_timer(WATCHDOG_PERIOD, self.watchdog)
+            self.watchdog_timer.cancel()
         else:
             self.input(CLOCK, Clock, lambda _: self.watchdog())
         self.start()
@@ -250,6 +252,8 @@ class RouteNode(SkynavNode):
         goal, self.active = self.active, None
         if goal is None:
             return
+        if self.watchdog_timer is not None:
+            self.watchdog_timer.cancel()
         if not stopped:
             self.stop()
         if not goal.done.done():
@@ -328,6 +332,8 @@ class RouteNode(SkynavNode):
         if self.active is not None:
             return 'busy', None
         goal = self.active = ActiveGoal(kind, handle, controller, Future(), time_limit)
+        if self.watchdog_timer is not None:
+            self.watchdog_timer.reset()
         self.get_logger().info(f'time limit of the goal: {time_limit.describe()}')
         if handle.is_cancel_requested:  # canceled before its execution began, when on_cancel found no active goal
             self.finish(CANCELED)
