@@ -60,8 +60,10 @@ from .parameters import COMMON_PARAMETERS, ParameterTable
 
 # Camera topics: best effort matches any publisher (drivers often publish best effort).
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
-# skynav's own topics: reliable, a short queue.
-STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# skynav's own topics: reliable, with room for 5 s of frames at 10 Hz: a node that starts, or stalls, while the
+# frames come takes the burst its upstream sends on catching up (a queue of 10 overflowed after a robot restart).
+STREAM_DEPTH = 50
+STREAM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=STREAM_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
 # /tf_static as tf2's static listener takes it: latched (transient local), reliable, a long history
 TF_STATIC_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
