@@ -73,7 +73,7 @@ def shown(command: str) -> str:
 
 
 def commit() -> str:
-    """Return the short commit of the tree, with ' and uncommitted changes' when it has any (but to the page)."""
+    """Return the short commit of the tree, with ' and uncommitted changes' when it has any besides the page."""
     head = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=ROOT, capture_output=True, text=True).stdout
     # the page itself, being written, is no change to what measured it
     dirty = subprocess.run(
@@ -105,18 +105,22 @@ def with_block(page: str, name: str, body: str) -> str:
     return page[: match.start('body')] + body + page[match.end('body') :]
 
 
-def check(page: str) -> list[str]:
-    """Return what is wrong between the page's blocks and the evaluations (empty: nothing)."""
-    problems = []
+def check(page: str) -> tuple[list[str], list[str]]:
+    """Return what is wrong between the page's blocks and the evaluations: blocks missing or unknown, and blocks
+    that do not show the commands that measure them (which regenerating mends); empty lists: nothing."""
     blocks = {m['name']: m['body'] for m in BLOCK.finditer(page)}
-    for name in sorted(set(blocks) - set(EVALUATIONS)):
-        problems.append(f'the page has a block {name!r} that tools/results.py does not measure')
-    for name, evaluation in EVALUATIONS.items():
-        if name not in blocks:
-            problems.append(f'the page has no block for {name!r}')
-        elif not blocks[name].startswith('```sh\n' + '\n'.join(shown(c) for c in evaluation.commands) + '\n```'):
-            problems.append(f'block {name!r} does not show the commands that measure it')
-    return problems
+    missing = [
+        f'the page has a block {name!r} that tools/results.py does not measure'
+        for name in sorted(set(blocks) - set(EVALUATIONS))
+    ]
+    missing += [f'the page has no block for {name!r}' for name in EVALUATIONS if name not in blocks]
+    stale = [
+        f'block {name!r} does not show the commands that measure it'
+        for name, evaluation in EVALUATIONS.items()
+        if name in blocks
+        and not blocks[name].startswith('```sh\n' + '\n'.join(shown(c) for c in evaluation.commands) + '\n```')
+    ]
+    return missing, stale
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -127,11 +131,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--page', type=Path, default=PAGE, help='the page (default docs/results.md)')
     args = parser.parse_args(argv)
     page = args.page.read_text()
-    problems = check(page)
+    missing, stale = check(page)
     if args.check:
+        problems = missing + stale
         print('\n'.join(f'results: {p}' for p in problems) or f'results: {args.page} agrees with tools/results.py')
         return 1 if problems else 0
-    missing = [p for p in problems if 'does not show' not in p]  # a block's commands are what regenerating writes
     if missing:
         print('\n'.join(f'results: {p}' for p in missing))
         return 1
