@@ -72,6 +72,11 @@ def shown(command: str) -> str:
     return command.replace(f'{OUT}/', '')
 
 
+def commands_shown(evaluation: Evaluation) -> str:
+    """Return the block's opening: its commands as the page shows them, in a shell code block."""
+    return '```sh\n' + '\n'.join(shown(command) for command in evaluation.commands) + '\n```'
+
+
 def commit() -> str:
     """Return the short commit of the tree, with ' and uncommitted changes' when it has any besides the page."""
     head = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=ROOT, capture_output=True, text=True).stdout
@@ -94,9 +99,8 @@ def run(name: str, evaluation: Evaluation, at: str) -> str:
                 raise SystemExit(f'results: {name}: `{shown(command)}` failed:\n{done.stderr.strip()}')
         lines = [line.rstrip() for line in done.stdout.replace(folder + '/', '').splitlines()]
     kept = '\n'.join(line for line in lines if not re.match(evaluation.drop, line)).strip('\n')
-    commands = '\n'.join(shown(command) for command in evaluation.commands)
     origin = f'At {at}, {evaluation.data} data (`tools/results.py --only {name}`):'
-    return f'```sh\n{commands}\n```\n\n{origin}\n\n```text\n{kept}\n```\n'
+    return f'{commands_shown(evaluation)}\n\n{origin}\n\n```text\n{kept}\n```\n'
 
 
 def with_block(page: str, name: str, body: str) -> str:
@@ -117,8 +121,7 @@ def check(page: str) -> tuple[list[str], list[str]]:
     stale = [
         f'block {name!r} does not show the commands that measure it'
         for name, evaluation in EVALUATIONS.items()
-        if name in blocks
-        and not blocks[name].startswith('```sh\n' + '\n'.join(shown(c) for c in evaluation.commands) + '\n```')
+        if name in blocks and not blocks[name].startswith(commands_shown(evaluation))
     ]
     return missing, stale
 
