@@ -8,9 +8,9 @@ simulator's in-process graph; the clock's jumps left out, SkynavNode.elapsed_ns:
 waits for it) with NO_INPUT, the map keeping what was stored. Its first feedback (0 snapshots) says
 teaching has begun. The localize node hands it every view it takes and every /odom message (on_odometry). When the
 goal ends the map is closed into one file and the nodes switch to it: the localize node itself and those of
-`teach_map_nodes` (their `map` parameter is set through their parameter services), before the result is sent. One
-goal at a time: a second one ends at once with BUSY. A goal canceled before its execution began ends at once,
-canceled, without a map (a client cancels a goal whose answer it did not get: skynav_core.goals).
+`teach_map_nodes` (their `map` parameter is set through their parameter services: skynav_core.peers), before the
+result is sent. One goal at a time: a second one ends at once with BUSY. A goal canceled before its execution began
+ends at once, canceled, without a map (a client cancels a goal whose answer it did not get: skynav_core.goals).
 
 A robot without wheel odometry still leaves its route's shape in the map: the node hands the server every
 velocity command on /cmd_vel too (on_command: the operator's teleoperation while teaching), and the teacher dead
@@ -19,18 +19,13 @@ reckons from them (skynav_localize.teaching.CommandedMotion).
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import Parameter as ParameterMessage
-from rcl_interfaces.msg import ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
 from rclpy.action import ActionServer, CancelResponse
-from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
@@ -39,6 +34,7 @@ from skynav_core.images import stamp_ns
 from skynav_core.names import TEACH_ACTION
 from skynav_core.namespaces import relative
 from skynav_core.node import SkynavNode
+from skynav_core.peers import PeerParameters
 from skynav_msgs.action import Teach
 
 from .teaching import NoInput, RouteTeacher, TeachError
@@ -48,7 +44,6 @@ ODOM_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=Rel
 COMMAND_QOS = ODOM_QOS  # best effort takes any teleoperation's commands, reliable or not
 INPUT_CHECK_PERIOD = 0.25  # s between checks for missing views
 SWITCH_TIMEOUT = 5.0  # s a node gets to take the new map
-POLL_PERIOD = 0.02  # s between looks at pending parameter requests
 
 
 @dataclass
@@ -67,12 +62,10 @@ def odometry_pose(message: Odometry) -> np.ndarray:
     return np.array([p.x, p.y, p.z, q.x, q.y, q.z, q.w])
 
 
-def map_parameters(path: str) -> list[ParameterMessage]:
-    """Return the `map` settings that make a node (re)load the map at `path`: none first, so a rewritten file loads."""
-    return [
-        ParameterMessage(name='map', value=ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value))
-        for value in ('', path)
-    ]
+def map_parameters(path: str) -> list[tuple[str, str]]:
+    """Return the `map` settings, in order, that make a node (re)load the map at `path`: none first, so a rewritten
+    file loads."""
+    return [('map', ''), ('map', path)]
 
 
 class TeachServer:
@@ -82,8 +75,7 @@ class TeachServer:
         self.node = node
         self.active: ActiveGoal | None = None
         self.settings: dict[str, Any] = {}
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._clients: dict[str, Any] = {}
+        self.peers = PeerParameters(node)
         self.server = ActionServer(
             node, Teach, relative(TEACH_ACTION), execute_callback=self.execute, cancel_callback=self.on_cancel
         )
@@ -97,8 +89,8 @@ class TeachServer:
             raise ValueError('odometry_tolerance must be at least 0')
         self.settings = values
         for name in values['teach_map_nodes']:
-            if name and name not in self._clients:
-                self._clients[name] = self.node.create_client(SetParameters, f'{name}/set_parameters')
+            if name:
+                self.peers.client(name)  # found long before a teach ends
 
     # --- inputs -----------------------------------------------------------------------------------------------
 
@@ -227,24 +219,14 @@ class TeachServer:
 
     async def switch_maps(self, path: str) -> None:
         """Make this node and those of teach_map_nodes use the map at `path`; log those that did not."""
-        results = self.node.set_parameters([Parameter('map', value=''), Parameter('map', value=path)])
+        results = self.node.set_parameters([Parameter(name, value=value) for name, value in map_parameters(path)])
         if not results[-1].successful:
             self.node.get_logger().error(f'cannot use the taught map {path}: {results[-1].reason}')
-        pending = {}
-        for name in self.settings['teach_map_nodes']:
-            client = self._clients.get(name)
-            if client is not None and client.service_is_ready():
-                pending[name] = client.call_async(SetParameters.Request(parameters=map_parameters(path)))
-            elif client is not None:
-                self.node.get_logger().warning(f'node {name} is not running: it keeps its map')
-        deadline = time.monotonic() + SWITCH_TIMEOUT
-        while any(not future.done() for future in pending.values()) and time.monotonic() < deadline:
-            await self.pause(POLL_PERIOD)
-        for name, future in pending.items():
-            response = future.result() if future.done() else None
-            if response is None or not response.results or not response.results[-1].successful:
-                reason = 'no answer' if response is None or not response.results else response.results[-1].reason
-                self.node.get_logger().error(f'node {name} did not take the taught map {path}: {reason}')
+        # a node not found by now is not running: it keeps its map
+        settings = {name: map_parameters(path) for name in self.settings['teach_map_nodes'] if name}
+        failures = await self.peers.set(settings, SWITCH_TIMEOUT, discovery=0.0, atomically=False)
+        for name, reason in failures.items():
+            self.node.get_logger().error(f'node {name} did not take the taught map {path}: {reason}')
 
     def close(self) -> None:
         """Close the map of a goal still being taught (the node shuts down): it keeps every snapshot stored."""
@@ -253,12 +235,3 @@ class TeachServer:
                 self.active.teacher.finish()
             except TeachError as exc:
                 self.node.get_logger().error(str(exc))
-
-    async def pause(self, seconds: float) -> None:
-        """Wait `seconds` (steady time) without blocking the node's executor."""
-        future = Future()
-        timer = self.node.create_timer(seconds, lambda: future.done() or future.set_result(None), clock=self._steady)
-        try:
-            await future
-        finally:
-            self.node.destroy_timer(timer)
