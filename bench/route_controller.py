@@ -24,6 +24,7 @@ import argparse  # noqa: E402
 import math  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -94,8 +95,9 @@ def bench_node(frames: int) -> None:
         specs = [s for s in installed_nodes() if s.name == 'route']
         with in_process(specs, ['-p', f'map:={path}', '-p', 'configure_peers:=false']) as graph:
             node = graph.nodes[0]
-            controller = RouteFollower(-1, 10**6, Limits(), Settings(), STRAIGHT)
-            node.active = ActiveGoal(FollowRoute, Handle(), controller, Future())
+            plan = node.goal_server.plan(FollowRoute.Goal(start_index=-1, end_index=-1), FollowRoute.Result)
+            plan = replace(plan, controller=RouteFollower(-1, 10**6, Limits(), Settings(), STRAIGHT))
+            node.active = ActiveGoal(FollowRoute, Handle(), plan, Future())
             coefficients = list(rng.normal(size=289))
             times = []
             for k in range(frames):

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
-"""FollowRoute and Home goals: which requests are refused, what the other nodes are set to, their time limits,
-feedback and results.
+"""FollowRoute and Home goals: their maps, which requests are refused, how each is driven (its controller, the other
+nodes' goal context, its time limit), feedback and results.
 
 A goal's time limit grows with the distance it drives: `goal_timeout` s plus `goal_time_factor` times the time the
 distance takes at the goal's speed limit. A follow goal's distance is the route's between its start (the first
@@ -19,10 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from skynav_core.names import COMPASS_NODE, LOCALIZE_NODE, WARPING_NODE
+from skynav_core.maps import MapError, MapStore
 from skynav_msgs.action import FollowRoute, Home
 
+from .context import GoalContext
 from .controller import LOCALIZING, LOST, Homer, RouteFollower, Step, TaughtRoute
+from .parameters import limits
 
 # how a goal ends besides the controller's REACHED and LOST
 CANCELED, STALE, TIMED_OUT, SHUTDOWN, BLOCKED = 'canceled', 'stale', 'timeout', 'shutdown', 'blocked'
@@ -34,6 +36,7 @@ MIN_SHAPE_LENGTH = 0.1  # m: a route shape by commands shorter than this had non
 # times the default spacing of `skynav teach` and `skynav map build` (0.1 m), as the limit is a backstop that must not
 # end a goal still driving (the watchdog and LOST stop a goal that cannot go on)
 UNKNOWN_SPACING = 1.0
+MAX_COMMAND_INTERVAL = 1.0  # s: the longest a command counts for in the distance driven without /odom
 SPACING_META = 'spacing_m'  # map metadata: the teach's spacing (m), as `skynav teach` writes it
 
 
@@ -121,24 +124,6 @@ def home_time_limit(home_distance: float, speed: float, fixed: float, factor: fl
     return TimeLimit(fixed, factor, home_distance, speed, 'home_distance')
 
 
-@dataclass
-class ActiveGoal:
-    """The goal being driven: its handle, its controller and how it ends."""
-
-    kind: Any  # the action FollowRoute or Home
-    handle: Any  # rclpy ServerGoalHandle
-    controller: RouteFollower | Homer
-    done: Any  # rclpy Future, given the outcome when the goal ends
-    time_limit: TimeLimit
-    started: int | None = None  # ns of elapsed time (the node's, its clock's jumps left out) at the goal's start
-    last_frame: int | None = None  # ns of elapsed time the last frame was processed (or the start)
-    stop_reason: str | None = None  # why an emergency stop ended it
-    driven: float = 0.0  # m
-    reached_index: int = -1
-    steps: int = 0
-    confidence: float = 0.0
-
-
 def route_shape(odometry: np.ndarray | None, commanded: np.ndarray | None) -> tuple[TaughtRoute | None, str]:
     """Return the taught route's shape and what it comes from: the teach's odometry poses, else its poses by the
     velocity commands ((N, 7) each, None if the map has none), else nothing (None, 'nothing')."""
@@ -178,34 +163,107 @@ def home_refusal(request: Home.Goal, count: int) -> Refusal | None:
     return None
 
 
-def peer_settings(node_map: str, goal_map: str, compass: dict, warping: dict) -> dict[str, dict[str, Any]]:
-    """Return {node: {parameter: value}} for compass and warping, and every map user when the goal's map is not
-    the route node's."""
-    peers = {COMPASS_NODE: dict(compass), WARPING_NODE: dict(warping)}
-    if goal_map != node_map:
-        peers[LOCALIZE_NODE] = {'map': goal_map}
-        for values in peers.values():
-            values['map'] = goal_map
-    return peers
+@dataclass(frozen=True)
+class RouteMap:
+    """A goal's map as the route node drives it: its snapshots, the route's shape and where they lie along it."""
+
+    path: str
+    count: int  # snapshots
+    route: TaughtRoute | None  # the route's shape (route_shape); None: steering on the home vectors alone
+    shape_source: str  # 'odometry', 'commands' or 'nothing'
+    length: RouteLength
+
+    def other_than(self, node_map: str) -> str:
+        """Return this map's path if it is not `node_map` (the route node's own), else '' (GoalContext.map_path)."""
+        return self.path if self.path != node_map else ''
 
 
-def follow_peers(node_map: str, goal_map: str, lookahead: int, start_index: int) -> dict[str, dict[str, Any]]:
-    """Return the other nodes' settings while following: the compass against the match, warping `lookahead`
-    snapshots ahead, localize tracking along the route (from `start_index` when the goal names one)."""
-    peers = peer_settings(node_map, goal_map, {'reference': 'match'}, {'target': 'next', 'lookahead': lookahead})
-    peers.setdefault(LOCALIZE_NODE, {}).update(tracking=True, tracking_start=start_index)
-    return peers
+def open_route_map(goal_map: str, node_map: str) -> RouteMap:
+    """Return the map a goal drives on: the goal's `map_path`, else the route node's `map`; raise MapError."""
+    path = goal_map or node_map
+    if not path:
+        raise MapError('no map: the goal names none and the route node has no `map` parameter')
+    with MapStore.open(path) as store:
+        count, odometry, commanded = len(store), store.odometry_poses(), store.commanded_poses()
+        route, source = route_shape(odometry, commanded)
+        length = route_length(count, odometry, commanded, store.meta)
+    return RouteMap(str(path), count, route, source, length)
 
 
-def home_peers(node_map: str, goal_map: str, index: int) -> dict[str, dict[str, Any]]:
-    """Return the other nodes' settings while homing: compass and warping against snapshot `index`."""
-    return peer_settings(
-        node_map, goal_map, {'reference': 'index', 'index': index}, {'target': 'index', 'index': index}
+@dataclass(frozen=True)
+class GoalPlan:
+    """How one accepted goal is driven."""
+
+    route_map: RouteMap
+    controller: RouteFollower | Homer
+    context: GoalContext  # what localize, compass and warping compare against meanwhile
+    time_limit: TimeLimit
+    end: int  # the snapshot it ends at (a Home goal's index)
+
+
+def plan_follow(request: FollowRoute.Goal, route_map: RouteMap, values: dict, settings: Any) -> GoalPlan | Refusal:
+    """Return how a FollowRoute request is driven with the route node's parameter `values` and controller
+    `settings`, or why it is refused."""
+    refusal = follow_refusal(request, route_map.count)
+    if refusal is not None:
+        return refusal
+    end, goal_limits = follow_end(request, route_map.count), limits(values, request.max_speed)
+    controller = RouteFollower(request.start_index, end, goal_limits, settings, route_map.route)
+    context = GoalContext.follow(values['lookahead'], request.start_index, route_map.other_than(values['map']))
+    time_limit = follow_time_limit(
+        route_map.length,
+        request.start_index,
+        end,
+        goal_limits.max_speed,
+        values['goal_timeout'],
+        values['goal_time_factor'],
     )
+    return GoalPlan(route_map, controller, context, time_limit, end)
 
 
-#: localize's settings once a follow goal has ended: off the route, the place is sought on the whole route again
-UNTRACKED = {LOCALIZE_NODE: {'tracking': False, 'tracking_start': -1}}
+def plan_home(request: Home.Goal, route_map: RouteMap, values: dict, settings: Any) -> GoalPlan | Refusal:
+    """Return how a Home request is driven with the route node's parameter `values` and controller `settings`, or
+    why it is refused."""
+    refusal = home_refusal(request, route_map.count)
+    if refusal is not None:
+        return refusal
+    goal_limits = limits(values, request.max_speed)
+    controller = Homer(request.index, goal_limits, settings)
+    context = GoalContext.home(request.index, route_map.other_than(values['map']))
+    time_limit = home_time_limit(
+        values['home_distance'], goal_limits.max_speed, values['goal_timeout'], values['goal_time_factor']
+    )
+    return GoalPlan(route_map, controller, context, time_limit, request.index)
+
+
+@dataclass
+class ActiveGoal:
+    """The goal being driven: its handle, how it is driven, how it ends and what it did so far."""
+
+    kind: Any  # the action FollowRoute or Home
+    handle: Any  # rclpy ServerGoalHandle
+    plan: GoalPlan
+    done: Any  # rclpy Future, given the outcome when the goal ends
+    started: int | None = None  # ns of elapsed time (the node's, its clock's jumps left out) at the goal's start
+    last_frame: int | None = None  # ns of elapsed time the last frame was processed (or the start)
+    stop_reason: str | None = None  # why an emergency stop ended it
+    driven: float = 0.0  # m
+    reached_index: int = -1
+    steps: int = 0
+    confidence: float = 0.0
+
+    def record(self, step: Step, odometry: float | None, stamp: int, previous: int, now: int) -> None:
+        """Count one answered frame: `odometry` m driven since the last (None: by the commands), its `stamp` and
+        the `previous` one's (ns; -1 none), `now` in elapsed ns."""
+        self.last_frame = now
+        self.started = now if self.started is None else self.started
+        self.steps += 1
+        self.confidence = step.confidence
+        if odometry is not None:
+            self.driven += odometry
+        elif previous >= 0:
+            self.driven += abs(step.command.linear) * min((stamp - previous) / 1e9, MAX_COMMAND_INTERVAL)
+        self.reached_index = max(self.reached_index, step.matched_index)
 
 
 def first_feedback(kind: Any) -> Any:

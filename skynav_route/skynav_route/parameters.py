@@ -87,10 +87,13 @@ PARAMETERS = {
         'works within a few metres of it',
     ),
     'configure_peers': Parameter(
-        True, "set the compass and warping nodes' snapshot choice (and map) for each goal through their parameters"
+        True,
+        "give the localize, compass and warping nodes each goal's context (snapshot choice, tracking, map) through "
+        'their parameters (skynav_route.context)',
     ),
     'peer_timeout': Parameter(
-        5.0, "how long to wait for the compass and warping nodes to take a goal's settings (s of steady, wall time)"
+        5.0,
+        "how long to wait for the localize, compass and warping nodes to take a goal's context (s of steady, wall time)",
     ),
     'max_tilt_deg': Parameter(
         35.0,

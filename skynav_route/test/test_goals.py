@@ -60,24 +60,6 @@ def test_a_home_request_is_refused_with_its_error_code(index, speed, code):
         assert 'snapshots 0..9' in refusal[1]
 
 
-def test_following_sets_the_compass_warping_and_localize_and_another_map_for_all_three():
-    own = goals.follow_peers('route.db', 'route.db', 6, 3)
-    assert own == {
-        'compass': {'reference': 'match'},
-        'warping': {'target': 'next', 'lookahead': 6},
-        'localize': {'tracking': True, 'tracking_start': 3},
-    }
-    other = goals.follow_peers('route.db', 'other.db', 6, -1)
-    assert all(values['map'] == 'other.db' for values in other.values())
-    assert other['localize']['tracking'] is True
-
-
-def test_homing_points_the_compass_and_warping_at_the_goal_snapshot():
-    own = goals.home_peers('route.db', 'route.db', 7)
-    assert own == {'compass': {'reference': 'index', 'index': 7}, 'warping': {'target': 'index', 'index': 7}}
-    assert goals.home_peers('route.db', 'other.db', 7)['localize'] == {'map': 'other.db'}
-
-
 def test_every_way_a_goal_fails_has_its_own_code_and_text():
     limit = goals.home_time_limit(10.0, 0.5, 120.0, 3.0)
     for kind in (FollowRoute, Home):

@@ -198,10 +198,10 @@ def test_a_goal_canceled_before_its_execution_began_never_drives(route_map, kind
             node = driver.node
             if kind == 'follow':
                 handle = CanceledGoalHandle(FollowRoute.Goal(start_index=-1, end_index=-1, max_speed=0.3))
-                result = run_without_waiting(node.execute_follow(handle))
+                result = run_without_waiting(node.goal_server.execute_follow(handle))
             else:
                 handle = CanceledGoalHandle(Home.Goal(index=4))
-                result = run_without_waiting(node.execute_home(handle))
+                result = run_without_waiting(node.goal_server.execute_home(handle))
             assert handle.ended == ['canceled'] and error_name(result) == 'NONE' and node.active is None
             for _ in range(3):
                 driver.publish_frame(home_index=4)
@@ -697,7 +697,7 @@ def test_a_namespaced_node_serves_its_actions_and_sets_its_peers_in_its_namespac
             assert '/robot1/skynav/home/_action/send_goal' in services
             assert '/robot1/skynav/follow_route/_action/send_goal' in services
             assert all(name.startswith('/robot1/') for name in services)
-            task = driver.executor.create_task(node.configure_peers({'compass': {'reference': 'match'}}))
+            task = driver.executor.create_task(node.goal_server.set_context({'compass': {'reference': 'match'}}))
             assert driver.spin_until(task.done)
             assert compass.get_parameter('reference').value == 'match'  # found as /robot1/compass
         finally:
@@ -712,7 +712,7 @@ def test_waiting_for_a_peer_ends_while_sim_time_stands_still(route_map):
         driver = Driver(graph)
         try:
             assert driver.node.get_clock().now().nanoseconds == 0
-            task = driver.executor.create_task(driver.node.configure_peers({'nobody': {'reference': 'match'}}))
+            task = driver.executor.create_task(driver.node.goal_server.set_context({'nobody': {'reference': 'match'}}))
             assert driver.spin_until(task.done)  # it gave up on the node that does not answer
             assert task.exception() is None
         finally:
