@@ -34,7 +34,7 @@ from skynav_core.images import stamp_ns
 from skynav_core.names import TEACH_ACTION
 from skynav_core.namespaces import relative
 from skynav_core.node import SkynavNode
-from skynav_core.peers import PeerParameters
+from skynav_core.peers import NOT_FOUND, PeerParameters
 from skynav_msgs.action import Teach
 
 from .teaching import NoInput, RouteTeacher, TeachError
@@ -222,11 +222,13 @@ class TeachServer:
         results = self.node.set_parameters([Parameter(name, value=value) for name, value in map_parameters(path)])
         if not results[-1].successful:
             self.node.get_logger().error(f'cannot use the taught map {path}: {results[-1].reason}')
-        # a node not found by now is not running: it keeps its map
         settings = {name: map_parameters(path) for name in self.settings['teach_map_nodes'] if name}
         failures = await self.peers.set(settings, SWITCH_TIMEOUT, discovery=0.0, atomically=False)
         for name, reason in failures.items():
-            self.node.get_logger().error(f'node {name} did not take the taught map {path}: {reason}')
+            if reason == NOT_FOUND:  # not found by now: not running
+                self.node.get_logger().warning(f'node {name} is not running: it keeps its map')
+            else:
+                self.node.get_logger().error(f'node {name} did not take the taught map {path}: {reason}')
 
     def close(self) -> None:
         """Close the map of a goal still being taught (the node shuts down): it keeps every snapshot stored."""
