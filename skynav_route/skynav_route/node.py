@@ -7,8 +7,9 @@ active it publishes exactly one command per camera frame it processes, stamped w
 command whenever it stops, and nothing while idle (docs/interfaces.md, "Driving" and "On a robot"). It never reads
 /ground_truth/*. Every name is relative to the node's namespace.
 
-The parts: skynav_route.goals (the goal's map, refusals, plan, time limit, results), skynav_route.context (what
-localize, compass and warping compare against during the goal, set through skynav_core.peers before it drives),
+The parts: skynav_route.goal_server (the two action servers), skynav_route.goals (a goal's map, refusals, plan,
+time limit, results), skynav_route.context (what localize, compass and warping compare against during the goal, set
+through skynav_core.peers before it drives),
 skynav_route.frames (which frame is processed when), skynav_route.controller (the command), skynav_route.safety
 (the emergency stop, the tilt and the bumper). The watchdog (a timer live, /clock in the in-process graph) ends a
 goal with STALE_INPUT when no frame was processed for `input_timeout` s and with TIMEOUT past its time limit, both

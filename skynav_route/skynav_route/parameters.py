@@ -93,7 +93,7 @@ PARAMETERS = {
     ),
     'peer_timeout': Parameter(
         5.0,
-        "how long to wait for the localize, compass and warping nodes to take a goal's context (s of steady, wall time)",
+        "how long the localize, compass and warping nodes get to take a goal's context (s of steady, wall time)",
     ),
     'max_tilt_deg': Parameter(
         35.0,
