@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from skynav_sh.basis import DEFAULT_DEGREE
 from skynav_sh.transform import grid
 from skynav_warping.views import WarpView, cap_fraction, rim_weights, view_from_samples
 
@@ -57,7 +58,7 @@ def render_equal_distance_view(
     position: np.ndarray,
     rotation: np.ndarray,
     field_of_view: float = np.radians(200),
-    degree: int = 16,
+    degree: int = DEFAULT_DEGREE,
     radius: float = 1.0,
     rim_taper: float = np.radians(10.0),
 ) -> WarpView:
